@@ -1,0 +1,74 @@
+// `lshloc info LOG...`: one JSON line per CARMEN log (scan and odometry counts,
+// beam counts, duration).
+#include <cstdio>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "lshloc/core/error.hpp"
+#include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/dataset_catalog.hpp"
+
+namespace lshloc::app {
+
+namespace {
+
+nlohmann::json summarize_log(const std::string& path) {
+  io::CarmenReader reader(path);
+  io::CarmenRecord rec;
+  std::size_t scans = 0, odometry = 0, params = 0;
+  std::set<std::size_t> beams;
+  // Duration from scan stamps where there are scans: corrected logs often
+  // carry placeholder odometry stamps.
+  struct Span {
+    double lo = 0.0, hi = 0.0;
+    bool any = false;
+    void add(double t) {
+      if (!any) lo = hi = t, any = true;
+      lo = std::min(lo, t), hi = std::max(hi, t);
+    }
+    double length() const { return any ? hi - lo : 0.0; }
+  } scan_span, odom_span;
+  while (reader.next(rec)) {
+    switch (rec.type) {
+      case io::CarmenRecord::Type::kLaser:
+        ++scans, beams.insert(rec.scan.size()), scan_span.add(rec.scan.timestamp);
+        break;
+      case io::CarmenRecord::Type::kOdometry: ++odometry, odom_span.add(rec.odometry.timestamp); break;
+      case io::CarmenRecord::Type::kParam: ++params; break;
+    }
+  }
+  return {{"file", path},         {"scans", scans},   {"odometry", odometry},
+          {"beams", beams},       {"params", params}, {"duration_s", scans > 1 ? scan_span.length() : odom_span.length()}};
+}
+
+}  // namespace
+
+void add_info_command(CLI::App& app, GlobalOptions& global) {
+  auto* cmd = app.add_subcommand("info",
+                                 "Summarize CARMEN logs: one JSON line per log with its scan count (FLASER +\n"
+                                 "ROBOTLASER1), odometry count (ODOM), distinct beam counts and duration.\n"
+                                 "With no LOG, every log of the data directory is summarized.");
+  auto logs = std::make_shared<std::vector<std::string>>();
+  cmd->add_option("LOG", *logs, "CARMEN log files, plain or .gz");
+  cmd->callback([&global, logs] {
+    std::vector<std::string> files = *logs;
+    if (files.empty()) {
+      const io::DatasetCatalog catalog(io::DatasetCatalog::resolve_data_dir(global.data_dir));
+      files = catalog.existing_logs();
+      if (files.empty()) throw Error("no logs found in data directory " + catalog.data_dir());
+    }
+    for (const auto& f : files) {
+      try {
+        std::printf("%s\n", summarize_log(f).dump().c_str());
+        std::fflush(stdout);
+      } catch (const Error& e) {
+        std::fprintf(stderr, "lshloc: error: %s\n", e.what());
+        global.exit_code = 1;
+      }
+    }
+  });
+}
+
+}  // namespace lshloc::app

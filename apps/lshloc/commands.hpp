@@ -1,0 +1,19 @@
+#pragma once
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace lshloc::app {
+
+/// Options shared by every subcommand, and the process exit code the chosen
+/// subcommand sets.
+struct GlobalOptions {
+  std::string data_dir;  ///< --data; empty: LSHLOC_DATA, else ../shared/data
+  int exit_code = 0;
+};
+
+// Each adds its subcommand to `app`; the subcommand's callback does the work
+// and throws lshloc::Error on bad input.
+void add_info_command(CLI::App& app, GlobalOptions& global);
+
+}  // namespace lshloc::app

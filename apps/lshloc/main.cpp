@@ -1,0 +1,32 @@
+// lshloc: global localization of 2D-laser robots in large, growing maps
+// (LSH-RANSAC). This file only wires the subcommands together.
+#include <cstdio>
+#include <exception>
+
+#include "commands.hpp"
+#include "lshloc/core/error.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "lshloc: finds a 2D-laser robot's building and pose (x, y, heading) in a global map of many\n"
+      "buildings that mapper robots are still building (LSH-RANSAC: an incremental LSH appearance\n"
+      "database proposes poses, incremental preemptive RANSAC verifies them).\n"};
+  app.require_subcommand(1);
+  lshloc::app::GlobalOptions global;
+  app.add_option("--data", global.data_dir,
+                 "data directory with the CARMEN logs (default: $LSHLOC_DATA, else ../shared/data)")
+      ->envname("LSHLOC_DATA");
+  lshloc::app::add_info_command(app, global);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const lshloc::Error& e) {
+    std::fprintf(stderr, "lshloc: error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "lshloc: internal error: %s\n", e.what());
+    return 3;
+  }
+  return global.exit_code;
+}

@@ -1,0 +1,47 @@
+#pragma once
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lshloc::io {
+
+/// Streams the lines of a text file, plain or gzip-compressed (detected from
+/// the content, not the name). Only one line is held in memory at a time.
+/// A truncated or corrupt gzip stream throws lshloc::Error naming the file and
+/// the line where the data ended. Not thread-safe; one reader per thread.
+class LineReader {
+ public:
+  explicit LineReader(std::string path);
+  ~LineReader();
+  LineReader(const LineReader&) = delete;
+  LineReader& operator=(const LineReader&) = delete;
+
+  /// Reads the next line without its end-of-line characters. Returns false at
+  /// the end of the file.
+  bool next(std::string& line);
+
+  const std::string& path() const { return path_; }
+  std::size_t line_number() const { return line_number_; }
+
+  /// "path:line" of the line last returned, for error messages.
+  std::string where() const;
+
+ private:
+  void check_stream_error();
+  std::string path_;
+  void* gz_ = nullptr;  // gzFile, kept opaque so that zlib.h stays private
+  std::size_t line_number_ = 0;
+  std::vector<char> buffer_;
+};
+
+/// Splits a line into whitespace-separated fields (views into `line`).
+void split_fields(std::string_view line, std::vector<std::string_view>& fields);
+
+/// Parses a field as a number or throws lshloc::Error naming `where`, the
+/// field's index and what was expected. Accepts "nan"/"inf" (the caller
+/// decides whether they are valid).
+double parse_double(std::string_view field, const std::string& where, std::size_t index, const char* what);
+long parse_int(std::string_view field, const std::string& where, std::size_t index, const char* what);
+
+}  // namespace lshloc::io

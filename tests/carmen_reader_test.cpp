@@ -1,0 +1,172 @@
+#include "lshloc/io/carmen_reader.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+
+#include "lshloc/core/error.hpp"
+#include "test_support.hpp"
+
+namespace lshloc::io {
+namespace {
+
+std::string flaser_line(int n, double r, double t, const std::string& first = "") {
+  std::string s = "FLASER " + std::to_string(n);
+  for (int i = 0; i < n; ++i) s += " " + ((i == 0 && !first.empty()) ? first : std::to_string(r));
+  s += " 1.0 2.0 0.5 1.1 2.1 0.6 " + std::to_string(t) + " host " + std::to_string(t) + "\n";
+  return s;
+}
+
+std::string expect_error(const std::string& text, const std::string& suffix = ".log") {
+  const std::string path = test::temp_path(suffix);
+  test::write_file(path, text);
+  try {
+    read_carmen_log(path);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no error for: " << text.substr(0, 80);
+  return "";
+}
+
+TEST(CarmenReader, ReadsFlaserOdomParamAndSkipsTheRest) {
+  const std::string path = test::temp_path(".log");
+  test::write_file(path, "# a comment\n\nPARAM robot_frontlaser_offset -0.04 nohost 0\nPARAM robot_front_laser_max 80.99 h 0\n"
+                         "NEFF 10 0 pippo 0\nSYNC foo\nODOM 1 2 0.1 0.5 0.0 0 100.5 host 100.5\n" +
+                             flaser_line(180, 2.5, 101.0) + flaser_line(361, 81.91, 102.0));
+  const CarmenLog log = read_carmen_log(path);
+  ASSERT_EQ(log.scans.size(), 2u);
+  ASSERT_EQ(log.odometry.size(), 1u);
+  EXPECT_DOUBLE_EQ(log.odometry[0].timestamp, 100.5);
+  EXPECT_DOUBLE_EQ(log.odometry[0].pose.x, 1.0);
+  EXPECT_NEAR(log.front_laser_offset().x, -0.04, 1e-12);
+  const LaserScan& a = log.scans[0];
+  EXPECT_EQ(a.size(), 180u);
+  EXPECT_DOUBLE_EQ(a.timestamp, 101.0);
+  EXPECT_DOUBLE_EQ(a.pose.x, 1.0);
+  EXPECT_DOUBLE_EQ(a.odometry.theta, 0.6);
+  EXPECT_EQ(a.source_line, 8u);
+  EXPECT_NEAR(a.max_range, 80.99, 1e-12);
+  // 180 beams of 1 degree, centred: first at -89.5 degrees.
+  EXPECT_NEAR(a.bearing(0), -std::numbers::pi / 2 + std::numbers::pi / 360, 1e-12);
+  EXPECT_NEAR(a.bearing(179), std::numbers::pi / 2 - std::numbers::pi / 360, 1e-12);
+  EXPECT_EQ(a.status(0), BeamStatus::kValid);
+  const LaserScan& b = log.scans[1];
+  EXPECT_EQ(b.size(), 361u);
+  EXPECT_NEAR(b.bearing(0), -std::numbers::pi / 2, 1e-12);
+  EXPECT_NEAR(b.bearing(360), std::numbers::pi / 2, 1e-12);
+  EXPECT_EQ(b.status(5), BeamStatus::kNoReturn);
+  EXPECT_TRUE(b.endpoints().empty());
+}
+
+TEST(CarmenReader, GzipEqualsPlain) {
+  const std::string text = flaser_line(360, 3.0, 5.0) + "ODOM 0 0 0 0 0 0 5.1 h 5.1\n" + flaser_line(360, 4.0, 6.0);
+  const std::string plain = test::temp_path(".log"), gz = test::temp_path(".log.gz");
+  test::write_file(plain, text);
+  test::write_file(gz, text);
+  const auto a = read_carmen_log(plain), b = read_carmen_log(gz);
+  ASSERT_EQ(a.scans.size(), b.scans.size());
+  ASSERT_EQ(a.scans.size(), 2u);
+  EXPECT_EQ(a.scans[1].ranges, b.scans[1].ranges);
+  EXPECT_EQ(a.odometry.size(), b.odometry.size());
+}
+
+TEST(CarmenReader, InvalidReadingsAreFlaggedNotFatal) {
+  const std::string path = test::temp_path(".log");
+  std::string line = flaser_line(4, 2.0, 1.0);
+  line.replace(line.find("2.000000"), 8, "nan");
+  line.replace(line.find("2.000000"), 8, "-1.5");
+  line.replace(line.find("2.000000"), 8, "inf");
+  test::write_file(path, line);
+  const auto log = read_carmen_log(path);
+  ASSERT_EQ(log.scans.size(), 1u);
+  const auto& s = log.scans[0];
+  EXPECT_EQ(s.status(0), BeamStatus::kInvalid);
+  EXPECT_EQ(s.status(1), BeamStatus::kInvalid);
+  EXPECT_EQ(s.status(2), BeamStatus::kInvalid);
+  EXPECT_EQ(s.status(3), BeamStatus::kValid);
+  EXPECT_EQ(s.endpoints().size(), 1u);
+}
+
+TEST(CarmenReader, RobotLaser1TakesItsOwnGeometry) {
+  // type start fov res maxrange acc rem n r.. m rem.. lx ly lth rx ry rth tv rv fs ss ta ts host lts
+  std::string line = "ROBOTLASER1 0 -1.5708 3.1416 0.0174533 30.0 0.01 0 3 1.0 30.0 2.0 0 "
+                     "0.5 0.6 0.7 0.1 0.2 0.3 0 0 0 0 0 55.5 host 55.5\n";
+  const std::string path = test::temp_path(".log");
+  test::write_file(path, line);
+  const auto log = read_carmen_log(path);
+  ASSERT_EQ(log.scans.size(), 1u);
+  const auto& s = log.scans[0];
+  EXPECT_NEAR(s.angle_min, -1.5708, 1e-12);
+  EXPECT_NEAR(s.angle_increment, 3.1416 / 2, 1e-12);
+  EXPECT_DOUBLE_EQ(s.max_range, 30.0);
+  EXPECT_EQ(s.status(1), BeamStatus::kNoReturn);
+  EXPECT_DOUBLE_EQ(s.pose.x, 0.5);
+  EXPECT_DOUBLE_EQ(s.odometry.theta, 0.3);
+  EXPECT_DOUBLE_EQ(s.timestamp, 55.5);
+}
+
+TEST(CarmenReader, MalformedLinesNameFileLineAndExpectation) {
+  std::string e = expect_error("ODOM 0 0 0 0 0 0 1 h 1\nFLASER 3 1.0 abc\n");
+  EXPECT_NE(e.find(":2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("expected"), std::string::npos) << e;
+  e = expect_error(flaser_line(5, 1.0, 1.0, "x1.2"));
+  EXPECT_NE(e.find(":1:"), std::string::npos) << e;
+  EXPECT_NE(e.find("'x1.2'"), std::string::npos) << e;
+  // Beam count disagrees with the number of fields.
+  std::string bad = flaser_line(5, 1.0, 1.0);
+  bad.replace(0, 8, "FLASER 7");
+  e = expect_error(bad);
+  EXPECT_NE(e.find("expected"), std::string::npos) << e;
+  e = expect_error("FLASER\n");
+  EXPECT_NE(e.find(":1:"), std::string::npos) << e;
+  e = expect_error("ODOM 1 2\n");
+  EXPECT_NE(e.find("ODOM"), std::string::npos) << e;
+  e = expect_error("FLASER -3 1 2 3\n");
+  EXPECT_NE(e.find("beam count"), std::string::npos) << e;
+  e = expect_error(flaser_line(2, 1.0, 1.0) + "FLASER 2 1.0 1.0 nan 0 0 0 0 0 1 h 1\n", ".log.gz");
+  EXPECT_NE(e.find(":2:"), std::string::npos) << e;
+}
+
+TEST(CarmenReader, TruncatedGzipIsAnError) {
+  std::string text;
+  for (int i = 0; i < 2000; ++i) text += flaser_line(180, 1.0 + i % 7, i);
+  const std::string gz = test::temp_path(".log.gz");
+  test::write_file(gz, text);
+  std::ifstream in(gz, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string cut = test::temp_path(".log.gz");
+  std::ofstream(cut, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2));
+  try {
+    read_carmen_log(cut);
+    FAIL() << "a truncated gzip file was read without error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(cut), std::string::npos) << e.what();
+  }
+}
+
+TEST(CarmenReader, MissingFileIsAClearError) {
+  try {
+    read_carmen_log("/nonexistent/dir/x.log.gz");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no such file"), std::string::npos);
+  }
+}
+
+TEST(CarmenReaderRealData, MitCsailOdometryComesFromFlaser) {
+  LSHLOC_REQUIRE_DATA(dir);
+  const auto log = read_carmen_log(dir + "/mit-csail/mit-csail.clf.gz");
+  EXPECT_EQ(log.scans.size(), 1988u);
+  EXPECT_TRUE(log.odometry.empty());
+  // Odometry must move over the run even without ODOM lines.
+  EXPECT_GT(translation_distance(log.scans.front().odometry, log.scans.back().odometry) +
+                angle_distance(log.scans.front().odometry.theta, log.scans.back().odometry.theta),
+            0.5);
+  EXPECT_NEAR(log.scans[0].max_range, 81.0, 1e-9);  // no PARAM: the default
+}
+
+}  // namespace
+}  // namespace lshloc::io

@@ -1,0 +1,143 @@
+#include "lshloc/pipeline/scenario.hpp"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "lshloc/core/error.hpp"
+#include "lshloc/io/dataset_catalog.hpp"
+#include "test_support.hpp"
+
+namespace lshloc {
+namespace {
+
+LaserScan scan_at(double t, float seed) {
+  LaserScan s;
+  s.timestamp = t;
+  s.ranges = {seed, seed + 1.0f, seed + 2.0f};
+  return s;
+}
+
+// A building of 100 raw scans (1 s apart); every 5th is in the corrected log.
+BuildingRecording synthetic_building() {
+  BuildingRecording rec;
+  rec.name = "fr079";
+  for (int i = 0; i < 100; ++i) rec.raw_scans.push_back(scan_at(1000.0 + i, static_cast<float>(i)));
+  for (int i = 0; i < 100; i += 5) {
+    LaserScan c = scan_at(0.1 * i, static_cast<float>(i));  // its own clock
+    c.pose = Pose2(i, 0, 0);
+    rec.corrected_scans.push_back(c);
+    rec.truth.push_back({1000.0 + i + 0.0004, Pose2(i, 0, 0)});
+  }
+  return rec;
+}
+
+void expect_disjoint(const Submap& map_side, const TargetRun& target) {
+  std::set<std::vector<float>> target_ranges;
+  for (const auto& s : target.scans) target_ranges.insert(s.ranges);
+  for (const auto& s : map_side.scans) EXPECT_FALSE(target_ranges.count(s.ranges)) << "map scan repeats a target scan";
+}
+
+TEST(Scenario, SplitsAroundTheWindowWithAGuard) {
+  const auto rec = synthetic_building();
+  ScenarioConfig cfg;
+  cfg.start = 40;
+  cfg.length = 20;
+  cfg.guard_s = 10.0;
+  Submap map_side;
+  TargetRun target;
+  split_target_building(rec, cfg, map_side, target);
+  ASSERT_EQ(target.scans.size(), 20u);
+  EXPECT_DOUBLE_EQ(target.scans.front().timestamp, 1040.0);
+  // Corrected scans at 0..25 and 75..95 remain (the window plus guard covers 30..69).
+  std::vector<double> xs;
+  for (const auto& s : map_side.scans) xs.push_back(s.pose.x);
+  EXPECT_EQ(xs, (std::vector<double>{0, 5, 10, 15, 20, 25, 70, 75, 80, 85, 90, 95}));
+  expect_disjoint(map_side, target);
+  // Truth joins within 1 ms: raw scans 40, 45, 50, 55.
+  std::size_t with_truth = 0;
+  for (std::size_t i = 0; i < target.truth.size(); ++i) {
+    if (target.truth[i]) {
+      ++with_truth;
+      EXPECT_DOUBLE_EQ(target.truth[i]->x, 40.0 + static_cast<double>(i));
+    }
+  }
+  EXPECT_EQ(with_truth, 4u);
+}
+
+TEST(Scenario, RejectsWindowsThatDoNotFit) {
+  const auto rec = synthetic_building();
+  ScenarioConfig cfg;
+  cfg.start = 90;
+  cfg.length = 20;
+  Submap m;
+  TargetRun t;
+  EXPECT_THROW(split_target_building(rec, cfg, m, t), Error);
+  cfg.length = 0;
+  EXPECT_THROW(split_target_building(rec, cfg, m, t), Error);
+}
+
+TEST(Scenario, OtherBuildingsFollowAFixedOrderOrASeededShuffle) {
+  ScenarioConfig cfg;
+  cfg.submaps = 5;
+  EXPECT_EQ(other_buildings(cfg), (std::vector<std::string>{"intel", "aces", "fr101", "mit-csail"}));
+  cfg.building = "intel";
+  EXPECT_EQ(other_buildings(cfg), (std::vector<std::string>{"fr079", "aces", "fr101", "mit-csail"}));
+  cfg.seed = 7;
+  const auto a = other_buildings(cfg), b = other_buildings(cfg);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(a.size(), 4u);
+  EXPECT_EQ(std::count(a.begin(), a.end(), "intel"), 0);
+  cfg.submaps = 16;
+  EXPECT_THROW(other_buildings(cfg), Error);
+  cfg.submaps = 2;
+  cfg.building = "atlantis";
+  EXPECT_THROW(other_buildings(cfg), Error);
+}
+
+TEST(ScenarioRealData, TargetWindowNeverInTheMap) {
+  LSHLOC_REQUIRE_DATA(dir);
+  const io::DatasetCatalog catalog(dir);
+  ScenarioConfig cfg;
+  cfg.building = "fr079";
+  cfg.start = 2000;
+  cfg.length = 1000;
+  cfg.submaps = 2;
+  const Scenario sc = io::load_scenario(catalog, cfg);
+  ASSERT_EQ(sc.submaps.size(), 2u);
+  EXPECT_EQ(sc.submaps[1].name, "intel");
+  ASSERT_EQ(sc.target.scans.size(), 1000u);
+  const double t0 = sc.target.scans.front().timestamp, t1 = sc.target.scans.back().timestamp;
+  // By time stamp: every map scan's raw time lies outside the window plus guard.
+  const auto rec = catalog.load("fr079", true);
+  std::set<std::vector<float>> map_ranges;
+  for (const auto& s : sc.submaps[0].scans) map_ranges.insert(s.ranges);
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < rec.corrected_scans.size(); ++k) {
+    if (map_ranges.count(rec.corrected_scans[k].ranges)) {
+      ++kept;
+      const double t = rec.truth[k].timestamp;
+      EXPECT_TRUE(t < t0 - 60.0 || t > t1 + 60.0) << "map scan at raw time " << t << " is inside the window";
+    }
+  }
+  EXPECT_GT(kept, 2500u);
+  // By identical ranges: no target scan is in the map.
+  expect_disjoint(sc.submaps[0], sc.target);
+  std::size_t truth = 0;
+  for (const auto& t : sc.target.truth) truth += t.has_value();
+  EXPECT_GT(truth, 900u);  // fr079 has ground truth on 97% of scans
+}
+
+TEST(DatasetCatalog, KnowsFifteenBuildingsAndReportsMissingThings) {
+  EXPECT_THROW(io::DatasetCatalog("/nonexistent/data/dir"), Error);
+  LSHLOC_REQUIRE_DATA(dir);
+  const io::DatasetCatalog catalog(dir);
+  EXPECT_EQ(catalog.buildings().size(), 15u);
+  EXPECT_EQ(catalog.existing_logs().size(), 20u);
+  EXPECT_THROW(catalog.building("atlantis"), Error);
+  EXPECT_TRUE(catalog.building("fr101").relations.empty());
+  EXPECT_FALSE(catalog.building("mit-csail").relations.empty());
+}
+
+}  // namespace
+}  // namespace lshloc

@@ -1,0 +1,41 @@
+#include "test_support.hpp"
+
+#include <zlib.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+#include <unistd.h>
+
+namespace lshloc::test {
+
+std::optional<std::string> data_dir() {
+  std::error_code ec;
+  if (const char* env = std::getenv("LSHLOC_DATA"); env && *env && std::filesystem::is_directory(env, ec)) return env;
+  const auto p = std::filesystem::path(LSHLOC_SOURCE_DIR) / ".." / "shared" / "data";
+  if (std::filesystem::is_directory(p, ec)) return p.string();
+  return std::nullopt;
+}
+
+std::string temp_path(const std::string& suffix) {
+  static std::atomic<int> counter{0};
+  return (std::filesystem::temp_directory_path() /
+          ("lshloc-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++) + suffix))
+      .string();
+}
+
+void write_file(const std::string& path, const std::string& text) {
+  if (path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0) {
+    gzFile f = gzopen(path.c_str(), "wb");
+    if (!f) throw std::runtime_error("cannot write " + path);
+    gzwrite(f, text.data(), static_cast<unsigned>(text.size()));
+    gzclose(f);
+  } else {
+    std::ofstream(path) << text;
+  }
+}
+
+}  // namespace lshloc::test

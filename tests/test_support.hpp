@@ -1,0 +1,23 @@
+#pragma once
+#include <optional>
+#include <string>
+
+namespace lshloc::test {
+
+/// The shared data directory if it exists ($LSHLOC_DATA, else ../shared/data
+/// beside the source tree), or nullopt: tests that need real logs skip then.
+std::optional<std::string> data_dir();
+
+/// A fresh temporary file path with the given suffix (removed at exit is not
+/// guaranteed; files are small).
+std::string temp_path(const std::string& suffix);
+
+/// Writes `text` to `path`, gzip-compressed when the path ends in .gz.
+void write_file(const std::string& path, const std::string& text);
+
+}  // namespace lshloc::test
+
+#define LSHLOC_REQUIRE_DATA(dir)                                                               \
+  const auto dir##_opt = ::lshloc::test::data_dir();                                           \
+  if (!dir##_opt) GTEST_SKIP() << "shared data directory not found (set LSHLOC_DATA); skipped"; \
+  const std::string dir = *dir##_opt
