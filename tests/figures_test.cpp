@@ -1,0 +1,57 @@
+#include "lshloc/io/figures.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "lshloc/core/error.hpp"
+#include "test_support.hpp"
+
+namespace lshloc::io {
+namespace {
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+TEST(Figures, WritesPngAndSvg) {
+  ErrorSeries s{"R = 1", {}, {}};
+  for (int i = 0; i < 200; ++i) {
+    s.viewpoint.push_back(i);
+    s.error_m.push_back(i < 30 ? std::numeric_limits<double>::infinity() : (i % 10 == 0 ? NAN : 0.1 + 0.001 * i));
+  }
+  const std::string png = test::temp_path(".png"), svg = test::temp_path(".svg");
+  plot_error_curves(png, "fr079", {s, s});
+  plot_error_curves(svg, "fr079", {s});
+  EXPECT_EQ(slurp(png).substr(1, 3), "PNG");
+  EXPECT_NE(slurp(svg).find("<svg"), std::string::npos);
+
+  MapFigure m;
+  m.title = "map";
+  for (int i = 0; i < 100; ++i) m.map_points.emplace_back(std::cos(i * 0.1) * 10, std::sin(i * 0.1) * 5);
+  m.true_trajectory = {{0, 0}, {1, 1}, {2, 1}};
+  m.estimated_trajectory = {{0, 0.1}, {1, 1.1}};
+  m.inlier_points = {{0.5, 0.5}};
+  m.outlier_points = {{3, 3}};
+  const std::string map_png = test::temp_path(".png");
+  plot_map_figure(map_png, m);
+  EXPECT_GT(slurp(map_png).size(), 1000u);
+
+  const std::string cost_svg = test::temp_path(".svg");
+  plot_cost_curves(cost_svg, "costs", "us per feature", {{"update", {1e3, 1e5, 1e6}, {2.0, 2.1, 2.2}}});
+  EXPECT_NE(slurp(cost_svg).find("<svg"), std::string::npos);
+}
+
+TEST(Figures, RejectsUnknownFormatsAndUnwritablePaths) {
+  EXPECT_THROW(plot_error_curves(test::temp_path(".jpg"), "t", {}), Error);
+  EXPECT_THROW(plot_error_curves("/nonexistent/dir/x.png", "t", {}), Error);
+}
+
+}  // namespace
+}  // namespace lshloc::io
