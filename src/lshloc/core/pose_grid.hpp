@@ -1,0 +1,193 @@
+#pragma once
+// Universal-hash pose grid (DESIGN.md §4 "Hash map (UH grid)", paper §IV-A):
+// the cells of every submap's (x, y, theta) grid that hold something live in
+// ONE 1-D open-addressing table, keyed by a universal hash of
+// (submap, ix, iy, itheta). Memory grows with the cells used, not with the
+// bounding box of the map, and the table doubles (rehash) when it gets full.
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <numbers>
+#include <vector>
+
+namespace lshloc {
+
+/// What a pose-grid cell holds: a small set of flags (OR-ed together when a
+/// cell is marked more than once). 0 means "nothing known".
+using CellFlags = std::uint8_t;
+namespace cell_flags {
+inline constexpr CellFlags kOccupied = 1;  ///< a map feature / scan endpoint lies in the cell
+inline constexpr CellFlags kFree = 2;      ///< a map ray passed through the cell (negative evidence)
+}  // namespace cell_flags
+
+/// How a probe tolerates neighbouring cells.
+enum class ToleranceMode : std::uint8_t {
+  /// Each mark writes its flags into every cell of the tolerance window; a
+  /// probe reads one cell. Fast probes, (2t+1)^2 (2u+1) times the bins.
+  kDilateAtInsert,
+  /// Each mark writes one cell; a probe ORs the flags of every cell of the
+  /// window. Small table, (2t+1)^2 (2u+1) lookups per probe.
+  kProbeNeighbours,
+};
+
+struct PoseGridConfig {
+  double cell_size = 0.2;    ///< [m] edge of an (x, y) cell
+  int theta_bins = 36;       ///< heading bins over 2 pi (36: 10 degrees); 1 = a plain 2-D grid
+  int xy_tolerance = 0;      ///< [cells] neighbours on each side in x and y that also count
+  int theta_tolerance = 1;   ///< [bins] neighbours on each side in heading (wraps at +-pi)
+  ToleranceMode tolerance_mode = ToleranceMode::kDilateAtInsert;
+  double max_load_factor = 0.5;       ///< used bins / capacity that triggers a doubling
+  std::size_t initial_capacity = 1024;  ///< [bins] rounded up to a power of two
+  std::uint64_t seed = 0x5eed0001;    ///< picks the universal hash function
+
+  /// Throws lshloc::Error when a field is out of range.
+  void validate() const;
+};
+
+struct PoseGridStats {
+  std::size_t bins_used = 0;       ///< cells stored (non-empty slots)
+  std::size_t capacity = 0;        ///< slots in the table
+  double load = 0.0;               ///< bins_used / capacity
+  std::size_t rehashes = 0;        ///< doublings so far
+  std::size_t memory_bytes = 0;    ///< bytes of the table itself
+  std::size_t marks = 0;           ///< mark() calls
+  std::size_t submaps = 0;         ///< submaps with at least one cell
+  /// The dense grid the table replaces: per submap, the bounding box of its
+  /// cells (in cells) times theta_bins, summed over submaps.
+  double dense_cells = 0.0;
+  double grid_fraction = 0.0;      ///< bins_used / dense_cells (the paper's "< 3%")
+  double table_fraction = 0.0;     ///< capacity / dense_cells (what memory really holds)
+};
+
+/// One cell index of the pose grid.
+struct PoseCell {
+  std::uint32_t submap = 0;
+  std::int32_t ix = 0, iy = 0, itheta = 0;
+  friend bool operator==(const PoseCell&, const PoseCell&) = default;
+  friend auto operator<=>(const PoseCell&, const PoseCell&) = default;
+};
+
+/// The universal-hash pose grid.
+///
+/// Storage: one 64-bit slot per bin, the packed cell key (submap 14 bits,
+/// ix and iy 17 bits each, itheta 8 bits) in the high 56 bits and the
+/// CellFlags in the low 8 bits, so a lookup touches one cache line and a
+/// slot with flags 0 is empty. Memory: 8 bytes per slot, i.e.
+/// 8 / load bytes per stored cell (16-32 bytes at the default bound of 0.5).
+/// Limits: submap < 16384, |ix|, |iy| < 65536 cells (+-13 km at 0.2 m),
+/// theta_bins <= 255; mark() outside them throws, probe() outside them
+/// returns 0.
+///
+/// Hash: multiply-add-shift (Dietzfelbinger) h(k) = (a k + b) >> (64 - log2
+/// capacity) with a odd, both drawn from the seed: a universal family, so no
+/// input layout (a corridor along x, many submaps) can make collisions
+/// systematically worse. Linear probing; the table doubles and every cell is
+/// re-inserted when bins_used would pass max_load_factor * capacity.
+///
+/// Thread safety: const methods (probe, lookup, stats) may run concurrently
+/// with each other; mark() must not run concurrently with anything.
+class PoseGridHashMap {
+ public:
+  explicit PoseGridHashMap(PoseGridConfig config = {});
+
+  const PoseGridConfig& config() const { return config_; }
+
+  /// ORs `flags` (non-zero) into the cell of (x, y, theta) of `submap`, and in
+  /// kDilateAtInsert mode into every cell of its tolerance window.
+  void mark(std::uint32_t submap, double x, double y, double theta,
+            CellFlags flags = cell_flags::kOccupied);
+  /// mark() with the occupied flag: a map feature / endpoint at this pose.
+  void insert(std::uint32_t submap, double x, double y, double theta) { mark(submap, x, y, theta); }
+
+  /// The OR of the flags in the tolerance window around (x, y, theta) of
+  /// `submap` (in kDilateAtInsert mode that is the one cell's flags).
+  CellFlags probe(std::uint32_t submap, double x, double y, double theta) const;
+
+  /// The flags of exactly this cell (no tolerance).
+  CellFlags lookup(const PoseCell& cell) const;
+
+  /// The cell (x, y, theta) falls into; theta is wrapped into [0, 2 pi).
+  PoseCell cell_of(std::uint32_t submap, double x, double y, double theta) const;
+
+  PoseGridStats stats() const;
+
+  // --- The pieces of a lookup, for callers that batch many probes (iRANSAC
+  // scoring): compute keys, prefetch their home slots, then look them up. ---
+
+  /// Packed key of a cell, or kInvalidKey when the cell is outside the limits.
+  static constexpr std::uint64_t kInvalidKey = ~std::uint64_t{0};
+  static std::uint64_t pack(std::uint32_t submap, std::int32_t ix, std::int32_t iy, std::int32_t itheta) {
+    const std::uint32_t bx = static_cast<std::uint32_t>(ix + kCoordBias);
+    const std::uint32_t by = static_cast<std::uint32_t>(iy + kCoordBias);
+    if (submap >= kMaxSubmaps || bx >= kCoordRange || by >= kCoordRange) return kInvalidKey;
+    return (std::uint64_t{submap} << 42) | (std::uint64_t{bx} << 25) | (std::uint64_t{by} << 8) |
+           static_cast<std::uint64_t>(itheta);
+  }
+  /// The home slot of a packed key in the current table.
+  std::size_t home_slot(std::uint64_t key) const {
+    return static_cast<std::size_t>((hash_a_ * key + hash_b_) >> shift_);
+  }
+  /// Hints the CPU to fetch the home slot of `key` (no effect on results).
+  void prefetch(std::uint64_t key) const {
+    if (key != kInvalidKey) __builtin_prefetch(&slots_[home_slot(key)]);
+  }
+  /// The flags of the cell with this packed key (0 when absent or invalid).
+  CellFlags lookup_key(std::uint64_t key) const {
+    if (key == kInvalidKey) return 0;
+    const std::uint64_t tagged = key << 8;
+    std::size_t i = home_slot(key);
+    for (;;) {
+      const std::uint64_t s = slots_[i];
+      if ((s & 0xff) == 0) return 0;
+      if ((s & ~std::uint64_t{0xff}) == tagged) return static_cast<CellFlags>(s & 0xff);
+      i = (i + 1) & mask_;
+    }
+  }
+  /// [1/m] and [bins/rad] scale factors and bin count, for callers that
+  /// compute cell indices themselves (in float, in a hot loop).
+  double inv_cell_size() const { return inv_cell_; }
+  double bins_per_radian() const { return bins_per_rad_; }
+  int theta_bins() const { return config_.theta_bins; }
+  /// The heading bins of the tolerance window around bin `itheta`: `count`
+  /// bins from `first`, taken modulo theta_bins (wraps at +-pi). A window as
+  /// wide as the circle covers each bin once.
+  struct ThetaWindow {
+    int first = 0, count = 1;
+  };
+  ThetaWindow theta_window(int itheta) const {
+    const int u = config_.theta_tolerance, bins = config_.theta_bins;
+    if (2 * u + 1 >= bins) return {0, bins};
+    return {itheta - u + bins, 2 * u + 1};
+  }
+  /// Whether probe() must look at neighbours (kProbeNeighbours with a
+  /// non-zero tolerance).
+  bool probes_neighbours() const { return probe_neighbours_; }
+
+  static constexpr std::uint32_t kMaxSubmaps = 1u << 14;
+  static constexpr std::int32_t kCoordBias = 1 << 16;
+  static constexpr std::uint32_t kCoordRange = 1u << 17;
+
+ private:
+  void mark_cell(std::uint64_t key, CellFlags flags);
+  void grow();
+  void set_capacity(std::size_t capacity);
+
+  PoseGridConfig config_;
+  double inv_cell_ = 5.0;
+  double bins_per_rad_ = 1.0;
+  bool probe_neighbours_ = false;
+  std::uint64_t hash_a_ = 1, hash_b_ = 0;
+  unsigned shift_ = 54;
+  std::size_t mask_ = 0;
+  std::vector<std::uint64_t> slots_;
+  std::size_t used_ = 0;
+  std::size_t rehashes_ = 0;
+  std::size_t marks_ = 0;
+  /// Per submap: bounding box of its cells (for the dense-grid comparison).
+  struct Box {
+    std::int32_t x0 = 0, x1 = -1, y0 = 0, y1 = -1;
+  };
+  std::vector<Box> boxes_;
+};
+
+}  // namespace lshloc

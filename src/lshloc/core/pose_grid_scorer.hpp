@@ -1,0 +1,51 @@
+#pragma once
+// The iRANSAC score c(p, x) against the universal-hash pose grid (DESIGN.md
+// §4): the local point x, moved by hypothesis p into submap r, scores `hit`
+// when its cell (with the grid's tolerance) holds a map feature of r, `free`
+// when the cell is only known free (negative evidence), else `unknown`.
+#include <cstdint>
+#include <vector>
+
+#include "lshloc/core/incremental_ransac.hpp"
+#include "lshloc/core/pose_grid.hpp"
+
+namespace lshloc {
+
+struct PoseGridScorerConfig {
+  float hit = 1.0f;      ///< score of a point whose cell holds kOccupied
+  float free = 0.0f;     ///< score of a point whose cell holds only kFree (e.g. -0.5: a penalty)
+  float unknown = 0.0f;  ///< score of a point in a cell the map knows nothing about
+};
+
+/// A Scorer for IncrementalRansac (see there). Each call transforms one local
+/// point by every hypothesis of the batch (floats, precomputed cos/sin),
+/// packs all cell keys, then looks them up with prefetching a few keys ahead,
+/// so the table's cache misses overlap instead of queueing.
+///
+/// Holds a reference to the grid (which must outlive it) and its own scratch
+/// space: one scorer per thread. The grid must not change during a call.
+class PoseGridScorer {
+ public:
+  explicit PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config = {});
+
+  void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);
+
+  /// The cell of local point x under hypothesis j of v, computed exactly as
+  /// operator() does (float transform): for tests and diagnostics.
+  PoseCell cell_of(const LocalPoint& x, const HypothesisBatch& v, std::size_t j) const;
+
+  std::uint64_t lookups() const { return lookups_; }
+
+ private:
+  void compute_keys(const HypothesisBatch& v, int dx, int dy, int dtheta, bool absolute_theta);
+
+  const PoseGridHashMap& grid_;
+  PoseGridScorerConfig config_;
+  float value_[4];  ///< score by (flags & 3)
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::int32_t> ix_, iy_, it_;
+  std::vector<CellFlags> flags_;
+  std::uint64_t lookups_ = 0;
+};
+
+}  // namespace lshloc

@@ -1,0 +1,291 @@
+#include "lshloc/core/pose_grid.hpp"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <numbers>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "lshloc/core/error.hpp"
+#include "lshloc/core/pose_grid_scorer.hpp"
+
+namespace lshloc {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+/// The brute-force reference: cell -> flags in a std::map, the tolerance
+/// window enumerated cell by cell.
+class BruteForceGrid {
+ public:
+  explicit BruteForceGrid(const PoseGridHashMap& shape) : shape_(shape) {}
+  void mark(const PoseCell& c, CellFlags f) { cells_[c] |= f; }
+  std::vector<PoseCell> window(const PoseCell& c) const {
+    const auto& cfg = shape_.config();
+    std::set<PoseCell> out;
+    for (int dx = -cfg.xy_tolerance; dx <= cfg.xy_tolerance; ++dx)
+      for (int dy = -cfg.xy_tolerance; dy <= cfg.xy_tolerance; ++dy)
+        for (int dt = -cfg.theta_tolerance; dt <= cfg.theta_tolerance; ++dt) {
+          const int bins = cfg.theta_bins;
+          out.insert({c.submap, c.ix + dx, c.iy + dy, ((c.itheta + dt) % bins + bins) % bins});
+        }
+    return {out.begin(), out.end()};
+  }
+  CellFlags window_or(const PoseCell& c) const {
+    CellFlags f = 0;
+    for (const PoseCell& w : window(c)) {
+      auto it = cells_.find(w);
+      if (it != cells_.end()) f |= it->second;
+    }
+    return f;
+  }
+  std::size_t size() const { return cells_.size(); }
+
+ private:
+  const PoseGridHashMap& shape_;
+  std::map<PoseCell, CellFlags> cells_;
+};
+
+struct MarkedPose {
+  std::uint32_t submap;
+  double x, y, theta;
+  CellFlags flags;
+};
+
+std::vector<MarkedPose> random_marks(std::size_t n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> xy(-30.0, 30.0), th(-kPi, kPi);
+  std::uniform_int_distribution<std::uint32_t> sub(0, 4), fl(1, 3);
+  std::vector<MarkedPose> out;
+  for (std::size_t i = 0; i < n; ++i)
+    out.push_back({sub(rng), xy(rng), xy(rng), th(rng), static_cast<CellFlags>(fl(rng))});
+  return out;
+}
+
+/// Random probe poses: half near marked poses (so both answers occur), half anywhere.
+std::vector<MarkedPose> probe_poses(const std::vector<MarkedPose>& marks, std::size_t n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> dxy(-0.4, 0.4), dth(-0.3, 0.3);
+  std::uniform_int_distribution<std::size_t> pick(0, marks.size() - 1);
+  auto out = random_marks(n, seed + 1);
+  for (std::size_t i = 0; i < n; i += 2) {
+    const auto& m = marks[pick(rng)];
+    out[i] = {m.submap, m.x + dxy(rng), m.y + dxy(rng), m.theta + dth(rng), 0};
+  }
+  return out;
+}
+
+/// Cells the table must hold: the marked cells, or in kDilateAtInsert mode
+/// the union of their tolerance windows.
+std::size_t expected_bins(const BruteForceGrid& ref, const std::vector<PoseCell>& marked, ToleranceMode mode) {
+  std::set<PoseCell> cells;
+  for (const PoseCell& c : marked) {
+    if (mode == ToleranceMode::kProbeNeighbours) {
+      cells.insert(c);
+    } else {
+      for (const PoseCell& w : ref.window(c)) cells.insert(w);
+    }
+  }
+  return cells.size();
+}
+
+void check_against_brute_force(PoseGridConfig cfg) {
+  cfg.initial_capacity = 4;  // force many doublings
+  PoseGridHashMap grid(cfg);
+  BruteForceGrid ref(grid);  // holds the marked cells; probes OR over the window
+  std::vector<PoseCell> marked;
+  const auto marks = random_marks(6000, 11);
+  for (const auto& m : marks) {
+    grid.mark(m.submap, m.x, m.y, m.theta, m.flags);
+    marked.push_back(grid.cell_of(m.submap, m.x, m.y, m.theta));
+    ref.mark(marked.back(), m.flags);
+  }
+  const PoseGridStats s = grid.stats();
+  EXPECT_EQ(s.bins_used, expected_bins(ref, marked, cfg.tolerance_mode));
+  EXPECT_GE(s.rehashes, 8u);
+  EXPECT_LE(s.load, cfg.max_load_factor);
+  EXPECT_EQ(s.memory_bytes, s.capacity * 8);
+  EXPECT_EQ(s.submaps, 5u);
+
+  for (const auto& m : marks) {
+    const PoseCell c = grid.cell_of(m.submap, m.x, m.y, m.theta);
+    ASSERT_EQ(grid.probe(m.submap, m.x, m.y, m.theta), ref.window_or(c));
+    ASSERT_NE(grid.probe(m.submap, m.x, m.y, m.theta), 0);
+  }
+  std::size_t nonzero = 0, zero = 0;
+  for (const auto& q : probe_poses(marks, 20000, 12)) {
+    const PoseCell c = grid.cell_of(q.submap, q.x, q.y, q.theta);
+    const CellFlags f = grid.probe(q.submap, q.x, q.y, q.theta);
+    ASSERT_EQ(f, ref.window_or(c)) << q.x << " " << q.y << " " << q.theta;
+    (f != 0 ? nonzero : zero) += 1;
+  }
+  EXPECT_GT(nonzero, 150u);  // the probes do test both answers
+  EXPECT_GT(zero, 1000u);
+}
+
+TEST(PoseGrid, MatchesBruteForceWithoutTolerance) {
+  PoseGridConfig cfg;
+  cfg.xy_tolerance = 0, cfg.theta_tolerance = 0;
+  check_against_brute_force(cfg);
+}
+
+TEST(PoseGrid, MatchesBruteForceDilatingAtInsert) {
+  PoseGridConfig cfg;
+  cfg.xy_tolerance = 1, cfg.theta_tolerance = 1, cfg.tolerance_mode = ToleranceMode::kDilateAtInsert;
+  check_against_brute_force(cfg);
+}
+
+TEST(PoseGrid, MatchesBruteForceProbingNeighbours) {
+  PoseGridConfig cfg;
+  cfg.xy_tolerance = 1, cfg.theta_tolerance = 1, cfg.tolerance_mode = ToleranceMode::kProbeNeighbours;
+  check_against_brute_force(cfg);
+}
+
+TEST(PoseGrid, BothToleranceModesAnswerTheSame) {
+  PoseGridConfig a, b;
+  a.xy_tolerance = b.xy_tolerance = 2;
+  a.theta_tolerance = b.theta_tolerance = 2;
+  a.tolerance_mode = ToleranceMode::kDilateAtInsert;
+  b.tolerance_mode = ToleranceMode::kProbeNeighbours;
+  PoseGridHashMap ga(a), gb(b);
+  for (const auto& m : random_marks(2000, 21)) ga.mark(m.submap, m.x, m.y, m.theta, m.flags), gb.mark(m.submap, m.x, m.y, m.theta, m.flags);
+  for (const auto& q : random_marks(20000, 22))
+    ASSERT_EQ(ga.probe(q.submap, q.x, q.y, q.theta), gb.probe(q.submap, q.x, q.y, q.theta));
+  EXPECT_GT(ga.stats().bins_used, 50 * gb.stats().bins_used);  // 5 x 5 x 5 window, few overlaps
+}
+
+TEST(PoseGrid, HeadingWrapsAroundInBothModes) {
+  for (const auto mode : {ToleranceMode::kDilateAtInsert, ToleranceMode::kProbeNeighbours}) {
+    PoseGridConfig cfg;
+    cfg.theta_bins = 36, cfg.theta_tolerance = 1, cfg.tolerance_mode = mode;
+    PoseGridHashMap grid(cfg);
+    grid.insert(0, 1.1, 2.1, -0.01);       // bin 35 (headings are binned over [0, 2 pi))
+    grid.insert(0, 5.1, 5.1, kPi - 0.001);  // bin 17
+    EXPECT_EQ(grid.cell_of(0, 1.1, 2.1, -0.01).itheta, 35);
+    EXPECT_EQ(grid.cell_of(0, 1.1, 2.1, 0.01).itheta, 0);
+    EXPECT_TRUE(grid.probe(0, 1.1, 2.1, 0.01));  // bin 0 is next to bin 35
+    EXPECT_TRUE(grid.probe(0, 1.1, 2.1, 2 * kPi - 0.01));
+    EXPECT_FALSE(grid.probe(0, 1.1, 2.1, 0.2));  // bin 1: two bins away
+    EXPECT_TRUE(grid.probe(0, 5.1, 5.1, -kPi + 0.001));  // +pi and -pi are neighbours
+    EXPECT_TRUE(grid.probe(0, 5.1, 5.1, kPi + 0.05));
+    EXPECT_FALSE(grid.probe(1, 5.1, 5.1, kPi));  // other submap
+  }
+  PoseGridConfig exact;
+  exact.theta_tolerance = 0;
+  PoseGridHashMap grid(exact);
+  grid.insert(0, 5.1, 5.1, kPi - 0.001);
+  EXPECT_FALSE(grid.probe(0, 5.1, 5.1, -kPi + 0.001));
+  EXPECT_TRUE(grid.probe(0, 5.1, 5.1, -kPi - 0.001));
+}
+
+TEST(PoseGrid, OneHeadingBinIsAPlainTwoDimensionalGrid) {
+  for (const auto mode : {ToleranceMode::kDilateAtInsert, ToleranceMode::kProbeNeighbours}) {
+    PoseGridConfig cfg;
+    cfg.theta_bins = 1, cfg.theta_tolerance = 3, cfg.xy_tolerance = 0, cfg.cell_size = 0.5;
+    cfg.tolerance_mode = mode;
+    PoseGridHashMap grid(cfg);
+    grid.mark(2, 1.2, -0.7, 0.0, cell_flags::kFree);
+    for (double th : {-3.0, -1.0, 0.0, 2.0, 3.1}) EXPECT_EQ(grid.probe(2, 1.4, -0.6, th), cell_flags::kFree);
+    EXPECT_EQ(grid.probe(2, 1.6, -0.6, 0.0), 0);  // next cell in x
+    EXPECT_EQ(grid.stats().bins_used, 1u);
+    EXPECT_DOUBLE_EQ(grid.stats().dense_cells, 1.0);
+  }
+}
+
+TEST(PoseGrid, FlagsAccumulateByOr) {
+  PoseGridHashMap grid;
+  grid.mark(0, 0.05, 0.05, 0.0, cell_flags::kFree);
+  EXPECT_EQ(grid.lookup(grid.cell_of(0, 0.05, 0.05, 0.0)), cell_flags::kFree);
+  grid.mark(0, 0.05, 0.05, 0.0, cell_flags::kOccupied);
+  EXPECT_EQ(grid.lookup(grid.cell_of(0, 0.05, 0.05, 0.0)), cell_flags::kFree | cell_flags::kOccupied);
+  EXPECT_EQ(grid.stats().marks, 2u);
+}
+
+TEST(PoseGrid, DenseCellsAreTheBoundingBoxesTimesHeadingBins) {
+  PoseGridConfig cfg;
+  cfg.cell_size = 1.0, cfg.theta_bins = 10, cfg.xy_tolerance = 1, cfg.theta_tolerance = 1;
+  PoseGridHashMap grid(cfg);
+  grid.insert(0, 0.5, 0.5, 0.0);
+  grid.insert(0, 9.5, 4.5, 1.0);  // submap 0: 10 x 5 cells
+  grid.insert(3, -2.5, 7.5, 0.0);  // submap 3: 1 cell
+  const auto s = grid.stats();
+  EXPECT_DOUBLE_EQ(s.dense_cells, (10.0 * 5.0 + 1.0) * 10.0);
+  EXPECT_EQ(s.bins_used, 3u * 27u);  // dilated 3 x 3 x 3, disjoint windows
+  EXPECT_DOUBLE_EQ(s.grid_fraction, 81.0 / 510.0);
+  EXPECT_EQ(s.submaps, 2u);
+}
+
+TEST(PoseGrid, RejectsBadInput) {
+  PoseGridConfig bad;
+  bad.cell_size = 0.0;
+  EXPECT_THROW(PoseGridHashMap{bad}, Error);
+  bad = {};
+  bad.theta_bins = 0;
+  EXPECT_THROW(PoseGridHashMap{bad}, Error);
+  bad = {};
+  bad.max_load_factor = 1.0;
+  EXPECT_THROW(PoseGridHashMap{bad}, Error);
+  PoseGridHashMap grid;
+  EXPECT_THROW(grid.insert(0, 1e5, 0.0, 0.0), Error);          // beyond 65536 cells
+  EXPECT_THROW(grid.insert(20000, 0.0, 0.0, 0.0), Error);      // submap beyond 16383
+  EXPECT_THROW(grid.insert(0, std::nan(""), 0.0, 0.0), Error);
+  EXPECT_THROW(grid.mark(0, 0.0, 0.0, 0.0, 0), Error);
+  EXPECT_EQ(grid.probe(0, 1e5, 0.0, 0.0), 0);  // out of range: nothing known
+  EXPECT_EQ(grid.probe(0, std::nan(""), 0.0, 0.0), 0);
+  EXPECT_EQ(grid.stats().bins_used, 0u);
+}
+
+/// The scorer must agree with a brute-force window OR over the same cells.
+void check_scorer(ToleranceMode mode, int xy_tol, int theta_tol) {
+  PoseGridConfig cfg;
+  cfg.xy_tolerance = xy_tol, cfg.theta_tolerance = theta_tol, cfg.tolerance_mode = mode;
+  cfg.cell_size = 0.5;
+  PoseGridHashMap grid(cfg);
+  BruteForceGrid ref(grid);
+  const auto marks = random_marks(5000, 31);
+  for (const auto& m : marks) {
+    grid.mark(m.submap, m.x, m.y, m.theta, m.flags);
+    ref.mark(grid.cell_of(m.submap, m.x, m.y, m.theta), m.flags);
+  }
+  // Hypotheses: half map a marked pose exactly onto the local point, half random.
+  std::mt19937 rng(32);
+  std::uniform_real_distribution<double> xy(-30.0, 30.0), th(-kPi, kPi);
+  const LocalPoint x{1.5f, -0.75f, 0.3f};
+  std::vector<std::uint32_t> submap;
+  std::vector<float> tx, ty, co, si, theta;
+  for (std::size_t j = 0; j < 3000; ++j) {
+    Pose2 T(xy(rng), xy(rng), th(rng));
+    std::uint32_t r = static_cast<std::uint32_t>(j % 5);
+    if (j % 2 == 0) {
+      const auto& m = marks[j];
+      T = Pose2(m.x, m.y, m.theta) * Pose2(x.x, x.y, x.theta).inverse();
+      r = m.submap;
+    }
+    submap.push_back(r), tx.push_back(static_cast<float>(T.x)), ty.push_back(static_cast<float>(T.y));
+    co.push_back(static_cast<float>(std::cos(T.theta))), si.push_back(static_cast<float>(std::sin(T.theta)));
+    theta.push_back(static_cast<float>(T.theta));
+  }
+  const HypothesisBatch v{submap.data(), tx.data(), ty.data(), co.data(), si.data(), theta.data(), tx.size()};
+  PoseGridScorer scorer(grid, {1.0f, -0.5f, 0.0f});
+  std::vector<float> scores(v.size);
+  scorer(x, v, scores.data());
+  std::size_t hits = 0, frees = 0;
+  for (std::size_t j = 0; j < v.size; ++j) {
+    const CellFlags f = ref.window_or(scorer.cell_of(x, v, j));
+    const float expected = (f & cell_flags::kOccupied) ? 1.0f : (f & cell_flags::kFree) ? -0.5f : 0.0f;
+    ASSERT_EQ(scores[j], expected) << "hypothesis " << j;
+    hits += expected > 0, frees += expected < 0;
+  }
+  EXPECT_GT(hits, 600u);
+  EXPECT_GT(frees, 100u);
+}
+
+TEST(PoseGridScorer, MatchesBruteForceWithoutTolerance) { check_scorer(ToleranceMode::kDilateAtInsert, 0, 0); }
+TEST(PoseGridScorer, MatchesBruteForceDilatingAtInsert) { check_scorer(ToleranceMode::kDilateAtInsert, 1, 1); }
+TEST(PoseGridScorer, MatchesBruteForceProbingNeighbours) { check_scorer(ToleranceMode::kProbeNeighbours, 1, 1); }
+TEST(PoseGridScorer, MatchesBruteForceProbingHeadingOnly) { check_scorer(ToleranceMode::kProbeNeighbours, 0, 2); }
+
+}  // namespace
+}  // namespace lshloc
