@@ -3,15 +3,13 @@
 #include <vector>
 
 #include "lshloc/core/laser_scan.hpp"
+#include "lshloc/core/relations_metric.hpp"
 
 namespace lshloc::io {
 
-/// A Kümmerle et al. (2009) benchmark relation: the motion from the scan at t1
-/// to the scan at t2, in the frame of t1.
-struct Relation {
-  double t1 = 0.0, t2 = 0.0;  ///< [s]
-  Pose2 motion;
-};
+/// A Kümmerle et al. (2009) benchmark relation (defined in core, where the
+/// relations metric uses it).
+using Relation = ::lshloc::Relation;
 
 /// Reads `timestamp x y theta` lines (`*.gfs-poses-at-*-stamps.txt`); `#` lines
 /// and blank lines are skipped. Errors name file:line.

@@ -1,0 +1,235 @@
+// `lshloc slam --log LOG [--relations REL] [--out traj.tum] [--json]`: builds
+// the local map of a raw log by scan matching, writes the trajectory and, with
+// relations, scores it (and raw odometry, and GMapping where the catalog has
+// its poses) by the Kümmerle et al. (2009) relations metric.
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <numbers>
+#include <optional>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "lshloc/core/error.hpp"
+#include "lshloc/core/relations_metric.hpp"
+#include "lshloc/core/scan_matcher.hpp"
+#include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/dataset_catalog.hpp"
+#include "lshloc/io/ground_truth.hpp"
+#include "lshloc/io/trajectory_writer.hpp"
+
+namespace lshloc::app {
+
+namespace {
+
+struct SlamOptions {
+  std::string log, relations, out, per_scan;
+  bool json = false;
+  double max_range = ScanMatcherConfig{}.max_range;
+  std::size_t window = ScanMatcherConfig{}.window_keyframes;
+  std::vector<std::string> settings;  ///< --set NAME=VALUE
+};
+
+/// Applies `--set NAME=VALUE` to the matcher's config (tuning experiments).
+void apply_setting(ScanMatcherConfig& c, const std::string& setting) {
+  const auto eq = setting.find('=');
+  if (eq == std::string::npos) throw Error("--set '" + setting + "': expected NAME=VALUE");
+  const std::string name = setting.substr(0, eq), text = setting.substr(eq + 1);
+  double value = 0.0;
+  try {
+    std::size_t used = 0;
+    value = std::stod(text, &used);
+    if (used != text.size()) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    throw Error("--set " + name + ": '" + text + "' is not a number");
+  }
+  const auto count = [&] { return static_cast<std::size_t>(std::llround(std::max(0.0, value))); };
+  if (name == "min_range") c.min_range = value;
+  else if (name == "max_range") c.max_range = value;
+  else if (name == "scan_voxel") c.scan_voxel = value;
+  else if (name == "window_keyframes") c.window_keyframes = count();
+  else if (name == "keyframe_distance") c.keyframe_distance = value;
+  else if (name == "keyframe_angle") c.keyframe_angle = value;
+  else if (name == "map_voxel") c.map_voxel = value;
+  else if (name == "normal_radius") c.normal_radius = value;
+  else if (name == "normal_beam_gaps") c.normal_beam_gaps = value;
+  else if (name == "normal_max_neighbours") c.normal_max_neighbours = count();
+  else if (name == "normal_min_points") c.normal_min_points = count();
+  else if (name == "max_line_flatness") c.max_line_flatness = value;
+  else if (name == "coarse_correspondence") c.coarse_correspondence = value;
+  else if (name == "fine_correspondence") c.fine_correspondence = value;
+  else if (name == "coarse_iterations") c.coarse_iterations = count();
+  else if (name == "max_iterations") c.max_iterations = count();
+  else if (name == "robust_scale") c.robust_scale = value;
+  else if (name == "rotation_length") c.rotation_length = value;
+  else if (name == "degeneracy_threshold") c.degeneracy_threshold = value;
+  else if (name == "inlier_distance") c.inlier_distance = value;
+  else if (name == "min_quality") c.min_quality = value;
+  else if (name == "min_correspondences") c.min_correspondences = count();
+  else if (name == "max_correction_translation") c.max_correction_translation = value;
+  else if (name == "max_correction_rotation") c.max_correction_rotation = value;
+  else if (name == "odometry_prior") c.odometry_prior = value != 0.0;
+  else if (name == "point_sigma") c.point_sigma = value;
+  else if (name == "odometry_sigma_translation") c.odometry_sigma_translation = value;
+  else if (name == "odometry_sigma_per_meter") c.odometry_sigma_per_meter = value;
+  else if (name == "odometry_sigma_rotation") c.odometry_sigma_rotation = value;
+  else if (name == "odometry_sigma_rotation_per_rad") c.odometry_sigma_rotation_per_rad = value;
+  else if (name == "odometry_sigma_rotation_per_meter") c.odometry_sigma_rotation_per_meter = value;
+  else if (name == "keep_oldest_map_points") c.keep_oldest_map_points = value != 0.0;
+  else throw Error("--set: unknown scan matcher parameter '" + name + "' (see ScanMatcherConfig)");
+}
+
+/// The ground-truth (GMapping) poses file of the building whose raw log is
+/// `log`, or "" when the catalog knows none.
+std::string gmapping_poses_for(const std::string& log, const std::string& data_dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path log_path = fs::weakly_canonical(log, ec);
+  try {
+    const io::DatasetCatalog catalog(io::DatasetCatalog::resolve_data_dir(data_dir));
+    for (const auto& b : catalog.buildings()) {
+      if (b.raw_log.empty() || b.poses.empty()) continue;
+      if (fs::weakly_canonical(b.raw_log, ec) == log_path && fs::is_regular_file(b.poses, ec)) return b.poses;
+    }
+  } catch (const Error&) {
+    // No data directory: no GMapping row.
+  }
+  return "";
+}
+
+nlohmann::json metric_or_null(const std::optional<RelationsError>& e, bool rotation) {
+  if (!e || e->matched == 0) return nullptr;
+  return rotation ? e->mean_rotation * 180.0 / std::numbers::pi : e->mean_translation;
+}
+
+void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
+  const bool progress = isatty(STDERR_FILENO) != 0;
+  if (progress) std::fprintf(stderr, "reading %s ...\n", opt.log.c_str());
+  const io::CarmenLog log = io::read_carmen_log(opt.log);
+  if (log.scans.empty()) throw Error(opt.log + ": the log holds no laser scans (FLASER / ROBOTLASER1)");
+  std::vector<Relation> relations;
+  if (!opt.relations.empty()) relations = io::read_relations(opt.relations);
+
+  ScanMatcherConfig config;
+  config.laser_offset = log.front_laser_offset();
+  config.max_range = opt.max_range;
+  config.window_keyframes = opt.window;
+  for (const auto& setting : opt.settings) apply_setting(config, setting);
+  ScanMatcher matcher(config);
+
+  std::vector<StampedPose> trajectory, odometry;
+  trajectory.reserve(log.scans.size());
+  odometry.reserve(log.scans.size());
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> per_scan(nullptr, &std::fclose);
+  if (!opt.per_scan.empty()) {
+    per_scan.reset(std::fopen(opt.per_scan.c_str(), "w"));
+    if (!per_scan) throw Error(opt.per_scan + ": cannot open for writing (--per-scan)");
+    std::fprintf(per_scan.get(), "# timestamp x y theta source quality iterations correspondences degenerate keyframe\n");
+  }
+  using Clock = std::chrono::steady_clock;
+  Clock::duration busy{};
+  for (std::size_t i = 0; i < log.scans.size(); ++i) {
+    const LaserScan& scan = log.scans[i];
+    const auto start = Clock::now();
+    const ScanMatchResult r = matcher.add_scan(scan);
+    busy += Clock::now() - start;
+    trajectory.push_back({scan.timestamp, r.robot_pose});
+    odometry.push_back({scan.timestamp, scan.odometry});
+    if (per_scan) {
+      static constexpr const char* kSource[] = {"first", "matched", "odometry", "stationary"};
+      std::fprintf(per_scan.get(), "%.6f %.6f %.6f %.6f %s %.3f %zu %zu %d %d\n", scan.timestamp, r.robot_pose.x,
+                   r.robot_pose.y, r.robot_pose.theta, kSource[static_cast<int>(r.source)], r.quality, r.iterations,
+                   r.correspondences, r.degenerate ? 1 : 0, r.new_keyframe ? 1 : 0);
+    }
+    if (progress && (i + 1) % 500 == 0) {
+      std::fprintf(stderr, "\r%zu / %zu scans", i + 1, log.scans.size());
+      std::fflush(stderr);
+    }
+  }
+  if (progress) std::fprintf(stderr, "\r%zu / %zu scans\n", log.scans.size(), log.scans.size());
+  const double seconds = std::chrono::duration<double>(busy).count();
+  const double scans_per_s = seconds > 0.0 ? static_cast<double>(log.scans.size()) / seconds : 0.0;
+
+  if (!opt.out.empty()) io::write_tum_trajectory(opt.out, trajectory);
+
+  std::optional<RelationsError> ours, odom, gmapping;
+  if (!opt.relations.empty()) {
+    ours = evaluate_relations(trajectory, relations);
+    odom = evaluate_relations(odometry, relations);
+    if (ours->matched == 0) {
+      throw Error(opt.relations + ": none of its " + std::to_string(relations.size()) +
+                  " relations has both stamps among the scans of " + opt.log +
+                  " (within 1 ms); do the relations belong to this log?");
+    }
+    const std::string poses = gmapping_poses_for(opt.log, global.data_dir);
+    if (!poses.empty()) gmapping = evaluate_relations(io::read_pose_file(poses), relations);
+  }
+
+  const ScanMatcherStats& st = matcher.stats();
+  if (opt.json) {
+    nlohmann::json j = {{"scans", log.scans.size()},
+                        {"relations", ours ? nlohmann::json(ours->matched) : nlohmann::json(nullptr)},
+                        {"trans_err_m", metric_or_null(ours, false)},
+                        {"rot_err_deg", metric_or_null(ours, true)},
+                        {"odom_trans_err_m", metric_or_null(odom, false)},
+                        {"odom_rot_err_deg", metric_or_null(odom, true)},
+                        {"gmapping_trans_err_m", metric_or_null(gmapping, false)},
+                        {"gmapping_rot_err_deg", metric_or_null(gmapping, true)},
+                        {"scans_per_s", scans_per_s},
+                        {"matched", st.matched},
+                        {"odometry_fallbacks", st.odometry_fallbacks},
+                        {"stationary", st.stationary},
+                        {"degenerate", st.degenerate},
+                        {"keyframes", st.keyframes}};
+    std::printf("%s\n", j.dump().c_str());
+    return;
+  }
+  std::printf("%s: %zu scans, %.0f scans/s (matcher only); matched %zu, odometry fallbacks %zu, stationary %zu, "
+              "degenerate %zu, keyframes %zu\n",
+              opt.log.c_str(), log.scans.size(), scans_per_s, st.matched, st.odometry_fallbacks, st.stationary,
+              st.degenerate, st.keyframes);
+  if (ours) {
+    std::printf("relations: %zu of %zu matched\n", ours->matched, ours->relations);
+    const auto row = [](const char* name, const std::optional<RelationsError>& e) {
+      if (!e || e->matched == 0) {
+        std::printf("  %-9s  -\n", name);
+        return;
+      }
+      std::printf("  %-9s  trans %.4f m  rot %.3f deg  (%zu relations)\n", name, e->mean_translation,
+                  e->mean_rotation * 180.0 / std::numbers::pi, e->matched);
+    };
+    row("lshloc", ours);
+    row("odometry", odom);
+    row("gmapping", gmapping);
+  }
+  if (!opt.out.empty()) std::printf("trajectory written to %s (TUM)\n", opt.out.c_str());
+}
+
+}  // namespace
+
+void add_slam_command(CLI::App& app, GlobalOptions& global) {
+  auto* cmd = app.add_subcommand("slam",
+                                 "Build the local map of a raw CARMEN log by scan matching (the target robot's\n"
+                                 "\"simple scan matching as SLAM\") and report its accuracy by the Kuemmerle et al.\n"
+                                 "(2009) relations metric, next to raw odometry and GMapping.");
+  auto opt = std::make_shared<SlamOptions>();
+  cmd->add_option("--log", opt->log, "raw CARMEN log (odometry + scans), plain or .gz")->required();
+  cmd->add_option("--relations", opt->relations, "Kuemmerle benchmark relations (t1 t2 dx dy dz roll pitch yaw)");
+  cmd->add_option("--out", opt->out, "write the robot trajectory here (TUM: timestamp x y z qx qy qz qw)");
+  cmd->add_option("--per-scan", opt->per_scan,
+                  "write one line per scan: timestamp, robot pose, how it was found (matched, odometry,\n"
+                  "stationary), match quality, ICP iterations, correspondences, degenerate, keyframe");
+  cmd->add_flag("--json", opt->json, "print one JSON line instead of the readable summary");
+  cmd->add_option("--max-range", opt->max_range, "[m] readings at or beyond are ignored by the matcher")
+      ->capture_default_str();
+  cmd->add_option("--window", opt->window, "keyframes in the rolling local map")->capture_default_str();
+  cmd->add_option("--set", opt->settings, "NAME=VALUE: override a ScanMatcherConfig field (repeatable)");
+  cmd->callback([opt, &global] { run_slam(*opt, global); });
+}
+
+}  // namespace lshloc::app
