@@ -1,0 +1,241 @@
+#include "lshloc/core/feature_extractor.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+
+#include "lshloc/core/error.hpp"
+
+namespace lshloc {
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+void require(bool ok, const char* field, const std::string& expected) {
+  if (!ok) throw Error(std::string("FeatureExtractorConfig.") + field + ": expected " + expected);
+}
+
+/// Index of the last point of segment `seg` plus one.
+std::size_t segment_end(const ScanSurface& s, std::size_t seg) {
+  return seg + 1 < s.segment_begin.size() ? s.segment_begin[seg + 1] : s.points.size();
+}
+
+}  // namespace
+
+void FeatureExtractorConfig::validate() const {
+  require(min_range >= 0.0 && max_range > min_range, "min_range/max_range", "0 <= min_range < max_range");
+  require(segment_gap > 0.0 && segment_gap_per_meter >= 0.0, "segment_gap", "> 0 (per metre >= 0)");
+  require(min_segment_points >= 2, "min_segment_points", ">= 2");
+  require(tangent_half_window > 0.0, "tangent_half_window", "> 0 m");
+  require(max_keypoints >= 1, "max_keypoints", ">= 1");
+  require(keypoint_spacing > 0.0, "keypoint_spacing", "> 0 m");
+  require(keypoint_max_range > 0.0, "keypoint_max_range", "> 0 m");
+  require(normal_half_window > 0.0, "normal_half_window", "> 0 m");
+  require(max_normal_residual > 0.0, "max_normal_residual", "> 0 m");
+  require(edge_margin >= 0.0, "edge_margin", ">= 0 m");
+  require(descriptor_radius > 0.0, "descriptor_radius", "> 0 m");
+  require(descriptor_inner_radius > 0.0 && descriptor_inner_radius < descriptor_radius, "descriptor_inner_radius",
+          "in (0, descriptor_radius)");
+  require(min_descriptor_support >= 0.0, "min_descriptor_support", ">= 0 m");
+}
+
+FeatureExtractor::FeatureExtractor(FeatureExtractorConfig config) : config_(config) { config_.validate(); }
+
+ScanSurface FeatureExtractor::surface(const LaserScan& scan, const Pose2& laser_pose_map) const {
+  std::vector<Point2> pts = scan.endpoints(config_.min_range, config_.max_range);
+  laser_pose_map.transform(pts, pts);
+  return surface(pts, laser_pose_map);
+}
+
+ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const Pose2& sensor_pose) const {
+  ScanSurface out;
+  out.sensor_pose = sensor_pose;
+  out.points.reserve(points_map.size());
+  out.range.reserve(points_map.size());
+  const Point2 sensor = sensor_pose.translation();
+
+  // 1. Keep usable points and cut the beam-ordered sequence where consecutive
+  // endpoints jump (occlusion edges, gaps); the allowed step grows with range.
+  std::vector<std::size_t> raw_begin;
+  std::vector<Point2> kept;
+  std::vector<double> kept_range;
+  for (const Point2& p : points_map) {
+    if (!p.allFinite()) continue;
+    const double r = (p - sensor).norm();
+    if (r < config_.min_range || r >= config_.max_range) continue;
+    const bool new_segment =
+        kept.empty() || (p - kept.back()).norm() >
+                            config_.segment_gap + config_.segment_gap_per_meter * std::max(r, kept_range.back());
+    if (new_segment) raw_begin.push_back(kept.size());
+    kept.push_back(p);
+    kept_range.push_back(r);
+  }
+
+  // 2. Per segment long enough: arc-length weights and tangents.
+  std::vector<double> arc;
+  for (std::size_t k = 0; k < raw_begin.size(); ++k) {
+    const std::size_t b = raw_begin[k], e = k + 1 < raw_begin.size() ? raw_begin[k + 1] : kept.size();
+    if (e - b < config_.min_segment_points) continue;
+    const std::size_t n = e - b;
+    arc.assign(n, 0.0);
+    for (std::size_t j = 1; j < n; ++j) arc[j] = arc[j - 1] + (kept[b + j] - kept[b + j - 1]).norm();
+    out.segment_begin.push_back(out.points.size());
+    // Tangent from the points about tangent_half_window away on each side
+    // (the 1 cm range quantization makes neighbouring beams useless for it).
+    std::size_t lo = 0, hi = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      while (arc[j] - arc[lo] > config_.tangent_half_window) ++lo;
+      while (hi + 1 < n && arc[hi + 1] - arc[j] <= config_.tangent_half_window) ++hi;
+      std::size_t a = lo, c = hi;
+      if (a == c) a = j > 0 ? j - 1 : j, c = j + 1 < n ? j + 1 : j;
+      const Point2 d = kept[b + c] - kept[b + a];
+      const double before = j > 0 ? arc[j] - arc[j - 1] : 0.0;
+      const double after = j + 1 < n ? arc[j + 1] - arc[j] : 0.0;
+      SurfacePoint sp;
+      sp.position = kept[b + j];
+      sp.tangent = std::atan2(d.y(), d.x());
+      sp.weight = 0.5 * (before + after);
+      out.points.push_back(sp);
+      out.range.push_back(kept_range[b + j]);
+    }
+  }
+  return out;
+}
+
+double FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
+                                  Descriptor& out) const {
+  const double radius = config_.descriptor_radius, radius2 = radius * radius;
+  const double inner = config_.descriptor_inner_radius;
+  const double log_span = std::log(radius / inner);
+  const double c = std::cos(keypoint.theta), s = std::sin(keypoint.theta);
+  const double c2 = std::cos(2.0 * keypoint.theta), s2 = std::sin(2.0 * keypoint.theta);
+  constexpr int kRings = static_cast<int>(kRadialBins), kSectors = static_cast<int>(kAngularBins);
+  std::array<double, kDescriptorSize> hist{};
+  double support = 0.0;
+
+  auto accumulate = [&](const ScanSurface& surf) {
+    for (const SurfacePoint& sp : surf.points) {
+      const double dx = sp.position.x() - keypoint.x, dy = sp.position.y() - keypoint.y;
+      const double d2 = dx * dx + dy * dy;
+      if (d2 >= radius2) continue;
+      const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
+      const double r = std::sqrt(d2);
+      // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
+      const double u = r < inner ? r / inner : 1.0 + (kRings - 1) * std::log(r / inner) / log_span;
+      const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
+      // Soft binning between the two nearest bin centres in each dimension, so
+      // a point near a bin edge does not flip the descriptor.
+      const double uc = std::clamp(u - 0.5, 0.0, kRings - 1.0);
+      const int r0 = std::min(static_cast<int>(uc), kRings - 2);
+      const double fr = uc - r0;
+      const double vc = v - 0.5;
+      const double vf = std::floor(vc);
+      const double fa = vc - vf;
+      const int a0 = ((static_cast<int>(vf) % kSectors) + kSectors) % kSectors, a1 = (a0 + 1) % kSectors;
+      // Tangent relative to the keypoint normal, doubled: cos/sin(2(t - theta)).
+      const double ct = std::cos(2.0 * sp.tangent), st = std::sin(2.0 * sp.tangent);
+      const double comp_c = (ct * c2 + st * s2) * sp.weight, comp_s = (st * c2 - ct * s2) * sp.weight;
+      const std::array<std::pair<int, double>, 4> bins{{{r0 * kSectors + a0, (1 - fr) * (1 - fa)},
+                                                        {r0 * kSectors + a1, (1 - fr) * fa},
+                                                        {(r0 + 1) * kSectors + a0, fr * (1 - fa)},
+                                                        {(r0 + 1) * kSectors + a1, fr * fa}}};
+      for (const auto& [bin, w] : bins) {
+        hist[2 * bin] += w * comp_c;
+        hist[2 * bin + 1] += w * comp_s;
+      }
+      support += sp.weight;
+    }
+  };
+  accumulate(scan);
+  for (const ScanSurface& ctx : context) accumulate(ctx);
+
+  double norm2 = 0.0;
+  for (double h : hist) norm2 += h * h;
+  const double inv = norm2 > 0.0 ? 1.0 / std::sqrt(norm2) : 0.0;
+  for (std::size_t i = 0; i < kDescriptorSize; ++i) out[i] = static_cast<float>(hist[i] * inv);
+  return support;
+}
+
+std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::span<const ScanSurface> context) {
+  ++stats_.scans;
+  stats_.segments += scan.segment_begin.size();
+  const Point2 sensor = scan.sensor_pose.translation();
+  std::vector<Feature> candidates;
+  std::vector<double> arc;
+  for (std::size_t seg = 0; seg < scan.segment_begin.size(); ++seg) {
+    const std::size_t b = scan.segment_begin[seg], e = segment_end(scan, seg), n = e - b;
+    arc.assign(n, 0.0);
+    for (std::size_t j = 1; j < n; ++j)
+      arc[j] = arc[j - 1] + (scan.points[b + j].position - scan.points[b + j - 1].position).norm();
+    const double usable = arc[n - 1] - 2.0 * config_.edge_margin;
+    if (usable < 0.0) continue;
+    // Keypoints at fixed spacing, centred on the segment.
+    const auto count = static_cast<std::size_t>(std::floor(usable / config_.keypoint_spacing)) + 1;
+    const double first = config_.edge_margin + 0.5 * (usable - static_cast<double>(count - 1) * config_.keypoint_spacing);
+    std::size_t lo = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+      ++stats_.candidates;
+      const double at = first + static_cast<double>(k) * config_.keypoint_spacing;
+      // Fit a line to the points within normal_half_window of arc length.
+      while (lo < n && arc[lo] < at - config_.normal_half_window) ++lo;
+      Point2 mean = Point2::Zero();
+      std::size_t m = 0;
+      for (std::size_t j = lo; j < n && arc[j] <= at + config_.normal_half_window; ++j, ++m)
+        mean += scan.points[b + j].position;
+      if (m < 3) {
+        ++stats_.rejected_rough;
+        continue;
+      }
+      mean /= static_cast<double>(m);
+      Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+      for (std::size_t j = lo; j < lo + m; ++j) {
+        const Point2 d = scan.points[b + j].position - mean;
+        cov += d * d.transpose();
+      }
+      cov /= static_cast<double>(m);
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+      if (std::sqrt(std::max(eig.eigenvalues()(0), 0.0)) > config_.max_normal_residual) {
+        ++stats_.rejected_rough;
+        continue;
+      }
+      Point2 normal = eig.eigenvectors().col(0);
+      const Point2 tangent = eig.eigenvectors().col(1);
+      // The keypoint: the point at arc length `at`, projected onto the fitted line.
+      std::size_t j1 = lo;
+      while (j1 + 1 < n && arc[j1 + 1] < at) ++j1;
+      const std::size_t j2 = std::min(j1 + 1, n - 1);
+      const double t = arc[j2] > arc[j1] ? std::clamp((at - arc[j1]) / (arc[j2] - arc[j1]), 0.0, 1.0) : 0.0;
+      const Point2 on_scan = (1.0 - t) * scan.points[b + j1].position + t * scan.points[b + j2].position;
+      const Point2 position = mean + tangent * tangent.dot(on_scan - mean);
+      if ((position - sensor).norm() > config_.keypoint_max_range) continue;
+      if (normal.dot(sensor - position) < 0.0) normal = -normal;  // the side the sensor saw
+      Feature f;
+      f.pose = Pose2(position.x(), position.y(), std::atan2(normal.y(), normal.x()));
+      if (describe(f.pose, scan, context, f.descriptor) < config_.min_descriptor_support) {
+        ++stats_.rejected_support;
+        continue;
+      }
+      candidates.push_back(f);
+    }
+  }
+  // Too many: keep an evenly spread subset in scan order (deterministic and
+  // independent of the frame).
+  std::vector<Feature> out;
+  if (candidates.size() <= config_.max_keypoints) {
+    out = std::move(candidates);
+  } else {
+    out.reserve(config_.max_keypoints);
+    const double step = static_cast<double>(candidates.size()) / static_cast<double>(config_.max_keypoints);
+    for (std::size_t i = 0; i < config_.max_keypoints; ++i)
+      out.push_back(candidates[static_cast<std::size_t>((static_cast<double>(i) + 0.5) * step)]);
+  }
+  stats_.features += out.size();
+  return out;
+}
+
+}  // namespace lshloc

@@ -1,0 +1,149 @@
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lshloc/core/feature.hpp"
+
+namespace lshloc {
+
+/// Settings of the E2LSH appearance database (DESIGN.md section 4, paper
+/// section IV-A). Descriptors are L2-normalized, so distances lie in [0, 2];
+/// w is in those units.
+struct LshConfig {
+  std::size_t K = 12;  ///< projections concatenated per table (paper: 30; with w fit to the data 8..30 recall alike)
+  std::size_t L = 24;  ///< hash tables (paper: 20)
+  double w = 2.0;      ///< bucket width of h(v) = floor((a.v + b) / w), descriptor units
+  std::uint64_t seed = 0x5eed5eedULL;  ///< seeds the Gaussian a and uniform b
+  /// A query reads at most this many ids of one bucket, the newest first: a
+  /// hot bucket (a long corridor seen a thousand times) cannot slow queries.
+  std::size_t bucket_capacity = 64;
+  /// A query counts at most this many bucket entries over all tables.
+  std::size_t max_candidates = 1500;
+  std::size_t initial_slots = 1024;  ///< slots per table at start (rounded up to a power of two)
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
+};
+
+/// Sizes and work counters of the database.
+struct LshStats {
+  std::size_t entries = 0;    ///< inserted descriptors
+  std::size_t buckets = 0;    ///< non-empty buckets over all tables
+  std::size_t bytes = 0;      ///< heap bytes held (tables, bucket lists, projections)
+  /// Query counters of the database's own scratch (queries made with a
+  /// caller's LshQuery are counted in that LshQuery).
+  std::size_t queries = 0;
+  std::size_t candidates_touched = 0;   ///< bucket entries read by those queries
+  std::size_t distinct_candidates = 0;  ///< distinct ids those queries found
+  double mean_candidates_touched() const {
+    return queries ? static_cast<double>(candidates_touched) / static_cast<double>(queries) : 0.0;
+  }
+  double bytes_per_entry() const { return entries ? static_cast<double>(bytes) / static_cast<double>(entries) : 0.0; }
+};
+
+class LshDatabase;
+
+/// Scratch space and statistics of queries: reusing one makes a query
+/// allocation-free. One per thread.
+class LshQuery {
+ public:
+  explicit LshQuery(const LshDatabase& db);
+  std::size_t queries = 0;
+  std::size_t candidates_touched = 0;
+  std::size_t distinct_candidates = 0;
+
+ private:
+  friend class LshDatabase;
+  Eigen::VectorXf projections_;
+  std::vector<std::uint32_t> slot_id_;     ///< counting hash: id per slot
+  std::vector<std::uint16_t> slot_count_;  ///< collisions per slot
+  std::vector<std::uint32_t> slot_stamp_;  ///< slot valid when equal to stamp_
+  std::vector<std::uint32_t> found_;       ///< slots in first-seen order
+  std::vector<std::uint32_t> ranked_;      ///< slots by collision count
+  std::vector<std::uint32_t> histogram_;   ///< ids per collision count, then rank offsets
+  std::uint32_t stamp_ = 0;
+  std::uint32_t mask_ = 0;
+  int shift_ = 0;
+};
+
+/// The incremental E2LSH appearance database: L tables, each keyed by K
+/// concatenated p-stable hashes h(v) = floor((a.v + b) / w) with Gaussian a
+/// and b uniform in [0, w). Buckets hold location ids only; the descriptor
+/// is not stored. A query ranks ids by how many tables they collided in.
+///
+/// Cost: insert = one (K L x 120) float matrix-vector product plus L bucket
+/// pushes (O(1); a table doubles when half full, amortized O(1)). Query = the
+/// same product plus at most min(L * bucket_capacity, max_candidates) bucket
+/// entries read, whatever the database size.
+///
+/// Memory per entry: 8 bytes per table (id and the link to the bucket's next
+/// entry) plus at most 16 bytes per table for the bucket's slot when the
+/// entry opens a bucket (tables are kept at most half full): 8L to 24L bytes,
+/// so 192..576 bytes at L = 24. Entries pushed out of a hot bucket's newest
+/// `bucket_capacity` stay in memory but are no longer returned.
+///
+/// Thread-safety: insert() must not run concurrently with anything else.
+/// Concurrent queries are safe when each thread passes its own LshQuery;
+/// the query overload without one uses the database's own scratch and is
+/// not thread-safe.
+class LshDatabase {
+ public:
+  explicit LshDatabase(LshConfig config = {});
+
+  const LshConfig& config() const { return config_; }
+
+  /// Adds `descriptor` under location id `id`.
+  void insert(const Descriptor& descriptor, std::uint32_t id);
+
+  /// Up to k ids, most colliding tables first (ties: the first seen, which is
+  /// the newest entry of the first tables), into `out` (cleared first).
+  void query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out, LshQuery& scratch) const;
+  void query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out);
+
+  /// Like query(), with the collision count of each id returned (same order).
+  void query_counts(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
+                    std::vector<std::uint16_t>& counts, LshQuery& scratch) const;
+
+  std::size_t size() const { return entries_; }
+  LshStats stats() const;
+
+ private:
+  friend class LshQuery;
+  static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+  struct Slot {
+    std::uint32_t tag = 0;      ///< 32-bit hash of the K-tuple
+    std::uint32_t head = kNone;  ///< newest entry of the bucket (kNone: empty slot)
+  };
+  struct Node {
+    std::uint32_t id;    ///< location id
+    std::uint32_t next;  ///< older entry of the same bucket (kNone: last)
+  };
+  struct Table {
+    std::vector<Slot> slots;  ///< open addressing, linear probing, power-of-two size
+    std::vector<Node> nodes;  ///< one per entry, indexed by entry number
+    std::size_t used = 0;     ///< non-empty slots
+    int bits = 0;
+  };
+
+  void project(const Descriptor& descriptor, Eigen::VectorXf& out) const;
+  std::uint32_t table_tag(const Eigen::VectorXf& projections, std::size_t table) const;
+  static std::size_t home(std::uint32_t tag, int bits) {
+    return static_cast<std::size_t>((tag * 0x9E3779B97F4A7C15ULL) >> (64 - bits));
+  }
+  static void grow(Table& t);
+
+  LshConfig config_;
+  /// (K L x 120) Gaussian projections, already divided by w.
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> a_;
+  Eigen::VectorXf b_;  ///< offsets / w, uniform in [0, 1)
+  std::vector<std::uint64_t> table_seed_;
+  std::vector<Table> tables_;
+  std::size_t entries_ = 0;
+  Eigen::VectorXf insert_projections_;
+  LshQuery own_query_;
+};
+
+}  // namespace lshloc

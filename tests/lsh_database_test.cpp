@@ -1,0 +1,186 @@
+// LshDatabase against brute-force nearest neighbours on seeded synthetic
+// descriptors; bucket cap, determinism and id validity.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <set>
+
+#include "lshloc/core/error.hpp"
+#include "lshloc/core/location_store.hpp"
+#include "lshloc/core/lsh_database.hpp"
+
+namespace lshloc {
+namespace {
+
+Descriptor normalized(Descriptor d) {
+  double n = 0;
+  for (float v : d) n += double(v) * v;
+  const float inv = static_cast<float>(1.0 / std::sqrt(n));
+  for (float& v : d) v *= inv;
+  return d;
+}
+
+/// Clustered unit vectors: `centres` random directions, each point a centre
+/// plus Gaussian noise of `noise` per dimension, normalized (a shape of
+/// distances like real descriptors: near neighbours at ~0.3, others at ~1.4).
+std::vector<Descriptor> clustered(std::size_t n, std::size_t centres, double noise, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  std::vector<Descriptor> c(centres);
+  for (auto& d : c) {
+    for (float& v : d) v = g(rng);
+    d = normalized(d);
+  }
+  std::vector<Descriptor> out(n);
+  const auto s = static_cast<float>(noise);
+  for (std::size_t i = 0; i < n; ++i) {
+    Descriptor d = c[i % centres];
+    for (float& v : d) v += s * g(rng);
+    out[i] = normalized(d);
+  }
+  return out;
+}
+
+double dist(const Descriptor& a, const Descriptor& b) {
+  double s = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) s += double(a[i] - b[i]) * (a[i] - b[i]);
+  return std::sqrt(s);
+}
+
+TEST(LshDatabase, FindsTheExactNearestNeighbourMostOfTheTime) {
+  // 5 noisy copies of each of 4000 centres; the queries are a 6th copy of 400 of them.
+  auto data = clustered(20400, 4000, 0.02, 7);
+  const std::vector<Descriptor> queries(data.end() - 400, data.end());
+  data.resize(20000);
+  LshConfig cfg;
+  cfg.K = 12, cfg.L = 24, cfg.w = 2.0;
+  LshDatabase db(cfg);
+  for (std::size_t i = 0; i < data.size(); ++i) db.insert(data[i], static_cast<std::uint32_t>(i));
+  EXPECT_EQ(db.size(), data.size());
+  std::vector<std::uint32_t> got;
+  std::size_t hits = 0;
+  for (const auto& q : queries) {
+    std::uint32_t best = 0;
+    double best_d = 1e9;
+    for (std::size_t i = 0; i < data.size(); ++i)
+      if (double d = dist(q, data[i]); d < best_d) best_d = d, best = static_cast<std::uint32_t>(i);
+    db.query(q, 100, got);
+    EXPECT_LE(got.size(), 100u);
+    for (auto id : got) EXPECT_LT(id, data.size());
+    hits += std::find(got.begin(), got.end(), best) != got.end();
+  }
+  const double recall = double(hits) / double(queries.size());
+  EXPECT_GE(recall, 0.9) << "exact nearest neighbour in the top 100 for " << recall << " of queries";
+  const LshStats s = db.stats();
+  EXPECT_EQ(s.entries, data.size());
+  EXPECT_EQ(s.queries, queries.size());
+  // Bounded work: far fewer candidates than the database holds.
+  EXPECT_LT(s.mean_candidates_touched(), 0.05 * double(data.size()));
+  EXPECT_GT(s.bytes_per_entry(), 8.0 * double(cfg.L));
+}
+
+TEST(LshDatabase, RanksByCollisionCountAndReturnsTheQueryItselfFirst) {
+  const auto data = clustered(2000, 2000, 0.0, 3);
+  LshDatabase db;
+  for (std::size_t i = 0; i < data.size(); ++i) db.insert(data[i], static_cast<std::uint32_t>(1000 + i));
+  LshQuery q(db);
+  std::vector<std::uint32_t> ids;
+  std::vector<std::uint16_t> counts;
+  for (std::size_t i = 0; i < 50; ++i) {
+    db.query_counts(data[i], 10, ids, counts, q);
+    ASSERT_FALSE(ids.empty());
+    EXPECT_EQ(ids[0], 1000 + i);
+    EXPECT_EQ(counts[0], db.config().L);  // collides in every table with itself
+    EXPECT_TRUE(std::is_sorted(counts.rbegin(), counts.rend()));
+  }
+  EXPECT_EQ(q.queries, 50u);
+}
+
+TEST(LshDatabase, HotBucketReturnsOnlyItsNewestEntries) {
+  LshConfig cfg;
+  cfg.bucket_capacity = 7;
+  cfg.L = 3;
+  cfg.max_candidates = 1000;
+  LshDatabase db(cfg);
+  const Descriptor same = clustered(1, 1, 0.0, 1)[0];
+  for (std::uint32_t i = 0; i < 500; ++i) db.insert(same, i);
+  std::vector<std::uint32_t> got;
+  db.query(same, 100, got);
+  // Every table's bucket holds all 500, but a query reads 7 per table: the newest.
+  ASSERT_EQ(got.size(), 7u);
+  for (auto id : got) EXPECT_GE(id, 493u);
+  EXPECT_EQ(db.stats().candidates_touched, 21u);
+}
+
+TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
+  LshConfig cfg;
+  cfg.bucket_capacity = 100;
+  cfg.L = 10;
+  cfg.max_candidates = 250;
+  LshDatabase db(cfg);
+  const Descriptor same = clustered(1, 1, 0.0, 1)[0];
+  for (std::uint32_t i = 0; i < 1000; ++i) db.insert(same, i);
+  std::vector<std::uint32_t> got;
+  db.query(same, 1000, got);
+  EXPECT_EQ(db.stats().candidates_touched, 250u);
+  EXPECT_EQ(got.size(), 100u);
+}
+
+TEST(LshDatabase, SameSeedSameAnswersOtherSeedOtherTables) {
+  const auto data = clustered(3000, 600, 0.03, 11);
+  LshConfig cfg;
+  LshDatabase a(cfg), b(cfg);
+  cfg.seed += 1;
+  LshDatabase c(cfg);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    a.insert(data[i], static_cast<std::uint32_t>(i));
+    b.insert(data[i], static_cast<std::uint32_t>(i));
+    c.insert(data[i], static_cast<std::uint32_t>(i));
+  }
+  std::vector<std::uint32_t> ra, rb, rc;
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < 100; ++i) {
+    a.query(data[i * 7], 20, ra);
+    b.query(data[i * 7], 20, rb);
+    c.query(data[i * 7], 20, rc);
+    EXPECT_EQ(ra, rb);
+    differ += ra != rc;
+  }
+  EXPECT_GT(differ, 0u);
+  EXPECT_EQ(a.stats().buckets, b.stats().buckets);
+}
+
+TEST(LshDatabase, RejectsBadConfigs) {
+  LshConfig cfg;
+  cfg.w = 0.0;
+  EXPECT_THROW(LshDatabase{cfg}, Error);
+  cfg = {};
+  cfg.K = 0;
+  EXPECT_THROW(LshDatabase{cfg}, Error);
+  cfg = {};
+  cfg.bucket_capacity = 0;
+  EXPECT_THROW(LshDatabase{cfg}, Error);
+}
+
+TEST(LshDatabase, QueryObjectFromAnotherConfigurationIsRefused) {
+  LshConfig small;
+  small.max_candidates = 4;
+  LshDatabase a(small), b;
+  LshQuery qa(a);
+  std::vector<std::uint32_t> out;
+  EXPECT_THROW(b.query(Descriptor{}, 5, out, qa), Error);
+}
+
+TEST(LocationStore, IdsAreIndicesAndUnknownIdsThrow) {
+  LocationStore store;
+  EXPECT_EQ(store.append(2, Pose2(1.0, 2.0, 0.5)), 0u);
+  EXPECT_EQ(store.append(MapLocation{3, 4.0f, 5.0f, -1.0f}), 1u);
+  EXPECT_EQ(store.at(1).submap, 3u);
+  EXPECT_FLOAT_EQ(store.at(0).y, 2.0f);
+  EXPECT_THROW(store.at(2), Error);
+}
+
+}  // namespace
+}  // namespace lshloc
