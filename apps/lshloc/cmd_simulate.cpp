@@ -2,6 +2,7 @@
 // through each and writes its logs (raw, corrected, ground-truth poses) as a
 // building directory any CARMEN tool reads.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
@@ -42,6 +43,11 @@ std::string write_segments(const sim::SyntheticBuilding& building, const std::st
   return path;
 }
 
+double rounded(double value, int decimals) {
+  const double scale = std::pow(10.0, decimals);
+  return std::round(value * scale) / scale;
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -51,20 +57,15 @@ void run_simulate(const SimulateOptions& o) {
   double generate_s = 0.0, simulate_s = 0.0, write_s = 0.0;
   std::size_t total_scans = 0;
   for (std::size_t k = 0; k < o.buildings; ++k) {
-    sim::BuildingGeneratorConfig building_config;
-    building_config.plan.seed = sim::derive_seed(o.seed, k);
-    char name[64];
-    std::snprintf(name, sizeof name, "sim-%llu-%03zu", static_cast<unsigned long long>(o.seed), k);
-    building_config.name = name;
+    sim::SimulationConfig base;
+    base.scans = o.scans;
+    base.laser.beams = o.beams;
+    base.laser.max_range = o.max_range;
+    const sim::RunBuilding configs = sim::run_building(o.seed, k, base);
     auto t = std::chrono::steady_clock::now();
-    const sim::SyntheticBuilding building = sim::generate_building(building_config);
+    const sim::SyntheticBuilding building = sim::generate_building(configs.building);
     const double gen = seconds_since(t);
-
-    sim::SimulationConfig sim_config;
-    sim_config.seed = sim::derive_seed(o.seed, 1000000 + k);
-    sim_config.scans = o.scans;
-    sim_config.laser.beams = o.beams;
-    sim_config.laser.max_range = o.max_range;
+    const sim::SimulationConfig& sim_config = configs.simulation;
     sim::SimulationStats stats;
     t = std::chrono::steady_clock::now();
     const BuildingRecording rec = sim::simulate_recording(building, sim_config, &stats);
@@ -92,9 +93,11 @@ void run_simulate(const SimulateOptions& o) {
           {"halls", halls},
           {"closed_rooms", closed},
           {"doors", building.plan.doors.size()},
-          {"extent_m", {building.plan.width, building.plan.height}},
-          {"path_length_m", stats.path_length},
-          {"odometry_final_error_m", stats.odometry_final_error},
+          {"extent_m", {rounded(building.plan.width, 2), rounded(building.plan.height, 2)}},
+          {"path_length_m", rounded(stats.path_length, 2)},
+          {"odometry_final_error_m", rounded(stats.odometry_final_error, 3)},
+          {"trajectory_s", stats.seconds_trajectory},
+          {"laser_s", stats.seconds_laser},
           {"generate_s", gen},
           {"simulate_s", simulate},
           {"write_s", write},

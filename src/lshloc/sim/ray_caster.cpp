@@ -95,8 +95,7 @@ double RayCaster::nearest_in_cell(std::size_t cell, double ox, double oy, double
   return best;
 }
 
-double RayCaster::cast(const Point2& origin, double angle, double max_range) const {
-  const double dx = std::cos(angle), dy = std::sin(angle);
+double RayCaster::cast(const Point2& origin, double dx, double dy, double max_range) const {
   const double ox = origin.x(), oy = origin.y();
   // Clip the ray to the grid box: [t_enter, t_exit].
   double t_enter = 0.0, t_exit = max_range;

@@ -1,6 +1,7 @@
 #pragma once
 // A 2-D ray caster over line segments, bucketed in a uniform grid so that the
 // cost of a ray depends on the cells it crosses, not on the building's size.
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -23,7 +24,13 @@ class RayCaster {
 
   /// Distance [m] from `origin` along the unit direction at `angle` [rad] to
   /// the nearest segment, or `max_range` when none lies closer.
-  double cast(const Point2& origin, double angle, double max_range) const;
+  double cast(const Point2& origin, double angle, double max_range) const {
+    return cast(origin, std::cos(angle), std::sin(angle), max_range);
+  }
+
+  /// The same along the unit vector (dx, dy) (callers casting fans of rays
+  /// rotate it instead of calling cos and sin per ray).
+  double cast(const Point2& origin, double dx, double dy, double max_range) const;
 
   std::size_t segment_count() const { return segments_.size(); }
   /// Bucket entries over all cells (a segment is listed in every cell it crosses).

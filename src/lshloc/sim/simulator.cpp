@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include "lshloc/core/error.hpp"
 
@@ -29,6 +30,19 @@ SyntheticBuilding generate_building(const BuildingGeneratorConfig& config) {
   RayCaster caster(plan.segments, config.caster);
   return {config.name.empty() ? "sim-" + std::to_string(config.plan.seed) : config.name, std::move(plan),
           std::move(caster)};
+}
+
+RunBuilding run_building(std::uint64_t run_seed, std::size_t index, const SimulationConfig& base,
+                         const FloorPlanConfig& plan) {
+  RunBuilding out;
+  out.building.plan = plan;
+  out.building.plan.seed = derive_seed(run_seed, 2 * index);
+  char name[64];
+  std::snprintf(name, sizeof name, "sim-%llu-%03zu", static_cast<unsigned long long>(run_seed), index);
+  out.building.name = name;
+  out.simulation = base;
+  out.simulation.seed = derive_seed(run_seed, 2 * index + 1);
+  return out;
 }
 
 BuildingRecording simulate_recording(const SyntheticBuilding& building, const SimulationConfig& config,

@@ -74,4 +74,16 @@ struct SimulationStats {
 BuildingRecording simulate_recording(const SyntheticBuilding& building, const SimulationConfig& config,
                                      SimulationStats* stats = nullptr);
 
+/// The configs of building `index` of a run seeded `run_seed`: its name
+/// ("sim-<run_seed>-<index>", index zero-padded to 3 digits), layout seed and
+/// simulation seed; everything else comes from `base` (and `plan`). `lshloc
+/// simulate --seed S` writes exactly these buildings, so other tools (the
+/// demo, bench scale) that use this function see the same ones.
+struct RunBuilding {
+  BuildingGeneratorConfig building;
+  SimulationConfig simulation;
+};
+RunBuilding run_building(std::uint64_t run_seed, std::size_t index, const SimulationConfig& base = {},
+                         const FloorPlanConfig& plan = {});
+
 }  // namespace lshloc::sim
