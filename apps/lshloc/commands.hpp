@@ -16,5 +16,6 @@ struct GlobalOptions {
 // and throws lshloc::Error on bad input.
 void add_info_command(CLI::App& app, GlobalOptions& global);
 void add_slam_command(CLI::App& app, GlobalOptions& global);
+void add_simulate_command(CLI::App& app, GlobalOptions& global);
 
 }  // namespace lshloc::app

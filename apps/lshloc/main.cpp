@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
       ->envname("LSHLOC_DATA");
   lshloc::app::add_info_command(app, global);
   lshloc::app::add_slam_command(app, global);
+  lshloc::app::add_simulate_command(app, global);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -103,8 +103,8 @@ std::vector<std::string> DatasetCatalog::existing_logs() const {
   return out;
 }
 
-BuildingRecording DatasetCatalog::load(const std::string& name, bool with_raw, const CarmenReaderConfig& reader) const {
-  const BuildingFiles& f = building(name);
+BuildingRecording load_building(const BuildingFiles& f, bool with_raw, const CarmenReaderConfig& reader) {
+  const std::string& name = f.name;
   BuildingRecording rec;
   rec.name = name;
   if (with_raw || f.corrected_log.empty()) {
@@ -122,6 +122,10 @@ BuildingRecording DatasetCatalog::load(const std::string& name, bool with_raw, c
     rec.truth = read_pose_file(f.poses);
   }
   return rec;
+}
+
+BuildingRecording DatasetCatalog::load(const std::string& name, bool with_raw, const CarmenReaderConfig& reader) const {
+  return load_building(building(name), with_raw, reader);
 }
 
 Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& config, const CarmenReaderConfig& reader) {

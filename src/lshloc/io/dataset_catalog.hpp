@@ -46,6 +46,12 @@ class DatasetCatalog {
   std::vector<BuildingFiles> buildings_;
 };
 
+/// Reads what `files` has: the raw log (if `with_raw`, or when there is no
+/// corrected log), the corrected log and the ground-truth poses. Throws
+/// naming any listed file that is missing. Works for catalog buildings and
+/// for any other building directory (e.g. one io::write_building_recording made).
+BuildingRecording load_building(const BuildingFiles& files, bool with_raw, const CarmenReaderConfig& reader = {});
+
 /// Loads the scenario of DESIGN.md section 5 from the catalog: the target's
 /// building split around the window, plus config.submaps - 1 other buildings.
 Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& config,
