@@ -15,6 +15,8 @@ struct GlobalOptions {
 // Each adds its subcommand to `app`; the subcommand's callback does the work
 // and throws lshloc::Error on bad input.
 void add_info_command(CLI::App& app, GlobalOptions& global);
+void add_eval_command(CLI::App& app, GlobalOptions& global);
+void add_localize_command(CLI::App& app, GlobalOptions& global);
 void add_slam_command(CLI::App& app, GlobalOptions& global);
 void add_simulate_command(CLI::App& app, GlobalOptions& global);
 

@@ -41,7 +41,7 @@ void IncrementalRansac::add_features(std::span<const LocalPoint> features) {
     if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.theta))
       throw Error("iRANSAC: a local feature has a non-finite pose");
     const auto index = static_cast<std::uint32_t>(features_.size());
-    features_.push_back({f.x, f.y, static_cast<float>(wrap_angle(f.theta))});
+    features_.push_back({f.x, f.y, static_cast<float>(wrap_angle(f.theta)), f.kind});
     // Inside-out Fisher-Yates: put the new index at a uniform position j of the
     // permutation and move the element that was there to the end. The
     // permutation stays uniformly random at O(1) per insertion.
@@ -138,7 +138,8 @@ std::optional<ScoredHypothesis> IncrementalRansac::best() const {
   double best_mean = 0.0;
   for (std::size_t j = 0; j < tx_.size(); ++j) {
     if (scored_[j] == 0 || score_[j] < config_.min_score) continue;
-    const double mean = static_cast<double>(score_[j]) / scored_[j];
+    const double mean = static_cast<double>(score_[j]) / scored_[j] -
+                        config_.preference_z / std::sqrt(static_cast<double>(scored_[j]));
     if (best) {
       const std::size_t b = *best;
       if (mean < best_mean) continue;

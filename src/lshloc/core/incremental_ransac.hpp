@@ -6,6 +6,7 @@
 // every B-th iteration, so the work per scan stays constant however long the
 // task runs.
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -20,9 +21,14 @@ namespace lshloc {
 /// A data-point of U: an oriented point (position and heading, e.g. the
 /// surface normal) in the local-map frame. Floats: it is read in the hot loop.
 struct LocalPoint {
+  /// What the point says about the world: a surface (a scan endpoint with
+  /// its normal) or free space (a point a local ray passed through, which
+  /// must not lie on a map wall: negative evidence, DESIGN.md section 8).
+  enum class Kind : std::uint8_t { kSurface, kFreeSpace };
   float x = 0.0f;      ///< [m]
   float y = 0.0f;      ///< [m]
-  float theta = 0.0f;  ///< [rad]
+  float theta = 0.0f;  ///< [rad] (unused for kFreeSpace)
+  Kind kind = Kind::kSurface;
 };
 
 /// Which feature iteration i scores (the order rule f_o).
@@ -54,6 +60,11 @@ struct IncrementalRansacConfig {
   std::size_t new_hypotheses_per_scan = 1000; ///< |V_new|: add_scan() keeps the first this many
   std::size_t iterations_per_scan = 10;       ///< iterations run() does per scan (= B: steady state 2|V_new|)
   double min_score = 3.0;                     ///< C_o: best() ignores hypotheses with C_j below it
+  /// best() ranks by C_j/N_j - preference_z / sqrt(N_j): a lower confidence
+  /// bound, so that a young hypothesis with a lucky streak does not outrank
+  /// one with long support (per-point scores lie in [-1, 1]). 0 gives the
+  /// paper's C_j/N_j.
+  double preference_z = 0.0;
   FeatureOrderRule order_rule = FeatureOrderRule::kUniform;
   std::size_t recent_window = 200;            ///< [features] window of kRecentWindow / kFreshFirst
   PreemptionRank preemption_rank = PreemptionRank::kMeanScore;
@@ -95,6 +106,8 @@ struct ScoredHypothesis {
   double score = 0.0;        ///< C_j
   std::uint32_t scored = 0;  ///< N_j
   double mean_score() const { return scored > 0 ? score / scored : 0.0; }
+  /// The preference value of best(): mean_score() - z / sqrt(N).
+  double preference(double z) const { return scored > 0 ? mean_score() - z / std::sqrt(double(scored)) : -1e30; }
 };
 
 /// iRANSAC. A Scorer is any callable

@@ -15,6 +15,10 @@ struct PoseGridScorerConfig {
   float hit = 1.0f;      ///< score of a point whose cell holds kOccupied
   float free = 0.0f;     ///< score of a point whose cell holds only kFree (e.g. -0.5: a penalty)
   float unknown = 0.0f;  ///< score of a point in a cell the map knows nothing about
+  /// Score of a kFreeSpace local point that lands on a map wall (a cell of the
+  /// free-space grid marked occupied and never free: a local ray through a map
+  /// wall); such points score 0 elsewhere. Needs a free-space grid.
+  float ray_through_wall = -1.0f;
 };
 
 /// A Scorer for IncrementalRansac (see there). Each call transforms one local
@@ -27,6 +31,11 @@ struct PoseGridScorerConfig {
 class PoseGridScorer {
  public:
   explicit PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config = {});
+  /// With negative evidence from a separate 2-D grid (theta_bins = 1) of the
+  /// space map rays saw free: a point that misses `grid` scores `free` when
+  /// its cell in `free_space` holds kFree and no kOccupied (walls are marked
+  /// occupied there so that they never read as free), else `unknown`.
+  PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
 
   void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);
 
@@ -39,11 +48,17 @@ class PoseGridScorer {
  private:
   void compute_keys(const HypothesisBatch& v, int dx, int dy, int dtheta, bool absolute_theta);
 
+  void score_free_space(const HypothesisBatch& v, float* scores);
+  void score_free_space_point(const LocalPoint& x, const HypothesisBatch& v, float* scores);
+
   const PoseGridHashMap& grid_;
+  const PoseGridHashMap* free_space_ = nullptr;
   PoseGridScorerConfig config_;
   float value_[4];  ///< score by (flags & 3)
   std::vector<std::uint64_t> keys_;
   std::vector<std::int32_t> ix_, iy_, it_;
+  std::vector<float> gx_, gy_;  ///< transformed points, kept for the free-space grid
+  std::vector<std::uint32_t> miss_index_;
   std::vector<CellFlags> flags_;
   std::uint64_t lookups_ = 0;
 };

@@ -1,0 +1,82 @@
+#pragma once
+// Command-line options shared by the commands that run the localizer
+// (eval, localize, bench scale), bound directly to the config structs so
+// that their defaults are the library's.
+#include <map>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "lshloc/pipeline/scenario_runner.hpp"
+
+namespace lshloc::app {
+
+struct LocalizerOptions {
+  ScenarioRunConfig config;
+  std::string order_rule = "recent";
+  std::string hypotheses = "database";
+};
+
+inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
+  auto& l = o.config.localizer;
+  auto& r = l.ransac;
+  const std::string group = "Localizer (defaults are the library's)";
+  cmd.add_option("--order-rule", o.order_rule,
+                 "iRANSAC order rule: uniform (the paper: any data-point), recent (the newest --recent-window), "
+                 "fresh (new data-points first)")
+      ->check(CLI::IsMember({"uniform", "recent", "fresh"}))
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--hypotheses", o.hypotheses,
+                 "where hypotheses come from: database (LSH-RANSAC) or random map features (ablation)")
+      ->check(CLI::IsMember({"database", "random"}))
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--candidates", l.candidates_per_feature, "database candidates per local feature")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--hypotheses-per-scan", r.new_hypotheses_per_scan, "|V_new|")->capture_default_str()->group(group);
+  cmd.add_option("--data-points", r.new_features_per_scan, "|U_new|: data-points added per scan")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--iterations", r.iterations_per_scan, "iRANSAC iterations per scan")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--block-size", r.block_size, "B: the active set halves every B-th iteration")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--recent-window", r.recent_window, "data-points the recent/fresh order rules draw from")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--min-score", r.min_score, "C_o: a hypothesis needs this total score to be reported")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--preference-z", r.preference_z, "best = argmax C/N - z/sqrt(N) (0: the paper's C/N)")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--switch-margin", l.confidence.switch_margin, "hysteresis before the estimate moves elsewhere")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--free-points", l.free_points_per_surface_point, "free-space data-points per surface data-point")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--free-penalty", l.free_space_penalty,
+                 "score of a local point in space the map saw free, and of a local ray through a map wall (negated)")
+      ->capture_default_str()
+      ->group(group);
+}
+
+/// The run configuration the options describe.
+inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) {
+  ScenarioRunConfig c = o.config;
+  static const std::map<std::string, FeatureOrderRule> rules = {{"uniform", FeatureOrderRule::kUniform},
+                                                                {"recent", FeatureOrderRule::kRecentWindow},
+                                                                {"fresh", FeatureOrderRule::kFreshFirst}};
+  c.localizer.ransac.order_rule = rules.at(o.order_rule);
+  c.localizer.hypothesis_source =
+      o.hypotheses == "random" ? HypothesisSource::kRandomMapFeatures : HypothesisSource::kDatabase;
+  c.localizer.features = c.map.features;
+  return c;
+}
+
+}  // namespace lshloc::app

@@ -1,0 +1,194 @@
+#include "lshloc/pipeline/localizer.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "lshloc/core/error.hpp"
+#include "lshloc/core/pose_grid_scorer.hpp"
+
+namespace lshloc {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+bool same_place(const Hypothesis& a, const Hypothesis& b, double dist_m, double angle_rad) {
+  return a.submap == b.submap && translation_distance(a.T_submap_local, b.T_submap_local) <= dist_m &&
+         angle_distance(a.T_submap_local.theta, b.T_submap_local.theta) <= angle_rad;
+}
+
+}  // namespace
+
+void LocalizerConfig::validate() const {
+  scan_matcher.validate();
+  features.validate();
+  ransac.validate();
+  if (candidates_per_feature == 0) throw Error("LocalizerConfig: candidates_per_feature must be >= 1");
+  if (!(free_space_penalty >= 0.0)) throw Error("LocalizerConfig: free_space_penalty must be >= 0");
+  if (confidence.stable_scans == 0) throw Error("LocalizerConfig: confidence.stable_scans must be >= 1");
+}
+
+Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
+    : map_(map),
+      config_((config.validate(), config)),
+      matcher_(config_.scan_matcher),
+      extractor_(config_.features),
+      ransac_(config_.ransac),
+      query_(map.database()),
+      scorer_(map.occupancy(), map.free_space(),
+              PoseGridScorerConfig{.hit = 1.0f,
+                                   .free = -static_cast<float>(config_.free_space_penalty),
+                                   .unknown = 0.0f,
+                                   .ray_through_wall = -static_cast<float>(config_.free_space_penalty)}),
+      rng_(config_.seed) {}
+
+void Localizer::generate_hypotheses(const std::vector<Feature>& features) {
+  candidates_.clear();
+  hypotheses_.clear();
+  const LocationStore& store = map_.locations();
+  if (features.empty() || store.empty()) return;
+  if (config_.hypothesis_source == HypothesisSource::kRandomMapFeatures) {
+    const std::size_t budget =
+        std::min(features.size() * config_.candidates_per_feature, config_.ransac.new_hypotheses_per_scan);
+    std::uniform_int_distribution<std::uint32_t> any_location(0, static_cast<std::uint32_t>(store.size() - 1));
+    for (std::size_t i = 0; i < budget; ++i) {
+      const MapLocation& loc = store[any_location(rng_)];
+      hypotheses_.push_back(hypothesis_from_correspondence(loc.submap, loc.pose(), features[i % features.size()].pose));
+    }
+    stats_.hypotheses += hypotheses_.size();
+    return;
+  }
+  for (std::size_t f = 0; f < features.size(); ++f) {
+    map_.database().query_counts(features[f].descriptor, config_.candidates_per_feature, ids_, counts_, query_);
+    for (std::size_t k = 0; k < ids_.size(); ++k) {
+      candidates_.push_back({counts_[k], static_cast<std::uint32_t>(f), ids_[k]});
+    }
+  }
+  // Most colliding tables first; keeps each feature's own ranking on ties.
+  std::stable_sort(candidates_.begin(), candidates_.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.count > b.count; });
+  const std::size_t budget = std::min(candidates_.size(), config_.ransac.new_hypotheses_per_scan);
+  for (std::size_t i = 0; i < budget; ++i) {
+    const MapLocation& loc = store[candidates_[i].id];
+    hypotheses_.push_back(
+        hypothesis_from_correspondence(loc.submap, loc.pose(), features[candidates_[i].feature].pose));
+  }
+  stats_.hypotheses += hypotheses_.size();
+}
+
+void Localizer::sample_data_points(const LaserScan& scan, const ScanSurface& surface) {
+  data_points_.clear();
+  const Pose2& sensor_pose = surface.sensor_pose;
+  const Point2 sensor = sensor_pose.translation();
+  Point2 last(1e18, 1e18);
+  for (const SurfacePoint& p : surface.points) {
+    if ((p.position - last).norm() < config_.data_point_spacing) continue;
+    last = p.position;
+    data_points_.push_back({static_cast<float>(p.position.x()), static_cast<float>(p.position.y()),
+                            static_cast<float>(normal_towards(p.position, p.tangent, sensor)),
+                            LocalPoint::Kind::kSurface});
+  }
+  // Free-space points on evenly spread beams, as many as surface points.
+  const auto wanted = static_cast<std::size_t>(config_.free_points_per_surface_point *
+                                               static_cast<double>(data_points_.size()));
+  const std::size_t beams = scan.size();
+  for (std::size_t k = 0; k < wanted && beams > 0; ++k) {
+    const std::size_t i = (k * beams) / wanted;
+    if (scan.status(i) != BeamStatus::kValid) continue;
+    const double r = scan.ranges[i];
+    const double d = std::min(config_.free_point_fraction * r, r - config_.free_point_margin);
+    if (d <= 0.2 || r > config_.features.max_range) continue;
+    const double a = scan.bearing(i);
+    const Point2 q = sensor_pose.transform(Point2(d * std::cos(a), d * std::sin(a)));
+    data_points_.push_back({static_cast<float>(q.x()), static_cast<float>(q.y()), 0.0f, LocalPoint::Kind::kFreeSpace});
+  }
+}
+
+LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
+  ++stats_.scans;
+  auto t0 = Clock::now();
+  const ScanMatchResult match = matcher_.add_scan(scan);
+  stats_.scan_matching_s += seconds_since(t0);
+
+  // Features of this scan in the local frame, with recent local scans as context.
+  t0 = Clock::now();
+  const ScanSurface surface = extractor_.surface(scan, match.laser_pose);
+  const std::vector<Feature> features =
+      extractor_.extract(surface, context_);
+  stats_.extract_s += seconds_since(t0);
+  stats_.features += features.size();
+  if (context_.empty() || translation_distance(last_context_pose_, match.laser_pose) >= config_.context_spacing) {
+    context_.push_back(surface);
+    last_context_pose_ = match.laser_pose;
+    if (context_.size() > config_.context_scans) context_.erase(context_.begin());
+  }
+
+  t0 = Clock::now();
+  generate_hypotheses(features);
+  stats_.query_s += seconds_since(t0);
+
+  sample_data_points(scan, surface);
+  t0 = Clock::now();
+  ransac_.add_scan(data_points_, hypotheses_);
+  stats_.data_points += std::min(data_points_.size(), config_.ransac.new_features_per_scan);
+  ransac_.run(scorer_);
+  stats_.ransac_s += seconds_since(t0);
+
+  return estimate(match.laser_pose);
+}
+
+LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
+  const ConfidenceConfig& cc = config_.confidence;
+  const double same_angle = cc.same_place_deg * M_PI / 180.0;
+  LocalizationEstimate e;
+  e.local_pose = local_pose;
+  std::optional<ScoredHypothesis> best = ransac_.best();
+  const std::vector<ScoredHypothesis> active = best ? ransac_.active() : std::vector<ScoredHypothesis>{};
+  // Hysteresis: keep reporting the place of the last estimate while its best
+  // hypothesis is within switch_margin of the overall best.
+  const double z = config_.ransac.preference_z;
+  if (best && reported_) {
+    const ScoredHypothesis* incumbent = nullptr;
+    for (const ScoredHypothesis& h : active) {
+      if (h.score < config_.ransac.min_score || h.scored == 0) continue;
+      if (!same_place(h.hypothesis, *reported_, cc.same_place_m, same_angle)) continue;
+      if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
+    }
+    if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) best = *incumbent;
+  }
+  recent_best_.push_back(best ? std::optional<Hypothesis>(best->hypothesis) : std::nullopt);
+  if (recent_best_.size() > cc.stable_scans) recent_best_.pop_front();
+  if (!best) return e;
+  reported_ = best->hypothesis;
+  e.has_estimate = true;
+  e.submap = best->hypothesis.submap;
+  e.T_submap_local = best->hypothesis.T_submap_local;
+  e.pose = e.T_submap_local * local_pose;
+  e.mean_score = best->mean_score();
+  e.scored = best->scored;
+
+  // The best competitor elsewhere: another submap, or more than 2 m away.
+  double rival = 0.0;
+  for (const ScoredHypothesis& h : active) {
+    if (h.score < config_.ransac.min_score || h.scored == 0) continue;
+    if (same_place(h.hypothesis, best->hypothesis, 2.0, M_PI)) continue;
+    rival = std::max(rival, h.mean_score());
+  }
+  e.margin = e.mean_score - rival;
+
+  bool stable = recent_best_.size() >= cc.stable_scans;
+  for (const auto& h : recent_best_) stable = stable && h && same_place(*h, best->hypothesis, cc.same_place_m, same_angle);
+  e.localized = stable && e.scored >= cc.min_scored && e.mean_score >= cc.min_mean_score && e.margin >= cc.min_margin;
+  return e;
+}
+
+LocalizerStats Localizer::stats() const {
+  LocalizerStats s = stats_;
+  s.ransac = ransac_.stats();
+  s.scan_matcher = matcher_.stats();
+  return s;
+}
+
+}  // namespace lshloc

@@ -1,0 +1,148 @@
+#pragma once
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include "lshloc/core/feature_extractor.hpp"
+#include "lshloc/core/incremental_ransac.hpp"
+#include "lshloc/core/laser_scan.hpp"
+#include "lshloc/core/lsh_database.hpp"
+#include "lshloc/core/pose_grid_scorer.hpp"
+#include "lshloc/core/scan_matcher.hpp"
+#include "lshloc/pipeline/global_map.hpp"
+
+namespace lshloc {
+
+/// When the localizer says "localized" (DESIGN.md: say it only when the
+/// evidence is strong; a confident answer should never be wrong).
+struct ConfidenceConfig {
+  std::uint32_t min_scored = 40;     ///< N of the best hypothesis at least this
+  double min_mean_score = 0.3;       ///< C/N of the best hypothesis at least this
+  double min_margin = 0.15;          ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
+  std::size_t stable_scans = 5;      ///< the best stayed in one place (1 m, 10 deg) this many scans
+  /// Hysteresis of the reported estimate: the best hypothesis near the last
+  /// reported one (within `same_place_m`, `same_place_deg`) stays reported
+  /// unless a hypothesis elsewhere beats its C/N by more than this.
+  double switch_margin = 0.02;
+  double same_place_m = 1.0;    ///< [m]
+  double same_place_deg = 10.0;  ///< [deg]
+};
+
+/// Where hypotheses come from.
+enum class HypothesisSource : std::uint8_t {
+  kDatabase,           ///< the appearance database's candidates (LSH-RANSAC)
+  kRandomMapFeatures,  ///< uniformly random map features at the same budget (the ablation control)
+};
+
+struct LocalizerConfig {
+  ScanMatcherConfig scan_matcher;   ///< the target's local map
+  FeatureExtractorConfig features;  ///< must equal the global map's
+  /// iRANSAC as measured best on real logs (RESULTS.md): 40 data-points per
+  /// scan (surface and free-space), 50 iterations per scan halving once per
+  /// scan, features drawn from the newest 8000 (about 200 scans: older ones
+  /// have drifted), and best = argmax C/N - 2/sqrt(N).
+  IncrementalRansacConfig ransac{.block_size = 50,
+                                 .new_features_per_scan = 40,
+                                 .iterations_per_scan = 50,
+                                 .min_score = 30.0,
+                                 .preference_z = 2.0,
+                                 .order_rule = FeatureOrderRule::kRecentWindow,
+                                 .recent_window = 8000};
+  std::size_t candidates_per_feature = 100;  ///< k of each database query
+  double free_space_penalty = 1.0;  ///< c(p, x) for a local point in space the map saw free
+  std::size_t context_scans = 8;    ///< recent local scans whose surface enters descriptors
+  double context_spacing = 0.3;     ///< [m] a scan joins the context after this much travel
+  double data_point_spacing = 0.1;  ///< [m] endpoints thinned along a scan before sampling data-points
+  /// Free-space data-points per surface data-point: points on local rays
+  /// (`free_point_fraction` of the way to the endpoint, at least
+  /// `free_point_margin` short of it) that must not land on map walls.
+  double free_points_per_surface_point = 1.0;
+  double free_point_fraction = 0.5;
+  double free_point_margin = 0.6;  ///< [m]
+  ConfidenceConfig confidence;
+  HypothesisSource hypothesis_source = HypothesisSource::kDatabase;
+  std::uint64_t seed = 0x10ca112e;  ///< the random control's choices
+
+  void validate() const;
+};
+
+/// The localizer's answer for one target scan.
+struct LocalizationEstimate {
+  bool has_estimate = false;
+  bool localized = false;       ///< the confidence state
+  std::uint32_t submap = 0;
+  Pose2 pose;                   ///< the scan's laser pose in the submap frame
+  Pose2 T_submap_local;
+  double mean_score = 0.0;      ///< C/N of the best hypothesis
+  std::uint32_t scored = 0;     ///< N of the best hypothesis
+  double margin = 0.0;          ///< C/N lead over the best hypothesis elsewhere
+  Pose2 local_pose;             ///< the scan's laser pose in the local frame
+};
+
+struct LocalizerStats {
+  std::size_t scans = 0;
+  std::size_t features = 0;       ///< local features extracted
+  std::size_t hypotheses = 0;     ///< hypotheses generated
+  std::size_t data_points = 0;    ///< data-points added to iRANSAC
+  double scan_matching_s = 0.0;   ///< [s]
+  double extract_s = 0.0;         ///< [s]
+  double query_s = 0.0;           ///< [s] database retrieval
+  double ransac_s = 0.0;          ///< [s] iRANSAC iterations (scoring)
+  IncrementalRansacStats ransac;
+  ScanMatcherStats scan_matcher;
+  double us_query_per_feature() const { return features ? 1e6 * query_s / static_cast<double>(features) : 0.0; }
+  double ns_per_score() const {
+    return ransac.scores ? 1e9 * ransac_s / static_cast<double>(ransac.scores) : 0.0;
+  }
+};
+
+/// The target robot's localizer (DESIGN.md section 3): for each scan it
+/// updates the local map by scan matching, extracts features in the local
+/// frame, queries the appearance database, turns the candidates into
+/// hypotheses and runs iRANSAC against the global map's pose grids.
+/// It reads the global map at each scan, so mapper scans added between two
+/// target scans count from the next one. Not thread-safe.
+class Localizer {
+ public:
+  Localizer(const GlobalMap& map, LocalizerConfig config = {});
+
+  LocalizationEstimate add_scan(const LaserScan& scan);
+
+  const LocalizerConfig& config() const { return config_; }
+  LocalizerStats stats() const;
+  const IncrementalRansac& ransac() const { return ransac_; }
+
+ private:
+  void generate_hypotheses(const std::vector<Feature>& features);
+  void sample_data_points(const LaserScan& scan, const ScanSurface& surface);
+  LocalizationEstimate estimate(const Pose2& local_pose);
+
+  const GlobalMap& map_;
+  LocalizerConfig config_;
+  ScanMatcher matcher_;
+  FeatureExtractor extractor_;
+  IncrementalRansac ransac_;
+  LshQuery query_;
+  PoseGridScorer scorer_;
+  std::vector<ScanSurface> context_;  // a few scans: erasing the front is cheap
+  Pose2 last_context_pose_;
+  std::deque<std::optional<Hypothesis>> recent_best_;
+  std::optional<Hypothesis> reported_;
+  LocalizerStats stats_;
+  // Scratch reused between scans.
+  std::vector<std::uint32_t> ids_;
+  std::vector<std::uint16_t> counts_;
+  struct Candidate {
+    std::uint16_t count;
+    std::uint32_t feature;
+    std::uint32_t id;
+  };
+  std::vector<Candidate> candidates_;
+  std::vector<Hypothesis> hypotheses_;
+  std::vector<LocalPoint> data_points_;
+  std::mt19937_64 rng_;
+};
+
+}  // namespace lshloc

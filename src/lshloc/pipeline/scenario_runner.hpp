@@ -1,0 +1,51 @@
+#pragma once
+#include <functional>
+#include <vector>
+
+#include "lshloc/pipeline/global_map.hpp"
+#include "lshloc/pipeline/localization_metrics.hpp"
+#include "lshloc/pipeline/localizer.hpp"
+#include "lshloc/pipeline/scenario.hpp"
+
+namespace lshloc {
+
+struct ScenarioRunConfig {
+  GlobalMapConfig map;
+  LocalizerConfig localizer;
+  /// Mapper scans are fed in rounds, one scan of each submap in turn (as
+  /// robots mapping in parallel would), before the target starts. Set
+  /// `interleave_target` to start the target after this share of each
+  /// submap's scans and feed the rest between target scans.
+  double map_share_before_target = 1.0;
+};
+
+/// What one scenario run produced, scan by scan, with its costs.
+struct ScenarioRun {
+  std::vector<LocalizationEstimate> estimates;  ///< per target scan
+  std::vector<double> cpu_s;       ///< [s] process CPU time spent on the target up to and including each scan
+  double map_build_s = 0.0;        ///< [s] wall time to feed every mapper scan
+  double localize_s = 0.0;         ///< [s] wall time of all target scans
+  double localize_cpu_s = 0.0;     ///< [s] process CPU time of all target scans
+  double log_duration_s = 0.0;     ///< [s] time the target's scans span in the log
+  GlobalMapStats map;
+  LocalizerStats localizer;
+  /// The data-points of iRANSAC placed by the final estimate, split by
+  /// whether they hit the map (for the paper's Fig. 6 style figure).
+  std::vector<Point2> final_inliers, final_outliers;
+
+  /// The estimates in the form evaluate_localization() takes.
+  std::vector<ScanEstimate> scan_estimates() const;
+};
+
+/// Progress callback: (target scans done, total); may be empty.
+using Progress = std::function<void(std::size_t, std::size_t)>;
+
+/// Builds the global map from the scenario's submaps and runs the target's
+/// scans through a Localizer. Map scans are fed with their map poses.
+/// The localizer's scan matcher takes the target's laser offset.
+ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress = {});
+
+/// [s] CPU time of this process so far (all threads).
+double process_cpu_seconds();
+
+}  // namespace lshloc
