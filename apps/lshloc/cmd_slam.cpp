@@ -80,6 +80,9 @@ void apply_setting(ScanMatcherConfig& c, const std::string& setting) {
   else if (name == "odometry_sigma_rotation") c.odometry_sigma_rotation = value;
   else if (name == "odometry_sigma_rotation_per_rad") c.odometry_sigma_rotation_per_rad = value;
   else if (name == "odometry_sigma_rotation_per_meter") c.odometry_sigma_rotation_per_meter = value;
+  else if (name == "reject_unconverged") c.reject_unconverged = value != 0.0;
+  else if (name == "converged_translation") c.converged_translation = value;
+  else if (name == "converged_rotation") c.converged_rotation = value;
   else if (name == "keep_oldest_map_points") c.keep_oldest_map_points = value != 0.0;
   else throw Error("--set: unknown scan matcher parameter '" + name + "' (see ScanMatcherConfig)");
 }

@@ -22,8 +22,8 @@ struct ScanMatcherConfig {
   double scan_voxel = 0.08;  ///< [m] scan endpoints are thinned to one per cell of this size
 
   // --- local map (rolling window of keyframes) ---
-  std::size_t window_keyframes = 30;  ///< keyframes kept in the local map (bounds cost per scan)
-  double keyframe_distance = 0.2;     ///< [m] robot travel since the last keyframe that adds a new one
+  std::size_t window_keyframes = 60;  ///< keyframes kept in the local map (bounds cost per scan)
+  double keyframe_distance = 0.3;     ///< [m] robot travel since the last keyframe that adds a new one
   double keyframe_angle = 0.17;       ///< [rad] (about 10 deg) rotation that adds a new keyframe
   double map_voxel = 0.04;            ///< [m] map points are thinned to one per cell
   /// Which keyframe's point a map_voxel cell keeps: the oldest (a stable
@@ -40,10 +40,10 @@ struct ScanMatcherConfig {
   double coarse_correspondence = 1.0;  ///< [m] max point-to-map-point distance in the first iterations
   double fine_correspondence = 0.3;    ///< [m] ... in the final iterations
   std::size_t coarse_iterations = 6;   ///< iterations run with the coarse distance
-  std::size_t max_iterations = 30;     ///< total iteration cap
+  std::size_t max_iterations = 50;     ///< total iteration cap
   double robust_scale = 0.05;          ///< [m] Cauchy kernel scale on point-to-line residuals
-  double converged_translation = 1e-4;  ///< [m] step below which ICP stops
-  double converged_rotation = 1e-5;     ///< [rad] step below which ICP stops
+  double converged_translation = 1e-3;  ///< [m] step below which ICP stops
+  double converged_rotation = 2e-4;     ///< [rad] step below which ICP stops
   double rotation_length = 2.0;  ///< [m] lever arm that makes rotation comparable to translation in the
                                  ///< degeneracy test (a rotation of 1 rad counts as this many metres)
 
@@ -51,7 +51,7 @@ struct ScanMatcherConfig {
   /// The odometry increment enters ICP as a prior, so that where the scan
   /// says little (few returns, glass, clutter) the pose stays near odometry
   /// instead of following noise. Its standard deviations per scan step:
-  bool odometry_prior = true;
+  bool odometry_prior = false;
   double point_sigma = 0.05;  ///< [m] std dev of one point-to-line residual (inflated: neighbours correlate)
   double odometry_sigma_translation = 0.02;  ///< [m] per step, plus the two terms below
   double odometry_sigma_per_meter = 0.1;     ///< [m/m] grows with the distance travelled in the step
@@ -69,6 +69,10 @@ struct ScanMatcherConfig {
   std::size_t min_correspondences = 20;  ///< fewer: the match is rejected
   double max_correction_translation = 0.5;  ///< [m] larger change of the odometry guess: rejected
   double max_correction_rotation = 0.35;    ///< [rad] (about 20 deg) larger change: rejected
+  /// Reject matches whose ICP did not converge within max_iterations: they
+  /// oscillate between correspondence sets, and on sparse or cluttered scans
+  /// such matches are where the heading jumps by degrees.
+  bool reject_unconverged = true;
   double stationary_translation = 1e-3;  ///< [m] odometry step below which matching is skipped ...
   double stationary_rotation = 1e-3;     ///< [rad] ... (the pose still moves with odometry)
 
@@ -93,6 +97,7 @@ struct ScanMatchResult {
   bool matched() const { return source == ScanMatchSource::kMatched; }
   bool degenerate = false;  ///< some direction was left to odometry
   std::size_t iterations = 0;
+  bool converged = false;           ///< ICP's step fell below the convergence thresholds
   std::size_t correspondences = 0;  ///< in the last iteration
   bool new_keyframe = false;        ///< the scan was added to the local map
 };
