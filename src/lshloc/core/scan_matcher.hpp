@@ -13,19 +13,21 @@ namespace lshloc {
 /// radians, unless a comment says otherwise.
 struct ScanMatcherConfig {
   /// Mounting pose of the laser on the robot (T_robot_laser): PARAM
-  /// robot_frontlaser_offset of the log (fr079 / fr101: x = -0.04).
+  /// robot_frontlaser_offset of the log (fr101: x = -0.04; fr079's raw log
+  /// lacks the PARAM, the data README gives -0.04 for it too).
   Pose2 laser_offset;
 
   // --- which beams are used ---
   double min_range = 0.1;   ///< [m] shorter readings are ignored (the robot itself, dust)
   double max_range = 25.0;  ///< [m] longer readings (incl. the ~81.9 m no-return) are ignored
-  double scan_voxel = 0.08;  ///< [m] scan endpoints are thinned to one per cell of this size
+  double scan_voxel = 0.08;  ///< [m] scan points used for matching are kept at least this far apart
 
   // --- local map (rolling window of keyframes) ---
   std::size_t window_keyframes = 60;  ///< keyframes kept in the local map (bounds cost per scan)
   double keyframe_distance = 0.3;     ///< [m] robot travel since the last keyframe that adds a new one
   double keyframe_angle = 0.17;       ///< [rad] (about 10 deg) rotation that adds a new keyframe
-  double map_voxel = 0.04;            ///< [m] map points are thinned to one per cell
+  double map_voxel = 0.04;            ///< [m] map points: one per cell of this size (and a keyframe's
+                                      ///< points at least this far apart along its scan)
   /// Which keyframe's point a map_voxel cell keeps: the oldest (a stable
   /// reference: drift grows only when the window moves on) or the newest.
   bool keep_oldest_map_points = true;
@@ -48,9 +50,10 @@ struct ScanMatcherConfig {
                                  ///< degeneracy test (a rotation of 1 rad counts as this many metres)
 
   // --- odometry prior ---
-  /// The odometry increment enters ICP as a prior, so that where the scan
-  /// says little (few returns, glass, clutter) the pose stays near odometry
-  /// instead of following noise. Its standard deviations per scan step:
+  /// The odometry increment can enter ICP as a prior, so that where the scan
+  /// says little the pose stays near odometry. Off by default: on the
+  /// benchmark logs it did not help reliably (fr079 got worse; see
+  /// docs/results/local-map.md). Its standard deviations per scan step:
   bool odometry_prior = false;
   double point_sigma = 0.05;  ///< [m] std dev of one point-to-line residual (inflated: neighbours correlate)
   double odometry_sigma_translation = 0.02;  ///< [m] per step, plus the two terms below
@@ -60,9 +63,11 @@ struct ScanMatcherConfig {
   double odometry_sigma_rotation_per_meter = 0.02;  ///< [rad/m] grows with the step's distance
 
   // --- robustness ---
-  /// [-] a direction of the normal equations is degenerate when its eigenvalue
-  /// divided by the number of correspondences is below this: ICP does not move
-  /// along it, so the odometry guess is kept there (long featureless corridors).
+  /// [-] a translation direction (eigenvector of the translation block of the
+  /// normal equations) or the rotation (its diagonal entry, scaled by
+  /// rotation_length) is degenerate when its eigenvalue per correspondence is
+  /// below this: ICP does not move along it, so the odometry guess is kept
+  /// there (the axis of a long featureless corridor).
   double degeneracy_threshold = 0.03;
   double inlier_distance = 0.08;  ///< [m] point-to-line residual that counts as an inlier for quality
   double min_quality = 0.3;       ///< [0,1] inlier share below which the match is rejected
@@ -151,7 +156,7 @@ class ScanMatcher {
   void usable_endpoints(const LaserScan& scan, std::vector<Point2>& out) const;
   /// Line points (with normals) of a scan, in the laser frame, voxel-thinned.
   std::vector<MapPoint> line_points(const std::vector<Point2>& endpoints, double angle_increment) const;
-  /// Thins `endpoints` to one per scan_voxel cell into `source_`.
+  /// Thins `endpoints` to points scan_voxel apart (in beam order) into `source_`.
   void thin_source(const std::vector<Point2>& endpoints);
   void add_keyframe(double timestamp, const Pose2& laser_pose, const std::vector<Point2>& endpoints,
                     double angle_increment);
