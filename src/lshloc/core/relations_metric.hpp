@@ -1,5 +1,6 @@
 #pragma once
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -32,6 +33,21 @@ struct RelationsError {
 struct RelationsMetricConfig {
   double time_tolerance = 1e-3;  ///< [s] a relation stamp joins the trajectory pose nearest to it within this
 };
+
+/// The error of one relation: translational [m] and rotational [rad].
+struct RelationError {
+  double translation = 0.0;
+  double rotation = 0.0;
+};
+
+/// Per-relation errors of `trajectory` (nullopt where t1 or t2 finds no pose
+/// within the tolerance), in the order of `relations`.
+std::vector<std::optional<RelationError>> relation_errors(std::span<const StampedPose> trajectory,
+                                                          std::span<const Relation> relations,
+                                                          const RelationsMetricConfig& config = {});
+
+/// Means and maxima over the relations that have an error.
+RelationsError summarize_relation_errors(std::span<const std::optional<RelationError>> errors);
 
 /// Evaluates `trajectory` (robot poses with the time stamps of the scans the
 /// relations were made from; any order) against `relations`. Relations whose

@@ -289,17 +289,22 @@ Pose2 ScanMatcher::align(const Pose2& guess, const Pose2& laser_step, ScanMatchR
     result.correspondences = correspondences;
     result.quality = source_.empty() ? 0.0 : static_cast<double>(inliers) / static_cast<double>(source_.size());
     if (correspondences < config_.min_correspondences) return pose;
-    // Directions the scan barely constrains (eigenvalues of the scan's normal
-    // equations per correspondence below the threshold: a featureless
-    // corridor's axis) are left out of the update, so the odometry guess is
-    // kept along them. The rest is solved with the odometry prior.
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(H);
+    // Directions the scan barely constrains are left out of the update, so
+    // the odometry guess is kept along them. Translation and rotation are
+    // tested apart: a featureless corridor leaves one translation direction
+    // free (the smallest eigenvector of the translation block, per
+    // correspondence, below the threshold) while the walls still fix the
+    // heading, which must then be corrected in full.
     const double n = static_cast<double>(correspondences);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(H.topLeftCorner<2, 2>().eval());
     int good = 0;
     Eigen::Matrix3d basis = Eigen::Matrix3d::Zero();
-    for (int i = 0; i < 3; ++i) {
-      if (eig.eigenvalues()(i) / n >= config_.degeneracy_threshold) basis.col(good++) = eig.eigenvectors().col(i);
+    for (int i = 0; i < 2; ++i) {
+      if (eig.eigenvalues()(i) / n >= config_.degeneracy_threshold) {
+        basis.block<2, 1>(0, good++) = eig.eigenvectors().col(i);
+      }
     }
+    if (H(2, 2) / n >= config_.degeneracy_threshold) basis(2, good++) = 1.0;
     result.degenerate = good < 3;
     Eigen::Vector3d delta = Eigen::Vector3d::Zero();
     if (good > 0) {
@@ -317,6 +322,7 @@ Pose2 ScanMatcher::align(const Pose2& guess, const Pose2& laser_step, ScanMatchR
     pose = step * pose;
     if (!coarse && std::hypot(delta(0), delta(1)) < config_.converged_translation &&
         std::abs(dtheta) < config_.converged_rotation) {
+      result.converged = true;
       break;
     }
   }
@@ -357,7 +363,7 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
         const bool plausible = std::hypot(correction.x, correction.y) <= config_.max_correction_translation &&
                                std::abs(correction.theta) <= config_.max_correction_rotation;
         if (result.correspondences >= config_.min_correspondences && result.quality >= config_.min_quality &&
-            plausible) {
+            plausible && (result.converged || !config_.reject_unconverged)) {
           result.source = ScanMatchSource::kMatched;
           result.laser_pose = refined;
           ++stats_.matched;

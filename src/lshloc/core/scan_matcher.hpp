@@ -13,19 +13,21 @@ namespace lshloc {
 /// radians, unless a comment says otherwise.
 struct ScanMatcherConfig {
   /// Mounting pose of the laser on the robot (T_robot_laser): PARAM
-  /// robot_frontlaser_offset of the log (fr079 / fr101: x = -0.04).
+  /// robot_frontlaser_offset of the log (fr101: x = -0.04; fr079's raw log
+  /// lacks the PARAM, the data README gives -0.04 for it too).
   Pose2 laser_offset;
 
   // --- which beams are used ---
   double min_range = 0.1;   ///< [m] shorter readings are ignored (the robot itself, dust)
   double max_range = 25.0;  ///< [m] longer readings (incl. the ~81.9 m no-return) are ignored
-  double scan_voxel = 0.08;  ///< [m] scan endpoints are thinned to one per cell of this size
+  double scan_voxel = 0.08;  ///< [m] scan points used for matching are kept at least this far apart
 
   // --- local map (rolling window of keyframes) ---
-  std::size_t window_keyframes = 30;  ///< keyframes kept in the local map (bounds cost per scan)
-  double keyframe_distance = 0.2;     ///< [m] robot travel since the last keyframe that adds a new one
+  std::size_t window_keyframes = 60;  ///< keyframes kept in the local map (bounds cost per scan)
+  double keyframe_distance = 0.3;     ///< [m] robot travel since the last keyframe that adds a new one
   double keyframe_angle = 0.17;       ///< [rad] (about 10 deg) rotation that adds a new keyframe
-  double map_voxel = 0.04;            ///< [m] map points are thinned to one per cell
+  double map_voxel = 0.04;            ///< [m] map points: one per cell of this size (and a keyframe's
+                                      ///< points at least this far apart along its scan)
   /// Which keyframe's point a map_voxel cell keeps: the oldest (a stable
   /// reference: drift grows only when the window moves on) or the newest.
   bool keep_oldest_map_points = true;
@@ -40,18 +42,19 @@ struct ScanMatcherConfig {
   double coarse_correspondence = 1.0;  ///< [m] max point-to-map-point distance in the first iterations
   double fine_correspondence = 0.3;    ///< [m] ... in the final iterations
   std::size_t coarse_iterations = 6;   ///< iterations run with the coarse distance
-  std::size_t max_iterations = 30;     ///< total iteration cap
+  std::size_t max_iterations = 50;     ///< total iteration cap
   double robust_scale = 0.05;          ///< [m] Cauchy kernel scale on point-to-line residuals
-  double converged_translation = 1e-4;  ///< [m] step below which ICP stops
-  double converged_rotation = 1e-5;     ///< [rad] step below which ICP stops
+  double converged_translation = 1e-3;  ///< [m] step below which ICP stops
+  double converged_rotation = 2e-4;     ///< [rad] step below which ICP stops
   double rotation_length = 2.0;  ///< [m] lever arm that makes rotation comparable to translation in the
                                  ///< degeneracy test (a rotation of 1 rad counts as this many metres)
 
   // --- odometry prior ---
-  /// The odometry increment enters ICP as a prior, so that where the scan
-  /// says little (few returns, glass, clutter) the pose stays near odometry
-  /// instead of following noise. Its standard deviations per scan step:
-  bool odometry_prior = true;
+  /// The odometry increment can enter ICP as a prior, so that where the scan
+  /// says little the pose stays near odometry. Off by default: on the
+  /// benchmark logs it did not help reliably (fr079 got worse; see
+  /// docs/results/local-map.md). Its standard deviations per scan step:
+  bool odometry_prior = false;
   double point_sigma = 0.05;  ///< [m] std dev of one point-to-line residual (inflated: neighbours correlate)
   double odometry_sigma_translation = 0.02;  ///< [m] per step, plus the two terms below
   double odometry_sigma_per_meter = 0.1;     ///< [m/m] grows with the distance travelled in the step
@@ -60,15 +63,21 @@ struct ScanMatcherConfig {
   double odometry_sigma_rotation_per_meter = 0.02;  ///< [rad/m] grows with the step's distance
 
   // --- robustness ---
-  /// [-] a direction of the normal equations is degenerate when its eigenvalue
-  /// divided by the number of correspondences is below this: ICP does not move
-  /// along it, so the odometry guess is kept there (long featureless corridors).
+  /// [-] a translation direction (eigenvector of the translation block of the
+  /// normal equations) or the rotation (its diagonal entry, scaled by
+  /// rotation_length) is degenerate when its eigenvalue per correspondence is
+  /// below this: ICP does not move along it, so the odometry guess is kept
+  /// there (the axis of a long featureless corridor).
   double degeneracy_threshold = 0.03;
   double inlier_distance = 0.08;  ///< [m] point-to-line residual that counts as an inlier for quality
   double min_quality = 0.3;       ///< [0,1] inlier share below which the match is rejected
   std::size_t min_correspondences = 20;  ///< fewer: the match is rejected
   double max_correction_translation = 0.5;  ///< [m] larger change of the odometry guess: rejected
   double max_correction_rotation = 0.35;    ///< [rad] (about 20 deg) larger change: rejected
+  /// Reject matches whose ICP did not converge within max_iterations: they
+  /// oscillate between correspondence sets, and on sparse or cluttered scans
+  /// such matches are where the heading jumps by degrees.
+  bool reject_unconverged = true;
   double stationary_translation = 1e-3;  ///< [m] odometry step below which matching is skipped ...
   double stationary_rotation = 1e-3;     ///< [rad] ... (the pose still moves with odometry)
 
@@ -93,6 +102,7 @@ struct ScanMatchResult {
   bool matched() const { return source == ScanMatchSource::kMatched; }
   bool degenerate = false;  ///< some direction was left to odometry
   std::size_t iterations = 0;
+  bool converged = false;           ///< ICP's step fell below the convergence thresholds
   std::size_t correspondences = 0;  ///< in the last iteration
   bool new_keyframe = false;        ///< the scan was added to the local map
 };
@@ -146,7 +156,7 @@ class ScanMatcher {
   void usable_endpoints(const LaserScan& scan, std::vector<Point2>& out) const;
   /// Line points (with normals) of a scan, in the laser frame, voxel-thinned.
   std::vector<MapPoint> line_points(const std::vector<Point2>& endpoints, double angle_increment) const;
-  /// Thins `endpoints` to one per scan_voxel cell into `source_`.
+  /// Thins `endpoints` to points scan_voxel apart (in beam order) into `source_`.
   void thin_source(const std::vector<Point2>& endpoints);
   void add_keyframe(double timestamp, const Pose2& laser_pose, const std::vector<Point2>& endpoints,
                     double angle_increment);
