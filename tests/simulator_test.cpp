@@ -192,6 +192,20 @@ TEST(FloorPlan, DistinctSeedsGiveDistinctBuildings) {
   }
 }
 
+TEST(FloorPlan, SmallAndLargeBuildingsHaveATour) {
+  for (const double size : {12.0, 150.0}) {
+    BuildingGeneratorConfig config;
+    config.plan.seed = 5;
+    config.plan.min_size = config.plan.max_size = size;
+    const auto b = generate_building(config);
+    EXPECT_NEAR(b.plan.width, size, 0.1);
+    EXPECT_NEAR(b.plan.height, size, 0.1);
+    const Trajectory tour = drive_tour(b.plan, {}, 300, 1);
+    EXPECT_EQ(tour.poses.size(), 300u);
+    EXPECT_GT(tour.length, 10.0) << "size " << size;
+  }
+}
+
 TEST(FloorPlan, RejectsAnInconsistentConfig) {
   BuildingGeneratorConfig config;
   config.plan.min_size = 60.0, config.plan.max_size = 40.0;
