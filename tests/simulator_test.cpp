@@ -1,4 +1,5 @@
 #include "lshloc/sim/simulator.hpp"
+#include "lshloc/sim/render.hpp"
 
 #include <gtest/gtest.h>
 
@@ -192,6 +193,20 @@ TEST(FloorPlan, DistinctSeedsGiveDistinctBuildings) {
   }
 }
 
+TEST(FloorPlan, SmallAndLargeBuildingsHaveATour) {
+  for (const double size : {12.0, 150.0}) {
+    BuildingGeneratorConfig config;
+    config.plan.seed = 5;
+    config.plan.min_size = config.plan.max_size = size;
+    const auto b = generate_building(config);
+    EXPECT_NEAR(b.plan.width, size, 0.1);
+    EXPECT_NEAR(b.plan.height, size, 0.1);
+    const Trajectory tour = drive_tour(b.plan, {}, 300, 1);
+    EXPECT_EQ(tour.poses.size(), 300u);
+    EXPECT_GT(tour.length, 10.0) << "size " << size;
+  }
+}
+
 TEST(FloorPlan, RejectsAnInconsistentConfig) {
   BuildingGeneratorConfig config;
   config.plan.min_size = 60.0, config.plan.max_size = 40.0;
@@ -302,6 +317,17 @@ TEST(Simulator, RecordingFeedsTheScenarioBuilder) {
     ASSERT_TRUE(target.truth[k].has_value());
     EXPECT_EQ(target.truth[k]->x, rec.truth[500 + k].pose.x);
   }
+}
+
+TEST(Render, SvgDrawsEverySegmentAndThePath) {
+  const auto b = building_with_seed(2);
+  const std::vector<Pose2> path = {Pose2(1, 1, 0), Pose2(2, 1, 0)};
+  const std::string svg = floor_plan_svg(b.plan, path);
+  std::size_t lines = 0;
+  for (std::size_t at = svg.find("<line"); at != std::string::npos; at = svg.find("<line", at + 1)) ++lines;
+  EXPECT_EQ(lines, b.plan.segments.size());
+  EXPECT_NE(svg.find("<polyline"), std::string::npos);
+  EXPECT_EQ(svg.rfind("</svg>\n"), svg.size() - 7);
 }
 
 void expect_same_scans(const std::vector<LaserScan>& written, const std::vector<LaserScan>& read) {

@@ -10,6 +10,7 @@
 #include "commands.hpp"
 #include "lshloc/core/error.hpp"
 #include "lshloc/io/carmen_writer.hpp"
+#include "lshloc/sim/render.hpp"
 #include "lshloc/sim/simulator.hpp"
 
 namespace lshloc::app {
@@ -24,6 +25,7 @@ struct SimulateOptions {
   std::size_t beams = 180;
   double max_range = 30.0;
   bool json = false;
+  bool svg = false;
 };
 
 /// The floor plan as `x1 y1 x2 y2` lines [m] (walls, then pillars, then
@@ -74,6 +76,17 @@ void run_simulate(const SimulateOptions& o) {
     t = std::chrono::steady_clock::now();
     const io::BuildingFiles files = io::write_building_recording(rec, o.out);
     const std::string segments = write_segments(building, o.out + "/" + rec.name);
+    std::string svg;
+    if (o.svg) {
+      std::vector<Pose2> path;
+      for (const auto& stamped : rec.truth) path.push_back(stamped.pose);
+      svg = o.out + "/" + rec.name + "/" + rec.name + ".svg";
+      std::FILE* f = std::fopen(svg.c_str(), "wb");
+      const std::string text = sim::floor_plan_svg(building.plan, path);
+      const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+      if (f && std::fclose(f) != 0) throw Error(svg + ": write failed");
+      if (!ok) throw Error(svg + ": cannot write");
+    }
     const double write = seconds_since(t);
     generate_s += gen, simulate_s += simulate, write_s += write, total_scans += rec.raw_scans.size();
 
@@ -105,7 +118,8 @@ void run_simulate(const SimulateOptions& o) {
           {"raw_log", files.raw_log},
           {"corrected_log", files.corrected_log},
           {"poses", files.poses},
-          {"segments_file", segments}};
+          {"segments_file", segments},
+          {"svg", svg}};
       std::printf("%s\n", line.dump().c_str());
     } else {
       std::printf("%s: %.1f x %.1f m, %zu segments, %zu rooms, %zu halls, %zu doors; %zu scans over %.0f m "
@@ -146,6 +160,7 @@ void add_simulate_command(CLI::App& app, GlobalOptions& /*global*/) {
   cmd->add_option("--beams", o->beams, "beams per scan over 180 degrees")->capture_default_str()->check(CLI::Range(2, 100000));
   cmd->add_option("--max-range", o->max_range, "[m] laser max range (no return beyond)")->capture_default_str()->check(CLI::PositiveNumber);
   cmd->add_flag("--json", o->json, "one JSON object per line");
+  cmd->add_flag("--svg", o->svg, "also draw each floor plan with the robot's path (DIR/NAME/NAME.svg)");
   cmd->callback([o] { run_simulate(*o); });
 }
 

@@ -108,6 +108,7 @@ class PlanBuilder {
     plan_.width = nx_ * c_.layout_cell, plan_.height = ny_ * c_.layout_cell;
     label_.assign(static_cast<std::size_t>(nx_) * ny_, kOutside);
     split_root();
+    carve_niches();
     place_doors();
     extract_walls();
     add_pillars();
@@ -204,8 +205,9 @@ class PlanBuilder {
     const double w = metres(block.w()), h = metres(block.h());
     const bool touches_corridor = sides[kLeft] || sides[kRight] || sides[kBottom] || sides[kTop];
     const bool hall_sized = std::min(w, h) >= 8.0 && std::max(w, h) <= 28.0;
-    if (touches_corridor && hall_sized && depth > 0 && chance(rng_, c_.hall_probability)) {
+    if (touches_corridor && hall_sized && depth > 0 && chance(rng_, c_.hall_probability) && halls_ < c_.max_halls) {
       add_region(block, RegionKind::kHall);
+      ++halls_;
       return;
     }
     if (std::min(w, h) >= c_.corridor_split_min) {
@@ -372,6 +374,53 @@ class PlanBuilder {
     return p;
   }
 
+  static Polygon octagon(const Point2& centre, double radius, double angle) {
+    Polygon p;
+    for (int k = 0; k < 8; ++k) {
+      const double t = angle + k * std::numbers::pi / 4.0;
+      p.push_back(centre + radius * Point2(std::cos(t), std::sin(t)));
+    }
+    return p;
+  }
+
+  /// Niches in corridor walls: a shallow bay taken from one room, so the
+  /// corridor wall gets a notch (lockers, fire hoses, doorways set back).
+  void carve_niches() {
+    const std::size_t corridors = plan_.regions.size();
+    for (std::size_t r = 0; r < corridors; ++r) {
+      if (plan_.regions[r].kind != RegionKind::kCorridor) continue;
+      const Rect b = plan_.regions[r].bounds;
+      const bool along_x = b.width() >= b.height();
+      const double length_total = along_x ? b.width() : b.height();
+      const int count = poisson(rng_, c_.niches_per_m * length_total);
+      for (int n = 0; n < count; ++n) {
+        const double length = uniform(rng_, 1.0, 2.5), depth = uniform(rng_, 0.3, 0.8);
+        const double at = uniform(rng_, 0.3, length_total - length - 0.3);
+        const bool low_side = chance(rng_, 0.5);
+        CellRect niche;
+        if (along_x) {
+          niche.i0 = cells(b.x0 + at), niche.i1 = cells(b.x0 + at + length);
+          niche.j1 = low_side ? cells(b.y0) : cells(b.y1) + cells(depth);
+          niche.j0 = niche.j1 - cells(depth);
+        } else {
+          niche.j0 = cells(b.y0 + at), niche.j1 = cells(b.y0 + at + length);
+          niche.i1 = low_side ? cells(b.x0) : cells(b.x1) + cells(depth);
+          niche.i0 = niche.i1 - cells(depth);
+        }
+        if (niche.i0 < 0 || niche.j0 < 0 || niche.i1 > nx_ || niche.j1 > ny_) continue;
+        // All of it must come out of one room (not a hall, not the outside).
+        const int room = label(niche.i0, niche.j0);
+        if (room <= kCorridorLabel || plan_.regions[static_cast<std::size_t>(room - 1)].kind != RegionKind::kRoom) continue;
+        bool one_room = true;
+        for (int j = niche.j0; j < niche.j1 && one_room; ++j)
+          for (int i = niche.i0; i < niche.i1 && one_room; ++i) one_room = label(i, j) == room;
+        if (!one_room) continue;
+        fill(niche, kCorridorLabel);
+        furniture_.push_back(to_rect(niche));  // keeps furniture out of it
+      }
+    }
+  }
+
   /// A grid of pillars (square or round, one kind per hall) inside each hall.
   void add_pillars() {
     for (const auto& region : plan_.regions) {
@@ -390,12 +439,7 @@ class PlanBuilder {
         for (int b = 0; b < rows; ++b) {
           const Point2 c(x_start + a * pitch, y_start + b * pitch);
           if (round) {
-            Polygon p;
-            for (int k = 0; k < 8; ++k) {
-              const double t = k * std::numbers::pi / 4.0;
-              p.push_back(c + size * Point2(std::cos(t), std::sin(t)));
-            }
-            add_polygon(p);
+            add_polygon(octagon(c, size, 0.0));
           } else {
             add_polygon(box(c, size, size, 0.0));
           }
@@ -446,13 +490,17 @@ class PlanBuilder {
           ++n;
         }
         if (r.width() >= 5.0 && r.height() >= 5.0 && chance(rng_, 0.5)) {
+          // A table: rectangular at any angle, or round (an octagon).
+          const bool round = chance(rng_, 0.4);
           const double length = uniform(rng_, 1.2, 2.0), depth = uniform(rng_, 0.7, 1.0);
-          const double reach = std::hypot(length, depth) / 2.0 + 1.3;
+          const double radius = uniform(rng_, 0.4, 0.6);
+          const double reach = (round ? radius : std::hypot(length, depth) / 2.0) + 1.3;
           const Point2 c(uniform(rng_, r.x0 + reach, r.x1 - reach), uniform(rng_, r.y0 + reach, r.y1 - reach));
           const Rect bound{c.x() - reach + 1.3, c.y() - reach + 1.3, c.x() + reach - 1.3, c.y() + reach - 1.3};
           if (clear_of_doors(bound, 1.0) && clear_of_furniture(bound, 0.8)) {
             furniture_.push_back(bound);
-            add_polygon(box(c, length, depth, uniform(rng_, -std::numbers::pi, std::numbers::pi)));
+            const double angle = uniform(rng_, -std::numbers::pi, std::numbers::pi);
+            add_polygon(round ? octagon(c, radius, angle) : box(c, length, depth, angle));
           }
         }
       } else if (region.kind == RegionKind::kCorridor) {
@@ -585,6 +633,7 @@ class PlanBuilder {
   const FloorPlanConfig& c_;
   Rng rng_;
   int nx_ = 0, ny_ = 0;
+  int halls_ = 0;
   std::vector<int> label_;  ///< kOutside, kCorridorLabel or 1 + region index
   std::vector<std::uint8_t> door_h_, door_v_;  ///< door edges on horizontal / vertical grid lines
   std::vector<std::pair<int, int>> door_pairs_;
@@ -607,9 +656,11 @@ void validate(const FloorPlanConfig& c) {
   require(c.corridor_split_min >= 2.0 * c.room_min + c.corridor_max_width,
           "corridor_split_min must leave room for rooms on both sides of a corridor");
   require(c.door_min_width >= 0.7 && c.door_max_width >= c.door_min_width, "need 0.7 m <= door_min_width <= door_max_width");
+  require(c.max_halls >= 0, "max_halls must not be negative");
   require(c.pillar_spacing_min >= 1.5 && c.pillar_spacing_max >= c.pillar_spacing_min,
           "need 1.5 m <= pillar_spacing_min <= pillar_spacing_max");
-  require(c.clutter_per_room >= 0.0 && c.corridor_clutter_per_m >= 0.0, "clutter rates must not be negative");
+  require(c.clutter_per_room >= 0.0 && c.corridor_clutter_per_m >= 0.0 && c.niches_per_m >= 0.0,
+          "clutter and niche rates must not be negative");
 }
 
 }  // namespace

@@ -73,6 +73,7 @@ struct FloorPlanConfig {
   double room_min = 2.8;              ///< [m] shortest room side
   double room_max = 7.5;              ///< [m] rooms longer than this are split further
   double hall_probability = 0.08;     ///< chance that a block of hall size stays one open hall
+  int max_halls = 3;                  ///< at most this many halls per building
   double door_min_width = 0.9;        ///< [m]
   double door_max_width = 1.4;        ///< [m]
   double extra_door_probability = 0.2;  ///< chance of a second door between already connected neighbours
@@ -80,6 +81,7 @@ struct FloorPlanConfig {
   double pillar_spacing_max = 6.0;    ///< [m]
   double clutter_per_room = 1.5;      ///< mean furniture boxes per room
   double corridor_clutter_per_m = 0.06;  ///< mean cabinets per metre of corridor
+  double niches_per_m = 0.04;         ///< mean niches (bays into a room) per metre of corridor
   double layout_cell = 0.1;           ///< [m] resolution of the layout raster and of the clearance grid
 };
 

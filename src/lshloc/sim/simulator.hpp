@@ -8,6 +8,12 @@
 // raw scans carry the drifting odometry, corrected scans the true poses, and
 // `truth` joins them by the raw time stamps. io::write_building_recording
 // writes it as CARMEN logs every lshloc tool reads.
+//
+// All randomness comes from the config seeds (no global state). Results are
+// reproducible for a seed with a given C++ standard library: the std::
+// distributions used are implementation-defined, so another library may draw
+// other (equally valid) buildings. Everything here is const on its inputs:
+// several recordings of one building may be simulated in parallel.
 #include <cstdint>
 #include <string>
 
