@@ -16,4 +16,7 @@ struct GlobalOptions {
 // and throws lshloc::Error on bad input.
 void add_info_command(CLI::App& app, GlobalOptions& global);
 
+// `bench` is a group: each add_bench_<name>_command adds `bench <name>` to it.
+void add_bench_matching_command(CLI::App& bench, GlobalOptions& global);
+
 }  // namespace lshloc::app

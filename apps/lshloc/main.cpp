@@ -17,6 +17,9 @@ int main(int argc, char** argv) {
                  "data directory with the CARMEN logs (default: $LSHLOC_DATA, else ../shared/data)")
       ->envname("LSHLOC_DATA");
   lshloc::app::add_info_command(app, global);
+  auto* bench = app.add_subcommand("bench", "Benchmarks that print their figures as JSON (see `bench --help`)");
+  bench->require_subcommand(1);
+  lshloc::app::add_bench_matching_command(*bench, global);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

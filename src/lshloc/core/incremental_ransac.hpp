@@ -190,6 +190,7 @@ class IncrementalRansac {
   std::uint64_t next_serial_ = 0;
   std::vector<float> scratch_;
   std::vector<std::uint32_t> order_;   ///< preempt() scratch
+  std::vector<double> rank_;           ///< preempt() scratch
   std::vector<std::uint8_t> keep_;     ///< preempt() scratch
   IncrementalRansacStats stats_;
 };

@@ -18,9 +18,12 @@ struct PoseGridScorerConfig {
 };
 
 /// A Scorer for IncrementalRansac (see there). Each call transforms one local
-/// point by every hypothesis of the batch (floats, precomputed cos/sin),
-/// packs all cell keys, then looks them up with prefetching a few keys ahead,
-/// so the table's cache misses overlap instead of queueing.
+/// point by every hypothesis of the batch (floats, precomputed cos/sin, four
+/// at a time), packs and hashes all cell keys, then looks them up with
+/// prefetching a few keys ahead, so the table's cache misses overlap instead
+/// of queueing. The tolerance window comes from the grid's config: with
+/// kProbeNeighbours, one heading run per (x, y) offset (one or two cache
+/// lines, see PoseGridHashMap::TableView).
 ///
 /// Holds a reference to the grid (which must outlive it) and its own scratch
 /// space: one scorer per thread. The grid must not change during a call.
@@ -37,12 +40,12 @@ class PoseGridScorer {
   std::uint64_t lookups() const { return lookups_; }
 
  private:
-  void compute_keys(const HypothesisBatch& v, int dx, int dy, int dtheta, bool absolute_theta);
 
   const PoseGridHashMap& grid_;
   PoseGridScorerConfig config_;
   float value_[4];  ///< score by (flags & 3)
-  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint64_t> xy_;     ///< (submap, ix, iy) key of each hypothesis' cell
+  std::vector<std::uint32_t> home_;  ///< its home slot (tables stay below 2^32 slots)
   std::vector<std::int32_t> ix_, iy_, it_;
   std::vector<CellFlags> flags_;
   std::uint64_t lookups_ = 0;
