@@ -169,6 +169,7 @@ void check_against_nister(bool binary_scores, PreemptionRank rank, std::size_t M
   IncrementalRansacConfig cfg;
   cfg.block_size = B;
   cfg.preemption_rank = rank;
+  cfg.order_rule = FeatureOrderRule::kUniform;
   IncrementalRansac ransac(cfg);
   // Hypothesis j carries its id in `submap`; feature x its id in x.x.
   std::vector<Hypothesis> hyps(M);

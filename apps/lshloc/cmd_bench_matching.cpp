@@ -43,7 +43,7 @@ struct BenchMatchingOptions {
   double drift_xy = 0.0;           ///< [m] std. dev. of the local map's drift per viewpoint (random walk)
   double drift_theta_deg = 0.0;    ///< [deg] same, heading
   std::string tolerance_mode = "dilate";
-  std::string order_rule = "uniform";
+  std::string order_rule = "fresh";
   PoseGridConfig grid;
   IncrementalRansacConfig ransac;
 };
@@ -288,7 +288,7 @@ void add_bench_matching_command(CLI::App& bench, GlobalOptions& global) {
   cmd->add_option("--block", o->ransac.block_size, "B: halve the active set every B-th iteration")
       ->capture_default_str();
   cmd->add_option("--iterations", o->ransac.iterations_per_scan, "iterations per viewpoint")->capture_default_str();
-  cmd->add_option("--order", o->order_rule, "feature order rule: uniform (paper), recent, fresh")
+  cmd->add_option("--order", o->order_rule, "feature order rule: uniform (paper), recent, fresh (each new feature first)")
       ->capture_default_str();
   cmd->add_option("--cell", o->grid.cell_size, "[m] pose-grid cell size")->capture_default_str();
   cmd->add_option("--theta-bins", o->grid.theta_bins, "pose-grid heading bins")->capture_default_str();
