@@ -133,6 +133,27 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
         lookups_ += n;
         return;
       }
+      if (theta_window && xy_tol == 0) {
+        // One heading window per hypothesis: straight to scores; a window
+        // that wraps at +-pi (2u+1 of theta_bins cases) takes two runs.
+        const int u = grid_.config().theta_tolerance, bins = grid_.theta_bins(), count = 2 * u + 1;
+        for (std::size_t j = 0; j < n; ++j) {
+          if (j + kAhead < n) table.prefetch(slot_of(j + kAhead));
+          const int first = it[j] - u;
+          CellFlags f = 0;
+          if (first >= 0 && first + count <= bins) {
+            f = table.lookup_run(xy[j], (home[j] + static_cast<std::size_t>(first)) & mask, first, count);
+          } else {
+            const PoseGridHashMap::ThetaRuns w = grid_.theta_runs(it[j]);
+            for (int r = 0; r < w.runs; ++r)
+              f |= table.lookup_run(xy[j], (home[j] + static_cast<std::size_t>(w.first[r])) & mask, w.first[r],
+                                    w.count[r]);
+          }
+          scores[j] = lut[f & 3];
+        }
+        lookups_ += n;
+        return;
+      }
       for (std::size_t j = 0; j < n; ++j) {
         if (j + kAhead < n) table.prefetch(slot_of(j + kAhead));
         CellFlags f = 0;
