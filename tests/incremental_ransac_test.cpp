@@ -263,6 +263,9 @@ TEST(IncrementalRansac, ScanBudgetsAndStatistics) {
   EXPECT_EQ(best->hypothesis.submap, 2u);
   EXPECT_EQ(best->score, 2.0);
   EXPECT_EQ(best->scored, 2u);
+  EXPECT_EQ(ransac.stats().best_score, 2.0);
+  EXPECT_EQ(ransac.stats().best_mean_score, 1.0);
+  EXPECT_EQ(ransac.stats().best_scored, 2u);
 }
 
 TEST(IncrementalRansac, NothingHappensWithoutFeaturesOrHypotheses) {

@@ -181,12 +181,12 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
     }
     // Timed: what iRANSAC does per viewpoint (generating the hypotheses is
     // the appearance database's work, not timed here).
+    const std::size_t scores_before = ransac.stats().scores;
     const double c0 = thread_cpu_seconds();
     const auto t0 = std::chrono::steady_clock::now();
     ransac.add_scan(fresh, hyps);
     const double c1 = thread_cpu_seconds();
     const auto t1 = std::chrono::steady_clock::now();
-    const std::size_t scores_before = ransac.stats().scores;
     ransac.run(scorer);
     const double c2 = thread_cpu_seconds();
     const auto t2 = std::chrono::steady_clock::now();

@@ -167,6 +167,7 @@ IncrementalRansacStats IncrementalRansac::stats() const {
   IncrementalRansacStats s = stats_;
   s.active_hypotheses = tx_.size();
   s.features = features_.size();
+  if (const auto b = best()) s.best_score = b->score, s.best_mean_score = b->mean_score(), s.best_scored = b->scored;
   return s;
 }
 

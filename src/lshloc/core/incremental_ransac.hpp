@@ -76,6 +76,9 @@ struct IncrementalRansacStats {
   std::size_t hypotheses_preempted = 0;  ///< cut by the preemption function
   std::size_t hypotheses_over_budget = 0;  ///< dropped by add_scan() beyond |V_new|
   std::size_t features_over_budget = 0;    ///< dropped by add_scan() beyond |U_new|
+  double best_score = 0.0;        ///< C of best() (0 when none qualifies)
+  double best_mean_score = 0.0;   ///< C / N of best()
+  std::uint32_t best_scored = 0;  ///< N of best()
 };
 
 /// The active hypotheses as structure-of-arrays, the way scorers read them:
@@ -169,6 +172,7 @@ class IncrementalRansac {
   }
   std::span<const LocalPoint> features() const { return features_; }
 
+  /// Counters, plus best()'s scores (an O(|V|) scan).
   IncrementalRansacStats stats() const;
 
  private:
