@@ -96,6 +96,9 @@ std::size_t IncrementalRansac::next_feature() {
       return permutation_[cursor_++];
     }
     case FeatureOrderRule::kFreshFirst:
+      // A backlog (more new features than iterations) never reaches back
+      // past the recent window: stale "fresh" features are skipped.
+      fresh_next_ = std::max(fresh_next_, n - window);
       if (fresh_next_ < n) return fresh_next_++;
       [[fallthrough]];
     case FeatureOrderRule::kRecentWindow: break;

@@ -34,8 +34,9 @@ enum class FeatureOrderRule : std::uint8_t {
   /// carry the decision, as old ones drift away from the map (paper §V).
   kRecentWindow,
   /// Each new feature is scored once against the active set before any other
-  /// (every survivor is rescored against each scan's new features); when none
-  /// is waiting, uniform over the newest `recent_window` features.
+  /// (every survivor is rescored against each scan's new features; a backlog
+  /// older than `recent_window` features is skipped); when none is waiting,
+  /// uniform over the newest `recent_window` features.
   kFreshFirst,
 };
 
