@@ -234,6 +234,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
   out["grid_capacity"] = gs.capacity;
   out["grid_memory_bytes"] = gs.memory_bytes;
   out["grid_rehashes"] = gs.rehashes;
+  out["grid_max_load"] = o.grid.max_load_factor;
   out["table_fraction"] = gs.table_fraction;
   if (!o.map_log.empty()) {
     out["grid_bins"] = gs.bins_used;
@@ -294,6 +295,8 @@ void add_bench_matching_command(CLI::App& bench, GlobalOptions& global) {
   cmd->add_option("--theta-bins", o->grid.theta_bins, "pose-grid heading bins")->capture_default_str();
   cmd->add_option("--xy-tolerance", o->grid.xy_tolerance, "[cells] neighbours in x, y")->capture_default_str();
   cmd->add_option("--theta-tolerance", o->grid.theta_tolerance, "[bins] neighbours in heading")
+      ->capture_default_str();
+  cmd->add_option("--max-load", o->grid.max_load_factor, "pose-grid load (bins used / capacity) that doubles it")
       ->capture_default_str();
   cmd->add_option("--tolerance-mode", o->tolerance_mode, "dilate (at insert) or probe (neighbours at query)")
       ->capture_default_str();
