@@ -26,7 +26,8 @@ enum class ToleranceMode : std::uint8_t {
   /// probe reads one cell. Fast probes, (2t+1)^2 (2u+1) times the bins.
   kDilateAtInsert,
   /// Each mark writes one cell; a probe ORs the flags of every cell of the
-  /// window. Small table, (2t+1)^2 (2u+1) lookups per probe.
+  /// window. Small table; (2t+1)^2 short scans per probe (a heading window
+  /// is one scan: its bins are consecutive slots, see TableView).
   kProbeNeighbours,
 };
 
@@ -58,8 +59,10 @@ struct PoseGridStats {
   /// The dense grid the table replaces: per submap, the bounding box of its
   /// cells (in cells) times theta_bins, summed over submaps.
   double dense_cells = 0.0;
-  double grid_fraction = 0.0;      ///< bins_used / dense_cells (the paper's "< 3%")
-  double table_fraction = 0.0;     ///< capacity / dense_cells (what memory really holds)
+  double grid_fraction = 0.0;      ///< bins_used / dense_cells (the "< 3%" of DESIGN.md §4)
+  /// capacity / dense_cells: what memory really holds (the paper's 1e7 bins
+  /// against 3.4e8 cells compares table size).
+  double table_fraction = 0.0;
 };
 
 /// One cell index of the pose grid.
@@ -77,7 +80,7 @@ struct PoseCell {
 /// CellFlags in the low 8 bits, so a slot with flags 0 is empty and a lookup
 /// reads one or two cache lines. Memory: 8 bytes per slot, i.e.
 /// 8 / load bytes per stored cell (16-32 bytes at the default bound of 0.5).
-/// Limits: submap < 16383, |ix|, |iy| < 65536 cells (+-13 km at 0.2 m),
+/// Limits: submap < 16383, |ix|, |iy| < 65536 cells (+-6.5 km at 0.1 m),
 /// theta_bins <= 255; mark() outside them throws, probe() outside them
 /// returns 0.
 ///
