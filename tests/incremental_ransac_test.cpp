@@ -169,6 +169,7 @@ void check_against_nister(bool binary_scores, PreemptionRank rank, std::size_t M
   IncrementalRansacConfig cfg;
   cfg.block_size = B;
   cfg.preemption_rank = rank;
+  cfg.order_rule = FeatureOrderRule::kUniform;
   IncrementalRansac ransac(cfg);
   // Hypothesis j carries its id in `submap`; feature x its id in x.x.
   std::vector<Hypothesis> hyps(M);
@@ -262,6 +263,37 @@ TEST(IncrementalRansac, ScanBudgetsAndStatistics) {
   EXPECT_EQ(best->hypothesis.submap, 2u);
   EXPECT_EQ(best->score, 2.0);
   EXPECT_EQ(best->scored, 2u);
+  EXPECT_EQ(ransac.stats().best_score, 2.0);
+  EXPECT_EQ(ransac.stats().best_mean_score, 1.0);
+  EXPECT_EQ(ransac.stats().best_scored, 2u);
+}
+
+TEST(IncrementalRansac, FreshFirstScoresEachNewFeatureOnceThenRecentOnes) {
+  IncrementalRansacConfig cfg;
+  cfg.order_rule = FeatureOrderRule::kFreshFirst;
+  cfg.recent_window = 5;
+  IncrementalRansac ransac(cfg);
+  std::vector<Hypothesis> hyps(4);
+  ransac.add_hypotheses(hyps);
+  std::vector<float> seen;
+  auto scorer = [&](const LocalPoint& x, const HypothesisBatch& v, float* out) {
+    seen.push_back(x.x);
+    for (std::size_t j = 0; j < v.size; ++j) out[j] = 0.0f;
+  };
+  std::vector<LocalPoint> features(3);
+  for (int k = 0; k < 3; ++k) features[k].x = static_cast<float>(k);
+  ransac.add_features(features);
+  ransac.iterate(scorer, 5);
+  ASSERT_EQ(seen.size(), 5u);
+  EXPECT_EQ(std::vector<float>(seen.begin(), seen.begin() + 3), (std::vector<float>{0, 1, 2}));
+  for (std::size_t k = 3; k < 5; ++k) EXPECT_LE(seen[k], 2.0f);
+  // A backlog of 20 new features: only the newest 5 (the window) come first.
+  seen.clear();
+  features.resize(20);
+  for (int k = 0; k < 20; ++k) features[k].x = static_cast<float>(100 + k);
+  ransac.add_features(features);
+  ransac.iterate(scorer, 5);
+  EXPECT_EQ(seen, (std::vector<float>{115, 116, 117, 118, 119}));
 }
 
 TEST(IncrementalRansac, NothingHappensWithoutFeaturesOrHypotheses) {

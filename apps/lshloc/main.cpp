@@ -21,6 +21,9 @@ int main(int argc, char** argv) {
   lshloc::app::add_localize_command(app, global);
   lshloc::app::add_slam_command(app, global);
   lshloc::app::add_simulate_command(app, global);
+  auto* bench = app.add_subcommand("bench", "Benchmarks that print their figures as JSON (see `bench --help`)");
+  bench->require_subcommand(1);
+  lshloc::app::add_bench_matching_command(*bench, global);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -96,6 +96,9 @@ std::size_t IncrementalRansac::next_feature() {
       return permutation_[cursor_++];
     }
     case FeatureOrderRule::kFreshFirst:
+      // A backlog (more new features than iterations) never reaches back
+      // past the recent window: stale "fresh" features are skipped.
+      fresh_next_ = std::max(fresh_next_, n - window);
       if (fresh_next_ < n) return fresh_next_++;
       [[fallthrough]];
     case FeatureOrderRule::kRecentWindow: break;
@@ -106,15 +109,18 @@ std::size_t IncrementalRansac::next_feature() {
 void IncrementalRansac::preempt(std::size_t keep) {
   const std::size_t m = tx_.size();
   if (keep >= m) return;
-  // The rank of each hypothesis; ties go to the older one, so the order is
-  // total and the survivors are the same whatever V's permutation.
-  auto rank = [&](std::uint32_t j) -> double {
-    if (config_.preemption_rank == PreemptionRank::kTotalScore) return score_[j];
-    return scored_[j] > 0 ? static_cast<double>(score_[j]) / scored_[j] : 0.0;
-  };
+  // The rank of each hypothesis, computed once; ties go to the older one, so
+  // the order is total and the survivors are the same whatever V's order.
+  rank_.resize(m);
+  for (std::size_t j = 0; j < m; ++j) {
+    if (config_.preemption_rank == PreemptionRank::kTotalScore) {
+      rank_[j] = score_[j];
+    } else {
+      rank_[j] = scored_[j] > 0 ? static_cast<double>(score_[j]) / scored_[j] : 0.0;
+    }
+  }
   auto better = [&](std::uint32_t a, std::uint32_t b) {
-    const double ra = rank(a), rb = rank(b);
-    return ra != rb ? ra > rb : serial_[a] < serial_[b];
+    return rank_[a] != rank_[b] ? rank_[a] > rank_[b] : serial_[a] < serial_[b];
   };
   order_.resize(m);
   for (std::size_t j = 0; j < m; ++j) order_[j] = static_cast<std::uint32_t>(j);
@@ -165,6 +171,7 @@ IncrementalRansacStats IncrementalRansac::stats() const {
   IncrementalRansacStats s = stats_;
   s.active_hypotheses = tx_.size();
   s.features = features_.size();
+  if (const auto b = best()) s.best_score = b->score, s.best_mean_score = b->mean_score(), s.best_scored = b->scored;
   return s;
 }
 

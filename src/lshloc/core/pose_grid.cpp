@@ -31,6 +31,7 @@ PoseGridHashMap::PoseGridHashMap(PoseGridConfig config) : config_(config) {
   bins_per_rad_ = config_.theta_bins / kTwoPi;
   probe_neighbours_ = config_.tolerance_mode == ToleranceMode::kProbeNeighbours &&
                       (config_.xy_tolerance > 0 || (config_.theta_tolerance > 0 && config_.theta_bins > 1));
+  contiguous_theta_ = probe_neighbours_ && config_.theta_tolerance > 0 && config_.theta_bins > 1;
   std::mt19937_64 rng(config_.seed);
   hash_a_ = rng() | 1u;  // odd multiplier: multiply-shift is universal only for odd a
   hash_b_ = rng();
@@ -47,7 +48,7 @@ PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, doub
   PoseCell c;
   c.submap = submap;
   // floor() in double: far-away or NaN coordinates are clamped so the cast is
-  // defined; pack() then rejects them as outside the limits.
+  // defined; pack_xy() then rejects them as outside the limits.
   auto to_index = [](double v) {
     if (!(v > -1e9 && v < 1e9)) return std::int32_t{-(1 << 30)};
     return static_cast<std::int32_t>(std::floor(v));
@@ -67,9 +68,9 @@ void PoseGridHashMap::mark(std::uint32_t submap, double x, double y, double thet
     throw Error("pose grid: mark() of a non-finite pose in submap " + std::to_string(submap));
   const PoseCell c = cell_of(submap, x, y, theta);
   const int t = config_.xy_tolerance;
-  if (pack(submap, c.ix - t, c.iy - t, 0) == kInvalidKey || pack(submap, c.ix + t, c.iy + t, 0) == kInvalidKey)
+  if (pack_xy(submap, c.ix - t, c.iy - t) == kInvalidXy || pack_xy(submap, c.ix + t, c.iy + t) == kInvalidXy)
     throw Error("pose grid: pose (" + std::to_string(x) + ", " + std::to_string(y) + ") of submap " +
-                std::to_string(submap) + " is outside the grid (submap < 16384, |x|, |y| < 65536 cells)");
+                std::to_string(submap) + " is outside the grid (submap < 16383, |x|, |y| < 65536 cells)");
   ++marks_;
   if (submap >= boxes_.size()) boxes_.resize(submap + 1);
   Box& b = boxes_[submap];
@@ -80,20 +81,23 @@ void PoseGridHashMap::mark(std::uint32_t submap, double x, double y, double thet
     b.y0 = std::min(b.y0, c.iy), b.y1 = std::max(b.y1, c.iy);
   }
   if (config_.tolerance_mode == ToleranceMode::kProbeNeighbours) {
-    mark_cell(pack(submap, c.ix, c.iy, c.itheta), flags);
+    mark_cell(pack_xy(submap, c.ix, c.iy), c.itheta, flags);
     return;
   }
-  const int bins = config_.theta_bins;
-  const ThetaWindow w = theta_window(c.itheta);
+  const ThetaRuns w = theta_runs(c.itheta);
   for (int dx = -t; dx <= t; ++dx)
-    for (int dy = -t; dy <= t; ++dy)
-      for (int k = 0; k < w.count; ++k) mark_cell(pack(submap, c.ix + dx, c.iy + dy, (w.first + k) % bins), flags);
+    for (int dy = -t; dy <= t; ++dy) {
+      const std::uint64_t xy = pack_xy(submap, c.ix + dx, c.iy + dy);
+      for (int r = 0; r < w.runs; ++r)
+        for (int k = 0; k < w.count[r]; ++k) mark_cell(xy, w.first[r] + k, flags);
+    }
 }
 
-void PoseGridHashMap::mark_cell(std::uint64_t key, CellFlags flags) {
+void PoseGridHashMap::mark_cell(std::uint64_t xy, int itheta, CellFlags flags) {
   if (static_cast<double>(used_ + 1) > config_.max_load_factor * static_cast<double>(slots_.size())) grow();
-  const std::uint64_t tagged = key << 8;
-  std::size_t i = home_slot(key);
+  const std::uint64_t tagged = (xy << 16) | (static_cast<std::uint64_t>(itheta) << 8);
+  const TableView table = table_view();
+  std::size_t i = table.home(xy, itheta);
   for (;;) {
     std::uint64_t& s = slots_[i];
     if ((s & 0xff) == 0) {
@@ -110,12 +114,15 @@ void PoseGridHashMap::mark_cell(std::uint64_t key, CellFlags flags) {
 }
 
 void PoseGridHashMap::grow() {
+  if (slots_.size() >= (std::size_t{1} << 32))
+    throw Error("pose grid: table would exceed 2^32 slots (32 GiB); use larger cells or fewer submaps");
   std::vector<std::uint64_t> old;
   old.swap(slots_);
   set_capacity(old.size() * 2);
+  const TableView table = table_view();
   for (const std::uint64_t s : old) {
     if ((s & 0xff) == 0) continue;
-    std::size_t i = home_slot(s >> 8);
+    std::size_t i = table.home(s >> 16, static_cast<int>((s >> 8) & 0xff));
     while (slots_[i] != 0) i = (i + 1) & mask_;
     slots_[i] = s;
   }
@@ -123,18 +130,25 @@ void PoseGridHashMap::grow() {
 }
 
 CellFlags PoseGridHashMap::lookup(const PoseCell& cell) const {
-  return lookup_key(pack(cell.submap, cell.ix, cell.iy, cell.itheta));
+  if (cell.itheta < 0 || cell.itheta >= config_.theta_bins) return 0;
+  const std::uint64_t xy = pack_xy(cell.submap, cell.ix, cell.iy);
+  const TableView table = table_view();
+  return table.lookup_run(xy, table.home(xy, cell.itheta), cell.itheta, 1);
 }
 
 CellFlags PoseGridHashMap::probe(std::uint32_t submap, double x, double y, double theta) const {
   const PoseCell c = cell_of(submap, x, y, theta);
   if (!probe_neighbours_) return lookup(c);
-  const int t = config_.xy_tolerance, bins = config_.theta_bins;
-  const ThetaWindow w = theta_window(c.itheta);
+  const int t = config_.xy_tolerance;
+  const ThetaRuns w = theta_runs(c.itheta);
+  const TableView table = table_view();
   CellFlags out = 0;
   for (int dx = -t; dx <= t; ++dx)
-    for (int dy = -t; dy <= t; ++dy)
-      for (int k = 0; k < w.count; ++k) out |= lookup_key(pack(submap, c.ix + dx, c.iy + dy, (w.first + k) % bins));
+    for (int dy = -t; dy <= t; ++dy) {
+      const std::uint64_t xy = pack_xy(submap, c.ix + dx, c.iy + dy);
+      for (int r = 0; r < w.runs; ++r)
+        out |= table.lookup_run(xy, table.home(xy, w.first[r]), w.first[r], w.count[r]);
+    }
   return out;
 }
 

@@ -26,12 +26,16 @@ enum class ToleranceMode : std::uint8_t {
   /// probe reads one cell. Fast probes, (2t+1)^2 (2u+1) times the bins.
   kDilateAtInsert,
   /// Each mark writes one cell; a probe ORs the flags of every cell of the
-  /// window. Small table, (2t+1)^2 (2u+1) lookups per probe.
+  /// window. Small table; (2t+1)^2 short scans per probe (a heading window
+  /// is one scan: its bins are consecutive slots, see TableView).
   kProbeNeighbours,
 };
 
 struct PoseGridConfig {
-  double cell_size = 0.2;    ///< [m] edge of an (x, y) cell
+  /// [m] edge of an (x, y) cell. 0.1 m: on fr079's scan endpoints the table
+  /// then holds 2.3% of the dense grid's cells with heading tolerance 1
+  /// (docs/results/matching.md); the paper's grid was finer still.
+  double cell_size = 0.1;
   int theta_bins = 36;       ///< heading bins over 2 pi (36: 10 degrees); 1 = a plain 2-D grid
   int xy_tolerance = 0;      ///< [cells] neighbours on each side in x and y that also count
   int theta_tolerance = 1;   ///< [bins] neighbours on each side in heading (wraps at +-pi)
@@ -55,8 +59,10 @@ struct PoseGridStats {
   /// The dense grid the table replaces: per submap, the bounding box of its
   /// cells (in cells) times theta_bins, summed over submaps.
   double dense_cells = 0.0;
-  double grid_fraction = 0.0;      ///< bins_used / dense_cells (the paper's "< 3%")
-  double table_fraction = 0.0;     ///< capacity / dense_cells (what memory really holds)
+  double grid_fraction = 0.0;      ///< bins_used / dense_cells (the "< 3%" of DESIGN.md §4)
+  /// capacity / dense_cells: what memory really holds (the paper's 1e7 bins
+  /// against 3.4e8 cells compares table size).
+  double table_fraction = 0.0;
 };
 
 /// One cell index of the pose grid.
@@ -71,15 +77,16 @@ struct PoseCell {
 ///
 /// Storage: one 64-bit slot per bin, the packed cell key (submap 14 bits,
 /// ix and iy 17 bits each, itheta 8 bits) in the high 56 bits and the
-/// CellFlags in the low 8 bits, so a lookup touches one cache line and a
-/// slot with flags 0 is empty. Memory: 8 bytes per slot, i.e.
+/// CellFlags in the low 8 bits, so a slot with flags 0 is empty and a lookup
+/// reads one or two cache lines. Memory: 8 bytes per slot, i.e.
 /// 8 / load bytes per stored cell (16-32 bytes at the default bound of 0.5).
-/// Limits: submap < 16384, |ix|, |iy| < 65536 cells (+-13 km at 0.2 m),
+/// Limits: submap < 16383, |ix|, |iy| < 65536 cells (+-6.5 km at 0.1 m),
 /// theta_bins <= 255; mark() outside them throws, probe() outside them
 /// returns 0.
 ///
 /// Hash: multiply-add-shift (Dietzfelbinger) h(k) = (a k + b) >> (64 - log2
-/// capacity) with a odd, both drawn from the seed: a universal family, so no
+/// capacity) with a odd, both drawn from the seed (see TableView for the
+/// layout of heading windows): a universal family, so no
 /// input layout (a corridor along x, many submaps) can make collisions
 /// systematically worse. Linear probing; the table doubles and every cell is
 /// re-inserted when bins_used would pass max_load_factor * capacity.
@@ -112,63 +119,102 @@ class PoseGridHashMap {
   PoseGridStats stats() const;
 
   // --- The pieces of a lookup, for callers that batch many probes (iRANSAC
-  // scoring): compute keys, prefetch their home slots, then look them up. ---
+  // scoring): pack the (submap, ix, iy) keys, hash them, prefetch, look up. ---
 
-  /// Packed key of a cell, or kInvalidKey when the cell is outside the limits.
-  static constexpr std::uint64_t kInvalidKey = ~std::uint64_t{0};
-  static std::uint64_t pack(std::uint32_t submap, std::int32_t ix, std::int32_t iy, std::int32_t itheta) {
+  /// The (submap, ix, iy) part of a cell key, 48 bits, or kInvalidXy when the
+  /// cell lies outside the limits (kInvalidXy never matches a stored cell).
+  static constexpr std::uint64_t kInvalidXy = (std::uint64_t{1} << 48) - 1;
+  static std::uint64_t pack_xy(std::uint32_t submap, std::int32_t ix, std::int32_t iy) {
     const std::uint32_t bx = static_cast<std::uint32_t>(ix + kCoordBias);
     const std::uint32_t by = static_cast<std::uint32_t>(iy + kCoordBias);
-    if (submap >= kMaxSubmaps || bx >= kCoordRange || by >= kCoordRange) return kInvalidKey;
-    return (std::uint64_t{submap} << 42) | (std::uint64_t{bx} << 25) | (std::uint64_t{by} << 8) |
-           static_cast<std::uint64_t>(itheta);
+    if (submap >= kMaxSubmaps || bx >= kCoordRange || by >= kCoordRange) return kInvalidXy;
+    return (std::uint64_t{submap} << 34) | (std::uint64_t{bx} << 17) | std::uint64_t{by};
   }
-  /// The home slot of a packed key in the current table.
-  std::size_t home_slot(std::uint64_t key) const {
-    return static_cast<std::size_t>((hash_a_ * key + hash_b_) >> shift_);
+
+  /// Up to two runs of heading bins, [first, first + count) each inside
+  /// [0, theta_bins): the tolerance window around a bin, split where it
+  /// wraps at +-pi. A window as wide as the circle is the whole circle once.
+  struct ThetaRuns {
+    int first[2] = {0, 0};
+    int count[2] = {0, 0};
+    int runs = 0;
+  };
+  ThetaRuns theta_runs(int itheta) const {
+    const int u = config_.theta_tolerance, bins = config_.theta_bins;
+    ThetaRuns r;
+    if (2 * u + 1 >= bins) return r.first[0] = 0, r.count[0] = bins, r.runs = 1, r;
+    const int lo = itheta - u, hi = itheta + u;  // inclusive
+    if (lo < 0) return r.first[0] = lo + bins, r.count[0] = -lo, r.first[1] = 0, r.count[1] = hi + 1, r.runs = 2, r;
+    if (hi >= bins)
+      return r.first[0] = lo, r.count[0] = bins - lo, r.first[1] = 0, r.count[1] = hi - bins + 1, r.runs = 2, r;
+    return r.first[0] = lo, r.count[0] = 2 * u + 1, r.runs = 1, r;
   }
-  /// Hints the CPU to fetch the home slot of `key` (no effect on results).
-  void prefetch(std::uint64_t key) const {
-    if (key != kInvalidKey) __builtin_prefetch(&slots_[home_slot(key)]);
-  }
-  /// The flags of the cell with this packed key (0 when absent or invalid).
-  CellFlags lookup_key(std::uint64_t key) const {
-    if (key == kInvalidKey) return 0;
-    const std::uint64_t tagged = key << 8;
-    std::size_t i = home_slot(key);
-    for (;;) {
-      const std::uint64_t s = slots_[i];
-      if ((s & 0xff) == 0) return 0;
-      if ((s & ~std::uint64_t{0xff}) == tagged) return static_cast<CellFlags>(s & 0xff);
-      i = (i + 1) & mask_;
+
+  /// The table's raw state for a hot loop that hashes and probes by itself
+  /// (valid until the next mark()).
+  ///
+  /// Home slot of cell (xy, itheta): the universal hash h(k) = (a k + b) >>
+  /// (64 - log2 capacity) of the whole key k = (xy, itheta) — or, when the
+  /// grid probes heading windows (kProbeNeighbours with a heading
+  /// tolerance), h(xy) + itheta: then the heading bins of one (x, y) cell are
+  /// consecutive slots and a window is one short linear scan in one or two
+  /// cache lines. (Cells that differ in (submap, ix, iy) still collide as
+  /// universally hashed keys do; cells that differ only in heading never
+  /// share a home slot. Exact lookups do not use that layout because its
+  /// longer clusters make a miss scan further.)
+  struct TableView {
+    const std::uint64_t* slots;
+    std::uint64_t a, b;
+    unsigned shift;
+    std::size_t mask;
+    bool contiguous_theta;
+    std::size_t hash(std::uint64_t k) const { return static_cast<std::size_t>((a * k + b) >> shift); }
+    /// The slot a cell's linear probe starts at.
+    std::size_t home(std::uint64_t xy, int itheta) const {
+      const auto t = static_cast<std::uint64_t>(itheta);
+      return contiguous_theta ? (hash(xy) + t) & mask : hash((xy << 8) | t);
     }
-  }
+    void prefetch(std::size_t slot) const { __builtin_prefetch(slots + slot); }
+    /// The OR of the flags of cells (xy, first .. first + count - 1), where
+    /// start = home(xy, first); count > 1 only with contiguous_theta. Scans
+    /// from start to the first empty slot at or past the last bin's home:
+    /// with no deletions, every cell whose home lies in that range sits
+    /// before the next empty slot after its home.
+    CellFlags lookup_run(std::uint64_t xy, std::size_t start, int first, int count) const {
+      CellFlags f = 0;
+      std::size_t i = start;
+      for (int k = 0;; ++k, i = (i + 1) & mask) {
+        const std::uint64_t s = slots[i];
+        if ((s & 0xff) == 0) {
+          if (k >= count - 1) return f;
+          continue;
+        }
+        const auto bin = static_cast<int>((s >> 8) & 0xff);
+        if ((s >> 16) == xy && static_cast<unsigned>(bin - first) < static_cast<unsigned>(count)) {
+          f |= static_cast<CellFlags>(s & 0xff);
+          if (count == 1) return f;  // keys are unique
+        }
+      }
+    }
+  };
+  TableView table_view() const { return {slots_.data(), hash_a_, hash_b_, shift_, mask_, contiguous_theta_}; }
+
   /// [1/m] and [bins/rad] scale factors and bin count, for callers that
   /// compute cell indices themselves (in float, in a hot loop).
   double inv_cell_size() const { return inv_cell_; }
   double bins_per_radian() const { return bins_per_rad_; }
   int theta_bins() const { return config_.theta_bins; }
-  /// The heading bins of the tolerance window around bin `itheta`: `count`
-  /// bins from `first`, taken modulo theta_bins (wraps at +-pi). A window as
-  /// wide as the circle covers each bin once.
-  struct ThetaWindow {
-    int first = 0, count = 1;
-  };
-  ThetaWindow theta_window(int itheta) const {
-    const int u = config_.theta_tolerance, bins = config_.theta_bins;
-    if (2 * u + 1 >= bins) return {0, bins};
-    return {itheta - u + bins, 2 * u + 1};
-  }
-  /// Whether probe() must look at neighbours (kProbeNeighbours with a
-  /// non-zero tolerance).
+  /// Whether probe() looks at neighbours (kProbeNeighbours with a non-zero
+  /// tolerance).
   bool probes_neighbours() const { return probe_neighbours_; }
 
-  static constexpr std::uint32_t kMaxSubmaps = 1u << 14;
+  /// Submap 16383 is reserved: its all-ones key marks cells outside the grid.
+  static constexpr std::uint32_t kMaxSubmaps = (1u << 14) - 1;
   static constexpr std::int32_t kCoordBias = 1 << 16;
   static constexpr std::uint32_t kCoordRange = 1u << 17;
 
  private:
-  void mark_cell(std::uint64_t key, CellFlags flags);
+  void mark_cell(std::uint64_t xy, int itheta, CellFlags flags);
   void grow();
   void set_capacity(std::size_t capacity);
 
@@ -176,6 +222,7 @@ class PoseGridHashMap {
   double inv_cell_ = 5.0;
   double bins_per_rad_ = 1.0;
   bool probe_neighbours_ = false;
+  bool contiguous_theta_ = false;  ///< see TableView
   std::uint64_t hash_a_ = 1, hash_b_ = 0;
   unsigned shift_ = 54;
   std::size_t mask_ = 0;

@@ -22,19 +22,23 @@ struct PoseGridScorerConfig {
 };
 
 /// A Scorer for IncrementalRansac (see there). Each call transforms one local
-/// point by every hypothesis of the batch (floats, precomputed cos/sin),
-/// packs all cell keys, then looks them up with prefetching a few keys ahead,
-/// so the table's cache misses overlap instead of queueing.
+/// point by every hypothesis of the batch (floats, precomputed cos/sin, four
+/// at a time), packs and hashes all cell keys, then looks them up with
+/// prefetching a few keys ahead, so the table's cache misses overlap instead
+/// of queueing. The tolerance window comes from the grid's config: with
+/// kProbeNeighbours, one heading run per (x, y) offset (one or two cache
+/// lines, see PoseGridHashMap::TableView).
 ///
 /// Holds a reference to the grid (which must outlive it) and its own scratch
 /// space: one scorer per thread. The grid must not change during a call.
 class PoseGridScorer {
  public:
   explicit PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config = {});
-  /// With negative evidence from a separate 2-D grid (theta_bins = 1) of the
-  /// space map rays saw free: a point that misses `grid` scores `free` when
-  /// its cell in `free_space` holds kFree and no kOccupied (walls are marked
-  /// occupied there so that they never read as free), else `unknown`.
+  /// With negative evidence from a separate 2-D grid (theta_bins = 1, exact
+  /// cells) of the space map rays saw free, where walls are marked occupied:
+  /// a kSurface point that misses `grid` scores `free` when its cell there
+  /// holds only kFree, else `unknown`; a kFreeSpace point scores
+  /// `ray_through_wall` on a cell holding only kOccupied, else 0.
   PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
 
   void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);
@@ -46,20 +50,22 @@ class PoseGridScorer {
   std::uint64_t lookups() const { return lookups_; }
 
  private:
-  void compute_keys(const HypothesisBatch& v, int dx, int dy, int dtheta, bool absolute_theta);
+  void score_surface(const LocalPoint& x, const HypothesisBatch& v, float* scores);
+  /// Looks up x under every hypothesis j with `select(j)` in the free-space
+  /// grid and sets scores[j] = value(flags).
+  template <class Select, class Value>
+  void lookup_free_space(const LocalPoint& x, const HypothesisBatch& v, float* scores, Select select, Value value);
 
-  void score_free_space(const HypothesisBatch& v, float* scores);
-  void score_free_space_point(const LocalPoint& x, const HypothesisBatch& v, float* scores);
 
   const PoseGridHashMap& grid_;
   const PoseGridHashMap* free_space_ = nullptr;
   PoseGridScorerConfig config_;
   float value_[4];  ///< score by (flags & 3)
-  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint64_t> xy_;     ///< (submap, ix, iy) key of each hypothesis' cell
+  std::vector<std::uint32_t> home_;  ///< its home slot (tables stay below 2^32 slots)
   std::vector<std::int32_t> ix_, iy_, it_;
-  std::vector<float> gx_, gy_;  ///< transformed points, kept for the free-space grid
-  std::vector<std::uint32_t> miss_index_;
   std::vector<CellFlags> flags_;
+  std::vector<std::uint32_t> selected_;  ///< hypotheses looked up in the free-space grid
   std::uint64_t lookups_ = 0;
 };
 
