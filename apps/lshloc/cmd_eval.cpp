@@ -16,6 +16,7 @@
 #include "lshloc/pipeline/localization_metrics.hpp"
 #include "lshloc/pipeline/scenario_runner.hpp"
 #include "localizer_options.hpp"
+#include "scenario_report.hpp"
 
 namespace lshloc::app {
 
@@ -37,60 +38,32 @@ std::size_t default_start(const std::string& building) {
   return it == starts.end() ? 0 : it->second;
 }
 
-nlohmann::json optional_json(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(); }
 
-void write_plots(const std::string& dir, const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m) {
-  std::filesystem::create_directories(dir);
-  const std::string stem = dir + "/" + sc.config.building + "-s" + std::to_string(sc.config.start) + "-R" +
-                           std::to_string(sc.config.submaps);
-  io::ErrorSeries series{"R = " + std::to_string(sc.config.submaps), {}, {}};
-  for (std::size_t i = 0; i < m.error_per_scan_m.size(); ++i) {
-    if (std::isnan(m.error_per_scan_m[i])) continue;
-    series.viewpoint.push_back(static_cast<double>(i));
-    series.error_m.push_back(m.error_per_scan_m[i]);
-  }
-  const std::string title = sc.config.building + ", start " + std::to_string(sc.config.start) + ", " +
-                            std::to_string(sc.config.submaps) + " submaps: error per viewpoint";
-  io::plot_error_curves(stem + "-error.png", title, {series});
-  io::plot_error_curves(stem + "-error.svg", title, {series});
+struct TruthRank {
+  std::size_t near = 0;    ///< active hypotheses within 0.5 m / 5 deg of the truth
+  std::size_t rank = 0;    ///< preference rank of the best of them (0 = reported)
+  double mean = 0.0;
+  std::uint32_t scored = 0;
+  std::size_t active = 0;
+};
 
-  io::MapFigure fig;
-  fig.title = sc.config.building + " (submap " + std::to_string(sc.target_submap) +
-              "): true (green) and estimated (blue) trajectory";
-  const Submap& own = sc.submaps[sc.target_submap];
-  for (std::size_t k = 0; k < own.scans.size(); k += 3) {
-    for (const Point2& p : own.scans[k].endpoints(0.05, 20.0)) fig.map_points.push_back(own.scans[k].pose.transform(p));
+TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t submap) {
+  TruthRank r;
+  const double z = loc.config().ransac.preference_z;
+  const auto active = loc.ransac().active();
+  r.active = active.size();
+  const Pose2 local = loc.last_local_pose();
+  double best = -1e30;
+  for (const auto& h : active) {
+    if (h.hypothesis.submap != submap) continue;
+    const Pose2 est = h.hypothesis.T_submap_local * local;
+    if (translation_distance(est, truth) > 0.5 || angle_distance(est.theta, truth.theta) > 5 * M_PI / 180) continue;
+    ++r.near;
+    if (h.preference(z) > best) best = h.preference(z), r.mean = h.mean_score(), r.scored = h.scored;
   }
-  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-    if (sc.target.truth[i]) fig.true_trajectory.push_back(sc.target.truth[i]->translation());
-    const auto& e = run.estimates[i];
-    if (e.has_estimate && e.submap == sc.target_submap) fig.estimated_trajectory.push_back(e.pose.translation());
-  }
-  if (!run.estimates.empty() && run.estimates.back().submap == sc.target_submap) {
-    fig.inlier_points = run.final_inliers;
-    fig.outlier_points = run.final_outliers;
-  }
-  io::plot_map_figure(stem + "-map.png", fig);
-  io::plot_map_figure(stem + "-map.svg", fig);
-  std::fprintf(stderr, "figures: %s-{error,map}.{png,svg}\n", stem.c_str());
-}
-
-void write_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m) {
-  std::FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) throw Error(path + ": cannot write the trace");
-  std::fprintf(f, "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
-                  "truth_theta,error_m,cpu_s\n");
-  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-    const auto& e = run.estimates[i];
-    const auto& t = sc.target.truth[i];
-    std::fprintf(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%u,%.4f,", i, sc.target.scans[i].timestamp,
-                 e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta, e.localized ? 1 : 0, e.mean_score,
-                 e.scored, e.margin);
-    if (t) std::fprintf(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
-    else std::fprintf(f, ",,,,");
-    std::fprintf(f, "%.4f\n", run.cpu_s[i]);
-  }
-  if (std::fclose(f) != 0) throw Error(path + ": cannot write the trace");
+  if (r.near == 0) return r;
+  for (const auto& h : active) r.rank += h.preference(z) > best && h.score >= loc.config().ransac.min_score;
+  return r;
 }
 
 }  // namespace
@@ -122,51 +95,47 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
     const Scenario sc = io::load_scenario(catalog, opt->scenario);
     const ScenarioRunConfig config = make_run_config(opt->localizer);
     const bool tty = isatty(fileno(stderr));
-    const ScenarioRun run = run_scenario(sc, config, [&](std::size_t done, std::size_t total) {
-      if (tty && (done % 25 == 0 || done == total)) {
-        std::fprintf(stderr, "\r%s R=%zu: scan %zu/%zu", sc.config.building.c_str(), sc.config.submaps, done, total);
-        if (done == total) std::fprintf(stderr, "\n");
-      }
-    });
+    // With --trace: where the true hypothesis stands among the active ones.
+    std::vector<TruthRank> ranks(sc.target.scans.size());
+    LocalizerObserver observer;
+    if (!opt->trace.empty()) {
+      observer = [&](std::size_t i, const Localizer& loc) {
+        if (sc.target.truth[i]) ranks[i] = rank_of_truth(loc, *sc.target.truth[i], sc.target_submap);
+      };
+    }
+    const ScenarioRun run = run_scenario(
+        sc, config,
+        [&](std::size_t done, std::size_t total) {
+          if (tty && (done % 25 == 0 || done == total)) {
+            std::fprintf(stderr, "\r%s R=%zu: scan %zu/%zu", sc.config.building.c_str(), sc.config.submaps, done, total);
+            if (done == total) std::fprintf(stderr, "\n");
+          }
+        },
+        observer);
     const LocalizationMetrics m =
         evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
-    nlohmann::json j;
-    j["building"] = sc.config.building;
-    j["start"] = sc.config.start;
-    j["length"] = sc.config.length;
-    j["submaps"] = sc.config.submaps;
-    j["map_features"] = run.map.features;
-    j["final_error_m"] = optional_json(m.final_error_m);
-    j["final_heading_error_deg"] = optional_json(m.final_heading_error_deg);
-    j["median_error_after_m"] = optional_json(m.median_error_after_m);
-    j["localized_at"] = m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json();
-    j["cpu_s_to_localize"] = m.localized_at ? nlohmann::json(run.cpu_s[*m.localized_at]) : nlohmann::json();
-    j["correct_fraction_after"] = m.correct_fraction_after;
-    j["success"] = m.success;
-    j["truth_scans"] = m.truth_scans;
-    j["confident_scans"] = m.confident_scans;
-    j["confident_wrong"] = m.confident_wrong;
-    j["first_confident_at"] = nlohmann::json();
-    for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-      if (run.estimates[i].localized) {
-        j["first_confident_at"] = i;
-        break;
-      }
-    }
-    const double scans = static_cast<double>(std::max<std::size_t>(run.estimates.size(), 1));
-    j["ms_per_scan"] = 1e3 * run.localize_cpu_s / scans;
-    j["realtime_factor"] = run.localize_cpu_s > 0 ? run.log_duration_s / run.localize_cpu_s : 0.0;
-    j["us_update_per_feature"] = run.map.us_update_per_feature();
-    j["us_query_per_feature"] = run.localizer.us_query_per_feature();
-    j["ns_per_score"] = run.localizer.ns_per_score();
-    j["map_build_s"] = run.map_build_s;
-    j["bytes_per_feature"] = run.map.bytes_per_feature();
+    nlohmann::json j = scenario_json(sc, run, m);
     j["order_rule"] = opt->localizer.order_rule;
     j["hypotheses"] = opt->localizer.hypotheses;
     std::printf("%s\n", j.dump().c_str());
     std::fflush(stdout);
-    if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, sc, run, m);
-    if (!opt->trace.empty()) write_trace(opt->trace, sc, run, m);
+    if (!opt->plot_dir.empty()) {
+      const std::string stem = write_scenario_figures(opt->plot_dir, sc, run, m);
+      std::fprintf(stderr, "figures: %s-{error,map}.{png,svg}\n", stem.c_str());
+    }
+    if (!opt->trace.empty()) {
+      write_scenario_trace(opt->trace, sc, run, m);
+      std::FILE* f = std::fopen((opt->trace + ".truth.csv").c_str(), "w");
+      if (f == nullptr) throw Error(opt->trace + ".truth.csv: cannot write");
+      std::fprintf(f, "scan,near_truth,best_rank,best_mean,best_scored,active\n");
+      for (std::size_t i = 0; i < ranks.size(); ++i) {
+        if (sc.target.truth[i]) {
+          std::fprintf(f, "%zu,%zu,%zu,%.4f,%u,%zu\n", i, ranks[i].near, ranks[i].rank, ranks[i].mean, ranks[i].scored,
+                       ranks[i].active);
+        }
+      }
+      std::fclose(f);
+    }
   });
 }
 

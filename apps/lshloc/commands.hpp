@@ -16,6 +16,7 @@ struct GlobalOptions {
 // and throws lshloc::Error on bad input.
 void add_info_command(CLI::App& app, GlobalOptions& global);
 void add_eval_command(CLI::App& app, GlobalOptions& global);
+void add_demo_command(CLI::App& app, GlobalOptions& global);
 void add_localize_command(CLI::App& app, GlobalOptions& global);
 void add_slam_command(CLI::App& app, GlobalOptions& global);
 void add_simulate_command(CLI::App& app, GlobalOptions& global);

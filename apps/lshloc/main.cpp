@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
                  "data directory with the CARMEN logs (default: $LSHLOC_DATA, else ../shared/data)")
       ->envname("LSHLOC_DATA");
   lshloc::app::add_info_command(app, global);
+  lshloc::app::add_demo_command(app, global);
   lshloc::app::add_eval_command(app, global);
   lshloc::app::add_localize_command(app, global);
   lshloc::app::add_slam_command(app, global);

@@ -1,6 +1,7 @@
 #include "lshloc/pipeline/localizer.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -129,6 +130,20 @@ LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
   generate_hypotheses(features);
   stats_.query_s += seconds_since(t0);
 
+  if (config_.track_reported && reported_) {
+    // Children of the reported hypothesis, perturbed about the robot's pose:
+    // T' = T * P * d * P^-1 with P the scan's local pose.
+    const Pose2& P = match.laser_pose;
+    const double m = config_.track_step_m, a = config_.track_step_deg * M_PI / 180.0;
+    // First in line: iRANSAC keeps only the first |V_new| of a scan.
+    std::array<Hypothesis, 6> children;
+    std::size_t k = 0;
+    for (const Pose2& d : {Pose2(m, 0, 0), Pose2(-m, 0, 0), Pose2(0, m, 0), Pose2(0, -m, 0), Pose2(0, 0, a),
+                           Pose2(0, 0, -a)}) {
+      children[k++] = {reported_->submap, reported_->T_submap_local * (P * d * P.inverse())};
+    }
+    hypotheses_.insert(hypotheses_.begin(), children.begin(), children.end());
+  }
   sample_data_points(scan, surface);
   t0 = Clock::now();
   ransac_.add_scan(data_points_, hypotheses_);
@@ -136,6 +151,7 @@ LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
   ransac_.run(scorer_);
   stats_.ransac_s += seconds_since(t0);
 
+  last_local_pose_ = match.laser_pose;
   return estimate(match.laser_pose);
 }
 

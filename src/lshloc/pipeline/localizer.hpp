@@ -63,6 +63,13 @@ struct LocalizerConfig {
   double free_point_margin = 0.6;  ///< [m]
   ConfidenceConfig confidence;
   HypothesisSource hypothesis_source = HypothesisSource::kDatabase;
+  /// Tracking: each scan, the reported hypothesis spawns children moved by
+  /// +-track_step_m along x and y and +-track_step_deg in heading about the
+  /// robot's current pose, so that a correct place keeps a hypothesis that
+  /// follows the local map's drift even when the database proposes none.
+  bool track_reported = true;
+  double track_step_m = 0.1;     ///< [m]
+  double track_step_deg = 1.0;   ///< [deg]
   std::uint64_t seed = 0x10ca112e;  ///< the random control's choices
 
   void validate() const;
@@ -113,6 +120,8 @@ class Localizer {
   const LocalizerConfig& config() const { return config_; }
   LocalizerStats stats() const;
   const IncrementalRansac& ransac() const { return ransac_; }
+  /// The last scan's laser pose in the local frame.
+  const Pose2& last_local_pose() const { return last_local_pose_; }
 
  private:
   void generate_hypotheses(const std::vector<Feature>& features);
@@ -130,6 +139,7 @@ class Localizer {
   Pose2 last_context_pose_;
   std::deque<std::optional<Hypothesis>> recent_best_;
   std::optional<Hypothesis> reported_;
+  Pose2 last_local_pose_;
   LocalizerStats stats_;
   // Scratch reused between scans.
   std::vector<std::uint32_t> ids_;

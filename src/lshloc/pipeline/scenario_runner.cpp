@@ -23,7 +23,8 @@ std::vector<ScanEstimate> ScenarioRun::scan_estimates() const {
   return out;
 }
 
-ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress) {
+ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress,
+                         const LocalizerObserver& observer) {
   ScenarioRun run;
   GlobalMap map(config.map);
   for (const Submap& s : scenario.submaps) map.add_submap(s.name);
@@ -69,6 +70,7 @@ ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, con
     }
     run.estimates.push_back(localizer.add_scan(scans[i]));
     run.cpu_s.push_back(process_cpu_seconds() - cpu0 - mapping_cpu);
+    if (observer) observer(i, localizer);
     if (progress) progress(i + 1, scans.size());
   }
   run.localize_s = seconds_since(t0);

@@ -39,11 +39,15 @@ struct ScenarioRun {
 
 /// Progress callback: (target scans done, total); may be empty.
 using Progress = std::function<void(std::size_t, std::size_t)>;
+/// Called after each target scan with its index and the localizer (for
+/// diagnostics that look inside it); may be empty.
+using LocalizerObserver = std::function<void(std::size_t, const Localizer&)>;
 
 /// Builds the global map from the scenario's submaps and runs the target's
 /// scans through a Localizer. Map scans are fed with their map poses.
 /// The localizer's scan matcher takes the target's laser offset.
-ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress = {});
+ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress = {},
+                         const LocalizerObserver& observer = {});
 
 /// [s] CPU time of this process so far (all threads).
 double process_cpu_seconds();

@@ -1,0 +1,109 @@
+#include "scenario_report.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "lshloc/core/error.hpp"
+#include "lshloc/io/figures.hpp"
+
+namespace lshloc::app {
+
+namespace {
+nlohmann::json optional_json(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(); }
+}  // namespace
+
+nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m) {
+  nlohmann::json j;
+  j["building"] = sc.config.building;
+  j["start"] = sc.config.start;
+  j["length"] = sc.config.length;
+  j["submaps"] = sc.config.submaps;
+  j["map_features"] = run.map.features;
+  j["final_error_m"] = optional_json(m.final_error_m);
+  j["final_heading_error_deg"] = optional_json(m.final_heading_error_deg);
+  j["median_error_after_m"] = optional_json(m.median_error_after_m);
+  j["localized_at"] = m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json();
+  j["cpu_s_to_localize"] = m.localized_at ? nlohmann::json(run.cpu_s[*m.localized_at]) : nlohmann::json();
+  j["correct_fraction_after"] = m.correct_fraction_after;
+  j["success"] = m.success;
+  j["truth_scans"] = m.truth_scans;
+  j["confident_scans"] = m.confident_scans;
+  j["confident_wrong"] = m.confident_wrong;
+  j["first_confident_at"] = nlohmann::json();
+  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
+    if (run.estimates[i].localized) {
+      j["first_confident_at"] = i;
+      break;
+    }
+  }
+  const double scans = static_cast<double>(std::max<std::size_t>(run.estimates.size(), 1));
+  j["ms_per_scan"] = 1e3 * run.localize_cpu_s / scans;
+  j["realtime_factor"] = run.localize_cpu_s > 0 ? run.log_duration_s / run.localize_cpu_s : 0.0;
+  j["us_update_per_feature"] = run.map.us_update_per_feature();
+  j["us_query_per_feature"] = run.localizer.us_query_per_feature();
+  j["ns_per_score"] = run.localizer.ns_per_score();
+  j["map_build_s"] = run.map_build_s;
+  j["bytes_per_feature"] = run.map.bytes_per_feature();
+  return j;
+}
+
+std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const ScenarioRun& run,
+                                   const LocalizationMetrics& m) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw Error(dir + ": cannot create the figure directory: " + ec.message());
+  const std::string stem = dir + "/" + sc.config.building + "-s" + std::to_string(sc.config.start) + "-R" +
+                           std::to_string(sc.config.submaps);
+  io::ErrorSeries series{"R = " + std::to_string(sc.config.submaps), {}, {}};
+  for (std::size_t i = 0; i < m.error_per_scan_m.size(); ++i) {
+    if (std::isnan(m.error_per_scan_m[i])) continue;
+    series.viewpoint.push_back(static_cast<double>(i));
+    series.error_m.push_back(m.error_per_scan_m[i]);
+  }
+  const std::string title = sc.config.building + ", start " + std::to_string(sc.config.start) + ", " +
+                            std::to_string(sc.config.submaps) + " submaps: error per viewpoint";
+  io::plot_error_curves(stem + "-error.png", title, {series});
+  io::plot_error_curves(stem + "-error.svg", title, {series});
+
+  io::MapFigure fig;
+  fig.title = sc.config.building + " (submap " + std::to_string(sc.target_submap) +
+              "): true (green) and estimated (blue) trajectory";
+  const Submap& own = sc.submaps[sc.target_submap];
+  for (std::size_t k = 0; k < own.scans.size(); k += 3) {
+    for (const Point2& p : own.scans[k].endpoints(0.05, 20.0)) fig.map_points.push_back(own.scans[k].pose.transform(p));
+  }
+  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
+    if (sc.target.truth[i]) fig.true_trajectory.push_back(sc.target.truth[i]->translation());
+    const auto& e = run.estimates[i];
+    if (e.has_estimate && e.submap == sc.target_submap) fig.estimated_trajectory.push_back(e.pose.translation());
+  }
+  if (!run.estimates.empty() && run.estimates.back().submap == sc.target_submap) {
+    fig.inlier_points = run.final_inliers;
+    fig.outlier_points = run.final_outliers;
+  }
+  io::plot_map_figure(stem + "-map.png", fig);
+  io::plot_map_figure(stem + "-map.svg", fig);
+  return stem;
+}
+
+void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) throw Error(path + ": cannot write the trace");
+  std::fprintf(f, "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
+                  "truth_theta,error_m,cpu_s\n");
+  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
+    const auto& e = run.estimates[i];
+    const auto& t = sc.target.truth[i];
+    std::fprintf(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%u,%.4f,", i, sc.target.scans[i].timestamp,
+                 e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta, e.localized ? 1 : 0, e.mean_score,
+                 e.scored, e.margin);
+    if (t) std::fprintf(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
+    else std::fprintf(f, ",,,,");
+    std::fprintf(f, "%.4f\n", run.cpu_s[i]);
+  }
+  if (std::fclose(f) != 0) throw Error(path + ": cannot write the trace");
+}
+
+
+}  // namespace lshloc::app

@@ -1,0 +1,26 @@
+#pragma once
+// What eval and demo report about one scenario run: its JSON line, its
+// figures and a per-scan trace.
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "lshloc/pipeline/localization_metrics.hpp"
+#include "lshloc/pipeline/scenario_runner.hpp"
+
+namespace lshloc::app {
+
+/// The metrics of DESIGN.md section 5 and the run's costs, as `lshloc eval` prints them.
+nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m);
+
+/// Writes STEM-error.{png,svg} (error per viewpoint, the paper's Fig. 8) and
+/// STEM-map.{png,svg} (trajectories over the target's submap, Figs. 5-6) into
+/// `dir`; returns STEM.
+std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const ScenarioRun& run,
+                                   const LocalizationMetrics& m);
+
+/// One CSV row per target scan: estimate, truth, error, scores, CPU time.
+void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run,
+                          const LocalizationMetrics& m);
+
+}  // namespace lshloc::app
