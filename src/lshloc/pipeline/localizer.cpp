@@ -15,9 +15,14 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-bool same_place(const Hypothesis& a, const Hypothesis& b, double dist_m, double angle_rad) {
-  return a.submap == b.submap && translation_distance(a.T_submap_local, b.T_submap_local) <= dist_m &&
-         angle_distance(a.T_submap_local.theta, b.T_submap_local.theta) <= angle_rad;
+/// Whether two hypotheses put the robot's current pose `local` (in the local
+/// frame) at the same place: compared at the robot, not at the local frame's
+/// origin, which may lie far away and turn small heading differences into
+/// large translations.
+bool same_place(const Hypothesis& a, const Hypothesis& b, const Pose2& local, double dist_m, double angle_rad) {
+  if (a.submap != b.submap) return false;
+  const Pose2 pa = a.T_submap_local * local, pb = b.T_submap_local * local;
+  return translation_distance(pa, pb) <= dist_m && angle_distance(pa.theta, pb.theta) <= angle_rad;
 }
 
 }  // namespace
@@ -169,7 +174,7 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
     const ScoredHypothesis* incumbent = nullptr;
     for (const ScoredHypothesis& h : active) {
       if (h.score < config_.ransac.min_score || h.scored == 0) continue;
-      if (!same_place(h.hypothesis, *reported_, cc.same_place_m, same_angle)) continue;
+      if (!same_place(h.hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) continue;
       if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
     }
     if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) best = *incumbent;
@@ -189,13 +194,13 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
   double rival = 0.0;
   for (const ScoredHypothesis& h : active) {
     if (h.score < config_.ransac.min_score || h.scored == 0) continue;
-    if (same_place(h.hypothesis, best->hypothesis, 2.0, M_PI)) continue;
+    if (same_place(h.hypothesis, best->hypothesis, local_pose, 2.0, M_PI)) continue;
     rival = std::max(rival, h.mean_score());
   }
   e.margin = e.mean_score - rival;
 
   bool stable = recent_best_.size() >= cc.stable_scans;
-  for (const auto& h : recent_best_) stable = stable && h && same_place(*h, best->hypothesis, cc.same_place_m, same_angle);
+  for (const auto& h : recent_best_) stable = stable && h && same_place(*h, best->hypothesis, local_pose, cc.same_place_m, same_angle);
   e.localized = stable && e.scored >= cc.min_scored && e.mean_score >= cc.min_mean_score && e.margin >= cc.min_margin;
   return e;
 }
