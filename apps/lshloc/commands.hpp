@@ -17,6 +17,7 @@ struct GlobalOptions {
 void add_info_command(CLI::App& app, GlobalOptions& global);
 void add_eval_command(CLI::App& app, GlobalOptions& global);
 void add_demo_command(CLI::App& app, GlobalOptions& global);
+void add_bench_scale_command(CLI::App& bench, GlobalOptions& global);
 void add_localize_command(CLI::App& app, GlobalOptions& global);
 void add_slam_command(CLI::App& app, GlobalOptions& global);
 void add_simulate_command(CLI::App& app, GlobalOptions& global);

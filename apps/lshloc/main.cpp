@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   auto* bench = app.add_subcommand("bench", "Benchmarks that print their figures as JSON (see `bench --help`)");
   bench->require_subcommand(1);
   lshloc::app::add_bench_matching_command(*bench, global);
+  lshloc::app::add_bench_scale_command(*bench, global);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -23,53 +23,46 @@ std::vector<ScanEstimate> ScenarioRun::scan_estimates() const {
   return out;
 }
 
-ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress,
-                         const LocalizerObserver& observer) {
-  ScenarioRun run;
-  GlobalMap map(config.map);
-  for (const Submap& s : scenario.submaps) map.add_submap(s.name);
+MapFeeder::MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps)
+    : map_(map), submaps_(submaps), fed_(submaps.size(), 0) {
+  for (const Submap& s : submaps) ids_.push_back(map.add_submap(s.name));
+}
 
-  // Mapper robots in parallel: one scan of each submap per round.
-  std::vector<std::size_t> fed(scenario.submaps.size(), 0);
-  const auto feed_until = [&](double share) {
-    bool any = true;
-    while (any) {
-      any = false;
-      for (std::size_t r = 0; r < scenario.submaps.size(); ++r) {
-        const auto& scans = scenario.submaps[r].scans;
-        const auto limit = static_cast<std::size_t>(share * static_cast<double>(scans.size()) + 0.5);
-        if (fed[r] < std::min(limit, scans.size())) {
-          map.add_scan(static_cast<std::uint32_t>(r), scans[fed[r]], scans[fed[r]].pose);
-          ++fed[r];
-          any = true;
-        }
+void MapFeeder::feed_until(double share) {
+  bool any = true;
+  while (any) {
+    any = false;
+    for (std::size_t r = 0; r < submaps_.size(); ++r) {
+      const auto& scans = submaps_[r].scans;
+      const auto limit = std::min(scans.size(), static_cast<std::size_t>(share * static_cast<double>(scans.size()) + 0.5));
+      if (fed_[r] < limit) {
+        map_.add_scan(ids_[r], scans[fed_[r]], scans[fed_[r]].pose);
+        ++fed_[r];
+        any = true;
       }
     }
-  };
-  auto t0 = Clock::now();
-  feed_until(config.map_share_before_target);
-  run.map_build_s = seconds_since(t0);
+  }
+}
 
-  config.localizer.scan_matcher.laser_offset = scenario.target.laser_offset;
-  Localizer localizer(map, config.localizer);
-  const auto& scans = scenario.target.scans;
+ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
+                            const Progress& progress, const LocalizerObserver& observer, const BeforeScan& before_scan) {
+  ScenarioRun run;
+  config.scan_matcher.laser_offset = target.laser_offset;
+  Localizer localizer(map, config);
+  const auto& scans = target.scans;
   run.estimates.reserve(scans.size());
   run.cpu_s.reserve(scans.size());
   const double cpu0 = process_cpu_seconds();
-  double mapping_cpu = 0.0;
-  t0 = Clock::now();
+  double excluded_cpu = 0.0;
+  const auto t0 = Clock::now();
   for (std::size_t i = 0; i < scans.size(); ++i) {
-    if (config.map_share_before_target < 1.0) {
-      // The rest of the map arrives while the target moves.
-      const double share = config.map_share_before_target +
-                           (1.0 - config.map_share_before_target) * static_cast<double>(i + 1) /
-                               static_cast<double>(scans.size());
+    if (before_scan) {
       const double c0 = process_cpu_seconds();
-      feed_until(share);
-      mapping_cpu += process_cpu_seconds() - c0;
+      before_scan(i);
+      excluded_cpu += process_cpu_seconds() - c0;
     }
     run.estimates.push_back(localizer.add_scan(scans[i]));
-    run.cpu_s.push_back(process_cpu_seconds() - cpu0 - mapping_cpu);
+    run.cpu_s.push_back(process_cpu_seconds() - cpu0 - excluded_cpu);
     if (observer) observer(i, localizer);
     if (progress) progress(i + 1, scans.size());
   }
@@ -77,8 +70,12 @@ ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, con
   run.localize_cpu_s = run.cpu_s.empty() ? 0.0 : run.cpu_s.back();
   if (scans.size() > 1) run.log_duration_s = scans.back().timestamp - scans.front().timestamp;
   if (!run.estimates.empty() && run.estimates.back().has_estimate) {
+    // The newest surface data-points placed by the final estimate.
     const LocalizationEstimate& last = run.estimates.back();
-    for (const LocalPoint& x : localizer.ransac().features()) {
+    const auto points = localizer.ransac().features();
+    const std::size_t window = std::min(points.size(), config.ransac.recent_window);
+    for (const LocalPoint& x : points.last(window)) {
+      if (x.kind != LocalPoint::Kind::kSurface) continue;
       const Point2 g = last.T_submap_local.transform(Point2(x.x, x.y));
       const double th = last.T_submap_local.transform_angle(x.theta);
       (map.occupancy().probe(last.submap, g.x(), g.y(), th) & cell_flags::kOccupied ? run.final_inliers
@@ -88,6 +85,27 @@ ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, con
   }
   run.map = map.stats();
   run.localizer = localizer.stats();
+  return run;
+}
+
+ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress,
+                         const LocalizerObserver& observer) {
+  GlobalMap map(config.map);
+  MapFeeder feeder(map, scenario.submaps);
+  const auto t0 = Clock::now();
+  feeder.feed_until(config.map_share_before_target);
+  const double map_build_s = seconds_since(t0);
+  BeforeScan rest_of_map;
+  if (config.map_share_before_target < 1.0) {
+    // The rest of the map arrives while the target moves.
+    const double n = static_cast<double>(scenario.target.scans.size());
+    rest_of_map = [&](std::size_t i) {
+      feeder.feed_until(config.map_share_before_target +
+                        (1.0 - config.map_share_before_target) * static_cast<double>(i + 1) / n);
+    };
+  }
+  ScenarioRun run = localize_target(map, scenario.target, config.localizer, progress, observer, rest_of_map);
+  run.map_build_s = map_build_s;
   return run;
 }
 

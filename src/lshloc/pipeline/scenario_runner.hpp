@@ -12,10 +12,9 @@ namespace lshloc {
 struct ScenarioRunConfig {
   GlobalMapConfig map;
   LocalizerConfig localizer;
-  /// Mapper scans are fed in rounds, one scan of each submap in turn (as
-  /// robots mapping in parallel would), before the target starts. Set
-  /// `interleave_target` to start the target after this share of each
-  /// submap's scans and feed the rest between target scans.
+  /// Share (0..1] of each submap's scans fed before the target starts (one
+  /// scan of each submap in turn, as robots mapping in parallel would); the
+  /// rest arrives between target scans.
   double map_share_before_target = 1.0;
 };
 
@@ -29,8 +28,8 @@ struct ScenarioRun {
   double log_duration_s = 0.0;     ///< [s] time the target's scans span in the log
   GlobalMapStats map;
   LocalizerStats localizer;
-  /// The data-points of iRANSAC placed by the final estimate, split by
-  /// whether they hit the map (for the paper's Fig. 6 style figure).
+  /// The newest surface data-points of iRANSAC placed by the final estimate,
+  /// split by whether they hit the map (for the paper's Fig. 6 style figure).
   std::vector<Point2> final_inliers, final_outliers;
 
   /// The estimates in the form evaluate_localization() takes.
@@ -42,6 +41,33 @@ using Progress = std::function<void(std::size_t, std::size_t)>;
 /// Called after each target scan with its index and the localizer (for
 /// diagnostics that look inside it); may be empty.
 using LocalizerObserver = std::function<void(std::size_t, const Localizer&)>;
+
+/// Feeds submaps' scans (with their map poses) to a global map as mapper
+/// robots working in parallel would: one scan of each submap in turn.
+class MapFeeder {
+ public:
+  /// Opens one submap of `map` per entry of `submaps` (which must outlive it).
+  MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps);
+  /// Feeds scans until this share (0..1) of every submap is in the map.
+  void feed_until(double share);
+  /// The map's id of submaps[i].
+  std::uint32_t submap_id(std::size_t i) const { return ids_.at(i); }
+
+ private:
+  GlobalMap& map_;
+  const std::vector<Submap>& submaps_;
+  std::vector<std::uint32_t> ids_;
+  std::vector<std::size_t> fed_;
+};
+
+/// Called before target scan i; its CPU time is not counted as the target's.
+using BeforeScan = std::function<void(std::size_t)>;
+
+/// Runs a target's scans through a new Localizer over `map` (its scan
+/// matcher takes the target's laser offset). map_build_s stays 0.
+ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
+                            const Progress& progress = {}, const LocalizerObserver& observer = {},
+                            const BeforeScan& before_scan = {});
 
 /// Builds the global map from the scenario's submaps and runs the target's
 /// scans through a Localizer. Map scans are fed with their map poses.

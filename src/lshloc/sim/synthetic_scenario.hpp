@@ -26,6 +26,15 @@ struct SyntheticScenarioConfig {
 /// One synthetic building as a mapper robot records it (corrected scans only).
 Submap synthetic_submap(std::uint64_t seed, std::size_t index, std::size_t scans);
 
+/// A building toured once for `map_scans + windows * target_scans` scans;
+/// `windows` target runs are cut out of it, evenly spaced, and the submap is
+/// the tour outside them and `guard_s` around them (as real logs are split).
+struct SplitBuilding {
+  Submap submap;
+  std::vector<TargetRun> targets;
+};
+SplitBuilding synthetic_split_building(const SyntheticScenarioConfig& config, std::size_t index, std::size_t windows);
+
 /// The whole scenario: `buildings` submaps (target's included, at index
 /// target_building) and the target's run with ground truth at every scan.
 Scenario synthetic_scenario(const SyntheticScenarioConfig& config);
