@@ -15,5 +15,6 @@ struct GlobalOptions {
 // Each adds its subcommand to `app`; the subcommand's callback does the work
 // and throws lshloc::Error on bad input.
 void add_info_command(CLI::App& app, GlobalOptions& global);
+void add_recall_command(CLI::App& app, GlobalOptions& global);
 
 }  // namespace lshloc::app

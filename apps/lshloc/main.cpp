@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
                  "data directory with the CARMEN logs (default: $LSHLOC_DATA, else ../shared/data)")
       ->envname("LSHLOC_DATA");
   lshloc::app::add_info_command(app, global);
+  lshloc::app::add_recall_command(app, global);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
