@@ -100,7 +100,7 @@ TEST(LshDatabase, RanksByCollisionCountAndReturnsTheQueryItselfFirst) {
 
 TEST(LshDatabase, HotBucketReturnsOnlyItsNewestEntries) {
   LshConfig cfg;
-  cfg.bucket_capacity = 7;
+  cfg.bucket_capacity = 8;
   cfg.L = 3;
   cfg.max_candidates = 1000;
   LshDatabase db(cfg);
@@ -108,15 +108,18 @@ TEST(LshDatabase, HotBucketReturnsOnlyItsNewestEntries) {
   for (std::uint32_t i = 0; i < 500; ++i) db.insert(same, i);
   std::vector<std::uint32_t> got;
   db.query(same, 100, got);
-  // Every table's bucket holds all 500, but a query reads 7 per table: the newest.
-  ASSERT_EQ(got.size(), 7u);
-  for (auto id : got) EXPECT_GE(id, 493u);
-  EXPECT_EQ(db.stats().candidates_touched, 21u);
+  // 500 ids fell in each table's bucket, which keeps (and returns) the newest 8.
+  ASSERT_EQ(got.size(), 8u);
+  for (auto id : got) EXPECT_GE(id, 492u);
+  EXPECT_EQ(db.stats().candidates_touched, 24u);
+  EXPECT_EQ(db.stats().buckets, 3u);
+  // Memory stays bounded: the pools hold 8 ids per table, not 500.
+  EXPECT_LT(db.stats().bytes, LshDatabase(cfg).stats().bytes + 3 * 8 * sizeof(std::uint32_t) + 3 * 16 * 64);
 }
 
 TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
   LshConfig cfg;
-  cfg.bucket_capacity = 100;
+  cfg.bucket_capacity = 100;  // rounded up to 128
   cfg.L = 10;
   cfg.max_candidates = 250;
   LshDatabase db(cfg);
@@ -125,7 +128,8 @@ TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
   std::vector<std::uint32_t> got;
   db.query(same, 1000, got);
   EXPECT_EQ(db.stats().candidates_touched, 250u);
-  EXPECT_EQ(got.size(), 100u);
+  ASSERT_EQ(got.size(), 128u);  // the newest 128: 872..999
+  EXPECT_EQ(*std::min_element(got.begin(), got.end()), 872u);
 }
 
 TEST(LshDatabase, SameSeedSameAnswersOtherSeedOtherTables) {
