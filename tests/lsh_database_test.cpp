@@ -98,8 +98,9 @@ TEST(LshDatabase, RanksByCollisionCountAndReturnsTheQueryItselfFirst) {
   EXPECT_EQ(q.queries, 50u);
 }
 
-TEST(LshDatabase, HotBucketReturnsOnlyItsNewestEntries) {
+TEST(LshDatabase, HotBucketKeepingNewestReturnsOnlyItsNewestEntries) {
   LshConfig cfg;
+  cfg.full_bucket = FullBucket::kKeepNewest;
   cfg.bucket_capacity = 8;
   cfg.L = 3;
   cfg.max_candidates = 1000;
@@ -117,8 +118,27 @@ TEST(LshDatabase, HotBucketReturnsOnlyItsNewestEntries) {
   EXPECT_LT(db.stats().bytes, LshDatabase(cfg).stats().bytes + 3 * 8 * sizeof(std::uint32_t) + 3 * 16 * 64);
 }
 
+TEST(LshDatabase, HotBucketSamplingKeepsOldAndNewEntries) {
+  LshConfig cfg;
+  cfg.bucket_capacity = 64;
+  cfg.L = 1;
+  LshDatabase db(cfg);
+  const Descriptor same = clustered(1, 1, 0.0, 1)[0];
+  for (std::uint32_t i = 0; i < 6400; ++i) db.insert(same, i);
+  std::vector<std::uint32_t> got;
+  db.query(same, 1000, got);
+  ASSERT_EQ(got.size(), 64u);
+  // A uniform sample of 0..6399: about a quarter from each quarter of the stream.
+  std::size_t first_quarter = 0;
+  for (auto id : got) first_quarter += id < 1600;
+  EXPECT_GE(first_quarter, 6u);
+  EXPECT_LE(first_quarter, 28u);
+  EXPECT_EQ(std::set<std::uint32_t>(got.begin(), got.end()).size(), 64u);
+}
+
 TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
   LshConfig cfg;
+  cfg.full_bucket = FullBucket::kKeepNewest;
   cfg.bucket_capacity = 100;  // rounded up to 128
   cfg.L = 10;
   cfg.max_candidates = 250;

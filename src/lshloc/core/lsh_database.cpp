@@ -76,6 +76,7 @@ LshDatabase::LshDatabase(LshConfig config) : config_(validated(config)), own_que
   for (auto& s : table_seed_) s = rng();
   tuple_multipliers_.resize(config_.K * config_.L);
   for (auto& m : tuple_multipliers_) m = rng() | 1u;
+  rng_state_ = rng();
   tables_.resize(config_.L);
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(config_.initial_slots, 2));
   for (Table& t : tables_) {
@@ -137,7 +138,7 @@ std::uint32_t LshDatabase::allocate(Table& t, std::uint32_t size_class) const {
   return static_cast<std::uint32_t>(offset);
 }
 
-void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) const {
+void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) {
   const std::uint32_t cap = 1u << capacity_class_;
   if (slot.inserted == 0) {
     slot.size_class = 0;
@@ -150,10 +151,20 @@ void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) const {
     slot.offset = bigger;
     slot.size_class += 1;
   }
-  // Below the cap this appends; at the cap it overwrites the oldest id.
-  t.pool[slot.offset + (slot.inserted & (cap - 1))] = id;
-  slot.inserted += 1;
-  if (slot.inserted == 2 * cap) slot.inserted = cap;  // same position modulo cap, never wraps
+  if (slot.inserted < cap) {
+    t.pool[slot.offset + slot.inserted] = id;
+    slot.inserted += 1;
+  } else if (config_.full_bucket == FullBucket::kKeepNewest) {
+    t.pool[slot.offset + (slot.inserted & (cap - 1))] = id;  // overwrite the oldest
+    slot.inserted += 1;
+    if (slot.inserted == 2 * cap) slot.inserted = cap;  // same position modulo cap, never wraps
+  } else {
+    // Reservoir sampling: the bucket stays a uniform sample of all its ids.
+    rng_state_ = mix64(rng_state_ + 0x9E3779B97F4A7C15ULL);
+    const std::uint64_t j = rng_state_ % (static_cast<std::uint64_t>(slot.inserted) + 1);
+    if (j < cap) t.pool[slot.offset + j] = id;
+    if (slot.inserted < 0xFFFFFFFFu) slot.inserted += 1;
+  }
 }
 
 void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {

@@ -9,6 +9,12 @@
 
 namespace lshloc {
 
+/// What a bucket already holding bucket_capacity ids does with one more.
+enum class FullBucket {
+  kReservoir,   ///< keeps a uniform random sample of every id it was given (old places stay findable)
+  kKeepNewest,  ///< overwrites its oldest id (favours recently mapped places)
+};
+
 /// Settings of the E2LSH appearance database (DESIGN.md section 4, paper
 /// section IV-A). Descriptors are L2-normalized, so distances lie in [0, 2];
 /// w is in those units.
@@ -17,9 +23,10 @@ struct LshConfig {
   std::size_t L = 24;  ///< hash tables (paper: 20)
   double w = 2.0;      ///< bucket width of h(v) = floor((a.v + b) / w), descriptor units
   std::uint64_t seed = 0x5eed5eedULL;  ///< seeds the Gaussian a and uniform b
-  /// A bucket keeps (and a query reads) at most this many ids, the newest
-  /// (rounded up to a power of two): a hot bucket cannot slow queries or grow.
+  /// A bucket keeps (and a query reads) at most this many ids (rounded up to
+  /// a power of two): a hot bucket cannot slow queries or grow.
   std::size_t bucket_capacity = 64;
+  FullBucket full_bucket = FullBucket::kReservoir;  ///< seeded from `seed`: deterministic per insertion order
   /// A query counts at most this many bucket entries over all tables.
   std::size_t max_candidates = 1500;
   std::size_t initial_slots = 1024;  ///< slots per table at start (rounded up to a power of two)
@@ -78,9 +85,11 @@ class LshQuery {
 ///
 /// Buckets: each bucket keeps its ids in one contiguous block of a per-table
 /// pool, doubling from 1 id up to bucket_capacity (rounded up to a power of
-/// two); a full bucket then overwrites its oldest id, so a hot bucket (a long
-/// corridor seen a thousand times) holds and returns only its newest
-/// bucket_capacity ids and neither memory nor query time grows without bound.
+/// two); a full bucket then keeps a uniform random sample of all the ids it
+/// was given (reservoir sampling) or its newest ones (LshConfig::full_bucket),
+/// so a hot bucket (a long corridor seen a thousand times) holds and returns
+/// at most bucket_capacity ids and neither memory nor query time grows
+/// without bound.
 ///
 /// Cost: insert = one (K L x 120) float matrix-vector product plus L bucket
 /// pushes (O(1); a block doubling copies at most bucket_capacity ids, and a
@@ -143,7 +152,7 @@ class LshDatabase {
   }
   static void grow(Table& t);
   std::uint32_t allocate(Table& t, std::uint32_t size_class) const;
-  void push(Table& t, Slot& slot, std::uint32_t id) const;
+  void push(Table& t, Slot& slot, std::uint32_t id);
 
   LshConfig config_;
   /// (K L x 120) Gaussian projections, already divided by w.
@@ -153,7 +162,8 @@ class LshDatabase {
   std::vector<std::uint64_t> tuple_multipliers_;  ///< K L random odd multipliers hashing a K-tuple
   std::vector<Table> tables_;
   std::size_t entries_ = 0;
-  std::uint32_t capacity_class_ = 0;  ///< bucket capacity = 2^capacity_class_
+  std::uint32_t capacity_class_ = 0;
+  std::uint64_t rng_state_ = 0;  ///< reservoir sampling  ///< bucket capacity = 2^capacity_class_
   Eigen::VectorXf insert_projections_;
   std::vector<std::uint32_t> insert_tags_;
   std::vector<std::size_t> insert_slots_;
