@@ -97,7 +97,8 @@ class LshlocIndex : public Index {
   std::string params() const override {
     const auto& c = db_.config();
     std::ostringstream s;
-    s << "K=" << c.K << " L=" << c.L << " w=" << c.w << " cap=" << c.bucket_capacity << " max_cand=" << c.max_candidates;
+    s << "K=" << c.K << " L=" << c.L << " w=" << c.w << " cap=" << c.bucket_capacity << " max_cand=" << c.max_candidates
+      << " sketch=" << c.sketch_bits << "/" << c.sketch_collision_weight;
     return s.str();
   }
   void add(const Descriptor& d, std::uint32_t id) override { db_.insert(d, id); }
@@ -245,10 +246,12 @@ int main(int argc, char** argv) try {
     else if (a == "--lsh-w") opt.lsh.w = std::stod(next());
     else if (a == "--lsh-cap") opt.lsh.bucket_capacity = std::stoul(next());
     else if (a == "--lsh-max-candidates") opt.lsh.max_candidates = std::stoul(next());
+    else if (a == "--lsh-sketch") opt.lsh.sketch_bits = std::stoul(next());
+    else if (a == "--lsh-sketch-weight") opt.lsh.sketch_collision_weight = std::stoul(next());
     else if (a == "--lsh-keep-newest") opt.lsh.full_bucket = lshloc::FullBucket::kKeepNewest;
     else throw lshloc::Error("unknown option " + a +
                              " (known: --sizes, --only, --query-every, --hnsw-ef, --hnsw-ef-construction, "
-                             "--flann-checks, --data, --lsh-k, --lsh-l, --lsh-w, --lsh-cap, --lsh-max-candidates, --lsh-keep-newest)");
+                             "--flann-checks, --data, --lsh-k, --lsh-l, --lsh-w, --lsh-cap, --lsh-max-candidates, --lsh-sketch, --lsh-sketch-weight, --lsh-keep-newest)");
   }
   std::sort(opt.sizes.begin(), opt.sizes.end());
   const std::size_t total = opt.sizes.back();
@@ -396,8 +399,18 @@ int main(int argc, char** argv) try {
       }
       const double bytes = static_cast<double>(heap_bytes() - heap0) / static_cast<double>(size);
       std::string params = index->params();
-      if (auto* l = dynamic_cast<LshlocIndex*>(index.get()))
+      if (auto* l = dynamic_cast<LshlocIndex*>(index.get())) {
         params += " cand=" + std::to_string(static_cast<long>(l->mean_candidates()));
+        // Recall if every candidate were returned: what a better ranking could reach.
+        std::size_t any = 0;
+        for (const Query& q : queries) {
+          l->search(q.descriptor, opt.lsh.max_candidates, out);
+          any += hit(q, out);
+        }
+        char buf[64];
+        std::snprintf(buf, sizeof buf, " recall_all_cand=%.3f", static_cast<double>(any) / static_cast<double>(queries.size()));
+        params += buf;
+      }
       std::printf("%-15s %9zu %11.2f %11.2f %9.3f %9.0f  %s\n", index->name().c_str(), size,
                   1e6 * insert_s / static_cast<double>(inserted_since), 1e6 * query_s / static_cast<double>(queried_since),
                   static_cast<double>(hits) / static_cast<double>(queries.size()), bytes, params.c_str());

@@ -236,7 +236,8 @@ nlohmann::json run_recall(const GlobalOptions& global, const RecallOptions& opt)
       {"lsh_buckets", s.buckets},
       {"lsh_bytes_per_entry", s.bytes_per_entry()},
       {"lsh", {{"K", opt.lsh.K}, {"L", opt.lsh.L}, {"w", opt.lsh.w}, {"bucket_capacity", opt.lsh.bucket_capacity},
-               {"max_candidates", opt.lsh.max_candidates}, {"seed", opt.lsh.seed}}},
+               {"max_candidates", opt.lsh.max_candidates}, {"seed", opt.lsh.seed},
+               {"sketch_bits", opt.lsh.sketch_bits}}},
   };
   if (opt.exact) {
     out["exact_recall_at_1"] = ratio(exact_hits[0]);
@@ -283,6 +284,10 @@ void add_recall_command(CLI::App& app, GlobalOptions& global) {
   g->add_option("--lsh-seed", opt->lsh.seed, "seed of the projections")->capture_default_str();
   g->add_option("--bucket-capacity", opt->lsh.bucket_capacity, "ids a query reads per bucket")->capture_default_str();
   g->add_option("--max-candidates", opt->lsh.max_candidates, "bucket entries a query reads in all")->capture_default_str();
+  g->add_option("--sketch-weight", opt->lsh.sketch_collision_weight, "sketch bits per missed table in the ranking")
+      ->capture_default_str();
+  g->add_option("--sketch-bits", opt->lsh.sketch_bits, "sign-sketch bits per entry ranking candidates (0: off)")
+      ->capture_default_str();
   auto* f = cmd->add_option_group("features", "keypoints and descriptor");
   f->add_option("--keypoints", opt->extractor.max_keypoints, "|U_new|: keypoints per scan at most")->capture_default_str();
   f->add_option("--spacing", opt->extractor.keypoint_spacing, "[m] arc length between keypoints")->capture_default_str();

@@ -34,6 +34,8 @@ void LshConfig::validate() const {
   require(std::isfinite(w) && w > 0.0, "w", "a bucket width > 0");
   require(bucket_capacity >= 1 && bucket_capacity <= (1u << 16), "bucket_capacity", "1..65536");
   require(max_candidates >= 1 && max_candidates <= (1u << 24), "max_candidates", "1..2^24");
+  require(sketch_bits % 64 == 0 && sketch_bits <= 1024, "sketch_bits", "0 or a multiple of 64 up to 1024");
+  require(sketch_collision_weight <= 64, "sketch_collision_weight", "0..64 bits per table");
   require(initial_slots >= 1 && initial_slots <= (std::size_t{1} << 30), "initial_slots", "1..2^30");
 }
 
@@ -77,6 +79,10 @@ LshDatabase::LshDatabase(LshConfig config) : config_(validated(config)), own_que
   tuple_multipliers_.resize(config_.K * config_.L);
   for (auto& m : tuple_multipliers_) m = rng() | 1u;
   rng_state_ = rng();
+  sketch_words_ = config_.sketch_bits / 64;
+  sketch_a_.resize(static_cast<Eigen::Index>(config_.sketch_bits), static_cast<Eigen::Index>(kDescriptorSize));
+  for (Eigen::Index r = 0; r < sketch_a_.rows(); ++r)
+    for (Eigen::Index c = 0; c < sketch_a_.cols(); ++c) sketch_a_(r, c) = static_cast<float>(gauss(rng));
   tables_.resize(config_.L);
   const std::size_t slots = std::bit_ceil(std::max<std::size_t>(config_.initial_slots, 2));
   for (Table& t : tables_) {
@@ -197,6 +203,13 @@ void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
     }
     push(table, slot, id);
   }
+  if (sketch_words_ > 0) {
+    if (id >= sketch_ids_) {
+      sketch_ids_ = static_cast<std::size_t>(id) + 1;
+      sketches_.resize(sketch_ids_ * sketch_words_, 0);
+    }
+    sketch(descriptor, sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
+  }
   ++entries_;
 }
 
@@ -274,6 +287,7 @@ void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std:
   }
   q.ranked_.resize(q.found_.size());
   for (std::uint32_t s : q.found_) q.ranked_[q.histogram_[q.slot_count_[s]]++] = s;
+  if (sketch_words_ > 0) rerank_by_sketch(descriptor, q);
   const std::size_t n = std::min(k, q.ranked_.size());
   out.reserve(n);
   counts.reserve(n);
@@ -281,6 +295,57 @@ void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std:
     out.push_back(q.slot_id_[q.ranked_[i]]);
     counts.push_back(q.slot_count_[q.ranked_[i]]);
   }
+}
+
+void LshDatabase::sketch(const Descriptor& descriptor, std::uint64_t* words) const {
+  const Eigen::Map<const Eigen::Matrix<float, static_cast<int>(kDescriptorSize), 1>> v(descriptor.data());
+  thread_local Eigen::VectorXf signs;
+  signs.noalias() = sketch_a_ * v;
+  for (std::size_t w = 0; w < sketch_words_; ++w) {
+    std::uint64_t bits = 0;
+    for (std::size_t b = 0; b < 64; ++b)
+      bits |= static_cast<std::uint64_t>(signs(static_cast<Eigen::Index>(64 * w + b)) > 0.0f) << b;
+    words[w] = bits;
+  }
+}
+
+void LshDatabase::rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) const {
+  // The Hamming distance between sign sketches estimates the angle between
+  // descriptors (unit vectors: monotone in L2). A stable counting sort by it
+  // keeps the collision-count order among equal distances.
+  q.sketch_.resize(sketch_words_);
+  sketch(descriptor, q.sketch_.data());
+  const std::size_t n = q.ranked_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t id = q.slot_id_[q.ranked_[i]];
+    if (id < sketch_ids_) __builtin_prefetch(sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
+  }
+  q.hamming_.resize(n);
+  const std::size_t weight = config_.sketch_collision_weight;
+  const std::size_t max_distance = 64 * sketch_words_ + weight * config_.L;
+  q.sketch_histogram_.assign(max_distance + 2, 0u);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t id = q.slot_id_[q.ranked_[i]];
+    std::uint32_t d = static_cast<std::uint32_t>(max_distance + 1);  // no sketch: last
+    if (id < sketch_ids_) {
+      const std::uint64_t* e = sketches_.data() + static_cast<std::size_t>(id) * sketch_words_;
+      d = 0;
+      for (std::size_t w = 0; w < sketch_words_; ++w) d += static_cast<std::uint32_t>(std::popcount(e[w] ^ q.sketch_[w]));
+      // Each table the candidate missed costs `weight` bits.
+      d += static_cast<std::uint32_t>(weight * (config_.L - std::min<std::size_t>(q.slot_count_[q.ranked_[i]], config_.L)));
+    }
+    q.hamming_[i] = d;
+    ++q.sketch_histogram_[d];
+  }
+  std::uint32_t start = 0;
+  for (auto& h : q.sketch_histogram_) {
+    const std::uint32_t here = h;
+    h = start;
+    start += here;
+  }
+  q.reranked_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) q.reranked_[q.sketch_histogram_[q.hamming_[i]]++] = q.ranked_[i];
+  q.ranked_.swap(q.reranked_);
 }
 
 LshStats LshDatabase::stats() const {
@@ -291,6 +356,7 @@ LshStats LshDatabase::stats() const {
     s.bytes += t.slots.capacity() * sizeof(Slot) + t.pool.capacity() * sizeof(std::uint32_t);
     for (const auto& f : t.free_blocks) s.bytes += f.capacity() * sizeof(std::uint32_t);
   }
+  s.bytes += sketches_.capacity() * sizeof(std::uint64_t) + static_cast<std::size_t>(sketch_a_.size()) * sizeof(float);
   s.bytes += static_cast<std::size_t>(a_.size() + b_.size()) * sizeof(float) +
              (table_seed_.size() + tuple_multipliers_.size()) * sizeof(std::uint64_t);
   s.queries = own_query_.queries;

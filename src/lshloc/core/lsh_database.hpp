@@ -29,6 +29,16 @@ struct LshConfig {
   FullBucket full_bucket = FullBucket::kReservoir;  ///< seeded from `seed`: deterministic per insertion order
   /// A query counts at most this many bucket entries over all tables.
   std::size_t max_candidates = 1500;
+  /// 0: candidates are ranked by collision count alone (buckets hold ids
+  /// only). Else each entry also keeps a sign sketch of this many bits
+  /// (multiple of 64; random Gaussian hyperplanes, seeded) under its id, and
+  /// candidates are ranked by the sketches' Hamming distance to the query's
+  /// (an angle estimate), ties by collision count. Costs sketch_bits / 8
+  /// bytes per id (ids should be dense, e.g. LocationStore indices).
+  std::size_t sketch_bits = 128;
+  /// With sketches, the ranking key is the Hamming distance plus this many
+  /// bits for every table the candidate did not collide in (0: sketch only).
+  std::size_t sketch_collision_weight = 1;
   std::size_t initial_slots = 1024;  ///< slots per table at start (rounded up to a power of two)
 
   /// Throws lshloc::Error naming the first field out of range.
@@ -73,6 +83,10 @@ class LshQuery {
   std::vector<std::uint32_t> found_;       ///< slots in first-seen order
   std::vector<std::uint32_t> ranked_;      ///< slots by collision count
   std::vector<std::uint32_t> histogram_;   ///< ids per collision count, then rank offsets
+  std::vector<std::uint64_t> sketch_;            ///< the query's sign sketch
+  std::vector<std::uint32_t> hamming_;           ///< per ranked candidate
+  std::vector<std::uint32_t> sketch_histogram_;  ///< counting sort by Hamming distance
+  std::vector<std::uint32_t> reranked_;
   std::uint32_t stamp_ = 0;
   std::uint32_t mask_ = 0;
   int shift_ = 0;
@@ -81,7 +95,7 @@ class LshQuery {
 /// The incremental E2LSH appearance database: L tables, each keyed by K
 /// concatenated p-stable hashes h(v) = floor((a.v + b) / w) with Gaussian a
 /// and b uniform in [0, w). Buckets hold location ids only; the descriptor
-/// is not stored. A query ranks ids by how many tables they collided in.
+/// is not stored (only an optional 128-bit sign sketch per id).
 ///
 /// Buckets: each bucket keeps its ids in one contiguous block of a per-table
 /// pool, doubling from 1 id up to bucket_capacity (rounded up to a power of
@@ -100,7 +114,14 @@ class LshQuery {
 /// Memory per entry: 4 bytes per table for the id (up to 2x while a block is
 /// half full), plus 16 bytes per slot for each bucket it opens (slots at most
 /// 70% full): about 4L..(8L + 23L) bytes, so roughly 100..750 bytes at L = 24
-/// depending on how many buckets hold a single id; LshStats::bytes measures it.
+/// depending on how many buckets hold a single id (measured: 250 bytes at
+/// 1e4 real entries, 50..130 at 1e6 where buckets fill up), plus
+/// sketch_bits / 8 bytes per id for the sign sketch (16 at the default);
+/// LshStats::bytes measures it all. The descriptor itself is never stored.
+///
+/// Ranking: candidates are the ids of the L buckets the query falls in; they
+/// are ranked by the Hamming distance of their sign sketch to the query's
+/// (sketch_bits > 0), else by how many tables they collided in.
 ///
 /// Thread-safety: insert() must not run concurrently with anything else.
 /// Concurrent queries are safe when each thread passes its own LshQuery;
@@ -153,6 +174,8 @@ class LshDatabase {
   static void grow(Table& t);
   std::uint32_t allocate(Table& t, std::uint32_t size_class) const;
   void push(Table& t, Slot& slot, std::uint32_t id);
+  void sketch(const Descriptor& descriptor, std::uint64_t* words) const;
+  void rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) const;
 
   LshConfig config_;
   /// (K L x 120) Gaussian projections, already divided by w.
@@ -163,7 +186,11 @@ class LshDatabase {
   std::vector<Table> tables_;
   std::size_t entries_ = 0;
   std::uint32_t capacity_class_ = 0;
-  std::uint64_t rng_state_ = 0;  ///< reservoir sampling  ///< bucket capacity = 2^capacity_class_
+  std::uint64_t rng_state_ = 0;  ///< reservoir sampling
+  std::size_t sketch_words_ = 0;
+  std::size_t sketch_ids_ = 0;  ///< ids 0..sketch_ids_-1 have a sketch slot
+  std::vector<std::uint64_t> sketches_;  ///< sketch_words_ per id
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> sketch_a_;  ///< bucket capacity = 2^capacity_class_
   Eigen::VectorXf insert_projections_;
   std::vector<std::uint32_t> insert_tags_;
   std::vector<std::size_t> insert_slots_;
