@@ -83,7 +83,9 @@ TEST(LshDatabase, FindsTheExactNearestNeighbourMostOfTheTime) {
 
 TEST(LshDatabase, RanksByCollisionCountAndReturnsTheQueryItselfFirst) {
   const auto data = clustered(2000, 2000, 0.0, 3);
-  LshDatabase db;
+  LshConfig cfg;
+  cfg.sketch_bits = 0;  // rank by collision count alone
+  LshDatabase db(cfg);
   for (std::size_t i = 0; i < data.size(); ++i) db.insert(data[i], static_cast<std::uint32_t>(1000 + i));
   LshQuery q(db);
   std::vector<std::uint32_t> ids;
@@ -98,9 +100,51 @@ TEST(LshDatabase, RanksByCollisionCountAndReturnsTheQueryItselfFirst) {
   EXPECT_EQ(q.queries, 50u);
 }
 
-TEST(LshDatabase, HotBucketReturnsOnlyItsNewestEntries) {
+TEST(LshDatabase, SketchRankingPutsTheTrueMatchAboveLookAlikes) {
+  // Per place: one true copy near the query (~0.2 away) among 30 look-alikes
+  // (~0.45 away) that collide almost as often. Collision counts barely tell
+  // them apart; sign sketches (an angle estimate) should.
+  std::mt19937_64 rng(21);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  auto noisy = [&](const Descriptor& c, float s) {
+    Descriptor d = c;
+    for (float& v : d) v += s * g(rng);
+    return normalized(d);
+  };
+  constexpr std::size_t kPlaces = 200, kLookAlikes = 30;
+  std::vector<Descriptor> centres(kPlaces), queries(kPlaces);
+  std::vector<std::pair<Descriptor, std::uint32_t>> entries;  // (descriptor, id); true copy of place p: id p
+  for (std::size_t p = 0; p < kPlaces; ++p) {
+    for (float& v : centres[p]) v = g(rng);
+    centres[p] = normalized(centres[p]);
+    queries[p] = noisy(centres[p], 0.012f);
+    entries.emplace_back(noisy(centres[p], 0.012f), static_cast<std::uint32_t>(p));
+    for (std::size_t j = 0; j < kLookAlikes; ++j)
+      entries.emplace_back(noisy(centres[p], 0.03f), static_cast<std::uint32_t>(kPlaces + p * kLookAlikes + j));
+  }
+  std::size_t first[2] = {0, 0};
+  for (std::size_t bits : {std::size_t{0}, std::size_t{128}}) {
+    LshConfig cfg;
+    cfg.sketch_bits = bits;
+    cfg.sketch_collision_weight = 1;
+    LshDatabase db(cfg);
+    for (const auto& [d, id] : entries) db.insert(d, id);
+    std::vector<std::uint32_t> got;
+    for (std::size_t p = 0; p < kPlaces; ++p) {
+      ASSERT_LT(dist(queries[p], entries[p * (kLookAlikes + 1)].first), 0.3);
+      db.query(queries[p], 1, got);
+      first[bits ? 1 : 0] += !got.empty() && got[0] == p;
+    }
+  }
+  EXPECT_GT(first[1], first[0] + 15) << "true match first: " << first[0] << " by counts, " << first[1] << " by sketches";
+  EXPECT_GE(first[1], kPlaces * 7 / 10);
+}
+
+TEST(LshDatabase, HotBucketKeepingNewestReturnsOnlyItsNewestEntries) {
   LshConfig cfg;
-  cfg.bucket_capacity = 7;
+  cfg.full_bucket = FullBucket::kKeepNewest;
+  cfg.sketch_bits = 0;  // measure the buckets' memory alone
+  cfg.bucket_capacity = 8;
   cfg.L = 3;
   cfg.max_candidates = 1000;
   LshDatabase db(cfg);
@@ -108,15 +152,37 @@ TEST(LshDatabase, HotBucketReturnsOnlyItsNewestEntries) {
   for (std::uint32_t i = 0; i < 500; ++i) db.insert(same, i);
   std::vector<std::uint32_t> got;
   db.query(same, 100, got);
-  // Every table's bucket holds all 500, but a query reads 7 per table: the newest.
-  ASSERT_EQ(got.size(), 7u);
-  for (auto id : got) EXPECT_GE(id, 493u);
-  EXPECT_EQ(db.stats().candidates_touched, 21u);
+  // 500 ids fell in each table's bucket, which keeps (and returns) the newest 8.
+  ASSERT_EQ(got.size(), 8u);
+  for (auto id : got) EXPECT_GE(id, 492u);
+  EXPECT_EQ(db.stats().candidates_touched, 24u);
+  EXPECT_EQ(db.stats().buckets, 3u);
+  // Memory stays bounded: the pools hold 8 ids per table, not 500.
+  EXPECT_LT(db.stats().bytes, LshDatabase(cfg).stats().bytes + 3 * 8 * sizeof(std::uint32_t) + 3 * 16 * 64);
+}
+
+TEST(LshDatabase, HotBucketSamplingKeepsOldAndNewEntries) {
+  LshConfig cfg;
+  cfg.bucket_capacity = 64;
+  cfg.L = 1;
+  LshDatabase db(cfg);
+  const Descriptor same = clustered(1, 1, 0.0, 1)[0];
+  for (std::uint32_t i = 0; i < 6400; ++i) db.insert(same, i);
+  std::vector<std::uint32_t> got;
+  db.query(same, 1000, got);
+  ASSERT_EQ(got.size(), 64u);
+  // A uniform sample of 0..6399: about a quarter from each quarter of the stream.
+  std::size_t first_quarter = 0;
+  for (auto id : got) first_quarter += id < 1600;
+  EXPECT_GE(first_quarter, 6u);
+  EXPECT_LE(first_quarter, 28u);
+  EXPECT_EQ(std::set<std::uint32_t>(got.begin(), got.end()).size(), 64u);
 }
 
 TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
   LshConfig cfg;
-  cfg.bucket_capacity = 100;
+  cfg.full_bucket = FullBucket::kKeepNewest;
+  cfg.bucket_capacity = 100;  // rounded up to 128
   cfg.L = 10;
   cfg.max_candidates = 250;
   LshDatabase db(cfg);
@@ -125,7 +191,8 @@ TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
   std::vector<std::uint32_t> got;
   db.query(same, 1000, got);
   EXPECT_EQ(db.stats().candidates_touched, 250u);
-  EXPECT_EQ(got.size(), 100u);
+  ASSERT_EQ(got.size(), 128u);  // the newest 128: 872..999
+  EXPECT_EQ(*std::min_element(got.begin(), got.end()), 872u);
 }
 
 TEST(LshDatabase, SameSeedSameAnswersOtherSeedOtherTables) {

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   bench->require_subcommand(1);
   lshloc::app::add_bench_matching_command(*bench, global);
   lshloc::app::add_bench_scale_command(*bench, global);
+  lshloc::app::add_recall_command(app, global);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

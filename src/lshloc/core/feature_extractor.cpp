@@ -27,6 +27,16 @@ std::size_t segment_end(const ScanSurface& s, std::size_t seg) {
 
 }  // namespace
 
+ScanSurface transformed(const ScanSurface& surface, const Pose2& T_new_old) {
+  ScanSurface out = surface;
+  out.sensor_pose = T_new_old * surface.sensor_pose;
+  for (SurfacePoint& p : out.points) {
+    p.position = T_new_old.transform(p.position);
+    p.tangent = T_new_old.transform_angle(p.tangent);
+  }
+  return out;
+}
+
 void FeatureExtractorConfig::validate() const {
   require(min_range >= 0.0 && max_range > min_range, "min_range/max_range", "0 <= min_range < max_range");
   require(segment_gap > 0.0 && segment_gap_per_meter >= 0.0, "segment_gap", "> 0 (per metre >= 0)");
@@ -41,6 +51,10 @@ void FeatureExtractorConfig::validate() const {
   require(descriptor_radius > 0.0, "descriptor_radius", "> 0 m");
   require(descriptor_inner_radius > 0.0 && descriptor_inner_radius < descriptor_radius, "descriptor_inner_radius",
           "in (0, descriptor_radius)");
+  require(rings >= 2 && sectors >= 2 && rings * sectors * (occupancy_component ? 3 : 2) == kDescriptorSize,
+          "rings/sectors", "rings x sectors x components (2, or 3 with occupancy_component) = 120, at least 2 each");
+  require(rim_taper >= 0.0 && rim_taper <= 1.0, "rim_taper", "in [0, 1]");
+  require(bin_power > 0.0 && bin_power <= 1.0, "bin_power", "in (0, 1]");
   require(min_descriptor_support >= 0.0, "min_descriptor_support", ">= 0 m");
 }
 
@@ -107,16 +121,19 @@ ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const 
   return out;
 }
 
-double FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
-                                  Descriptor& out) const {
+FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan,
+                                                    std::span<const ScanSurface> context, Descriptor& out) const {
   const double radius = config_.descriptor_radius, radius2 = radius * radius;
   const double inner = config_.descriptor_inner_radius;
   const double log_span = std::log(radius / inner);
+  const double taper_width = std::max(config_.rim_taper * radius, 1e-9);
   const double c = std::cos(keypoint.theta), s = std::sin(keypoint.theta);
   const double c2 = std::cos(2.0 * keypoint.theta), s2 = std::sin(2.0 * keypoint.theta);
-  constexpr int kRings = static_cast<int>(kRadialBins), kSectors = static_cast<int>(kAngularBins);
+  const int kRings = static_cast<int>(config_.rings), kSectors = static_cast<int>(config_.sectors);
+  const bool occupancy = config_.occupancy_component;
+  const std::size_t comps = occupancy ? 3 : 2;
   std::array<double, kDescriptorSize> hist{};
-  double support = 0.0;
+  Support support;
 
   auto accumulate = [&](const ScanSurface& surf) {
     for (const SurfacePoint& sp : surf.points) {
@@ -126,7 +143,10 @@ double FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan
       const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
       const double r = std::sqrt(d2);
       // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
-      const double u = r < inner ? r / inner : 1.0 + (kRings - 1) * std::log(r / inner) / log_span;
+      const double u = r < inner          ? r / inner
+                       : config_.log_rings ? 1.0 + (kRings - 1) * std::log(r / inner) / log_span
+                                           : 1.0 + (kRings - 1) * (r - inner) / (radius - inner);
+      const double taper = std::min(1.0, (radius - r) / taper_width);
       const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
       // Soft binning between the two nearest bin centres in each dimension, so
       // a point near a bin edge does not flip the descriptor.
@@ -139,21 +159,34 @@ double FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan
       const int a0 = ((static_cast<int>(vf) % kSectors) + kSectors) % kSectors, a1 = (a0 + 1) % kSectors;
       // Tangent relative to the keypoint normal, doubled: cos/sin(2(t - theta)).
       const double ct = std::cos(2.0 * sp.tangent), st = std::sin(2.0 * sp.tangent);
-      const double comp_c = (ct * c2 + st * s2) * sp.weight, comp_s = (st * c2 - ct * s2) * sp.weight;
+      const double weight = sp.weight * taper;
+      const double comp_c = (ct * c2 + st * s2) * weight, comp_s = (st * c2 - ct * s2) * weight;
       const std::array<std::pair<int, double>, 4> bins{{{r0 * kSectors + a0, (1 - fr) * (1 - fa)},
                                                         {r0 * kSectors + a1, (1 - fr) * fa},
                                                         {(r0 + 1) * kSectors + a0, fr * (1 - fa)},
                                                         {(r0 + 1) * kSectors + a1, fr * fa}}};
       for (const auto& [bin, w] : bins) {
-        hist[2 * bin] += w * comp_c;
-        hist[2 * bin + 1] += w * comp_s;
+        double* h = &hist[comps * static_cast<std::size_t>(bin)];
+        if (occupancy) *h++ += w * weight;
+        h[0] += w * comp_c;
+        h[1] += w * comp_s;
       }
-      support += sp.weight;
+      support.surface += weight;
+      // comp_c / weight = cos 2(t - theta): -1 along the keypoint's wall, +1 across it.
+      support.across += 0.5 * (weight + comp_c);
     }
   };
   accumulate(scan);
   for (const ScanSurface& ctx : context) accumulate(ctx);
 
+  if (config_.bin_power != 1.0)
+    for (std::size_t i = 0; i < kDescriptorSize; i += comps) {
+      double len2 = 0.0;
+      for (std::size_t j = i; j < i + comps; ++j) len2 += hist[j] * hist[j];
+      if (len2 <= 0.0) continue;
+      const double scale = std::pow(len2, 0.5 * (config_.bin_power - 1.0));
+      for (std::size_t j = i; j < i + comps; ++j) hist[j] *= scale;
+    }
   double norm2 = 0.0;
   for (double h : hist) norm2 += h * h;
   const double inv = norm2 > 0.0 ? 1.0 / std::sqrt(norm2) : 0.0;
@@ -166,6 +199,7 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
   stats_.segments += scan.segment_begin.size();
   const Point2 sensor = scan.sensor_pose.translation();
   std::vector<Feature> candidates;
+  std::vector<double> structure;  // Support::across per candidate
   std::vector<double> arc;
   for (std::size_t seg = 0; seg < scan.segment_begin.size(); ++seg) {
     const std::size_t b = scan.segment_begin[seg], e = segment_end(scan, seg), n = e - b;
@@ -216,18 +250,27 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
       if (normal.dot(sensor - position) < 0.0) normal = -normal;  // the side the sensor saw
       Feature f;
       f.pose = Pose2(position.x(), position.y(), std::atan2(normal.y(), normal.x()));
-      if (describe(f.pose, scan, context, f.descriptor) < config_.min_descriptor_support) {
+      const Support support = describe(f.pose, scan, context, f.descriptor);
+      if (support.surface < config_.min_descriptor_support) {
         ++stats_.rejected_support;
         continue;
       }
       candidates.push_back(f);
+      structure.push_back(support.across);
     }
   }
-  // Too many: keep an evenly spread subset in scan order (deterministic and
-  // independent of the frame).
+  // Too many: keep the most structured ones, or an evenly spread subset; in
+  // scan order either way (deterministic and independent of the frame).
   std::vector<Feature> out;
   if (candidates.size() <= config_.max_keypoints) {
     out = std::move(candidates);
+  } else if (config_.prefer_structure) {
+    std::vector<std::size_t> order(candidates.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return structure[a] > structure[b]; });
+    order.resize(config_.max_keypoints);
+    std::sort(order.begin(), order.end());
+    for (std::size_t i : order) out.push_back(candidates[i]);
   } else {
     out.reserve(config_.max_keypoints);
     const double step = static_cast<double>(candidates.size()) / static_cast<double>(config_.max_keypoints);

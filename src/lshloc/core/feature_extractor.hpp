@@ -25,26 +25,40 @@ struct FeatureExtractorConfig {
   // --- keypoints: fixed arc-length spacing along smooth segments (DESIGN.md section 8:
   // they repeat better from another viewpoint than corner points)
   std::size_t max_keypoints = 10;  ///< |U_new|: at most this many keypoints per scan
-  double keypoint_spacing = 1.0;   ///< [m] arc length between keypoints along a segment
+  double keypoint_spacing = 0.7;   ///< [m] arc length between keypoints along a segment
   double keypoint_max_range = 10.0;  ///< [m] keypoints only where the sensor saw the wall this close
-  double normal_half_window = 0.3;   ///< [m] arc length each side fitted by the keypoint's normal
-  double max_normal_residual = 0.03;  ///< [m] RMS off-line distance above which a spot is not smooth
+  double normal_half_window = 0.4;   ///< [m] arc length each side fitted by the keypoint's normal
+  double max_normal_residual = 0.02;  ///< [m] RMS off-line distance above which a spot is not smooth
   double edge_margin = 0.2;  ///< [m] keypoints keep this arc length from a segment's ends
 
-  // --- descriptor: 5 radial x 12 angular bins x 2 components = 120 (kDescriptorSize)
+  // --- descriptor: rings x sectors bins x components must make 120 (kDescriptorSize).
+  // Bin (ring, sector) holds its components at index components * (ring * sectors + sector).
+  std::size_t rings = 4;     ///< radial bins
+  std::size_t sectors = 10;  ///< angular bins, sector 0 starting opposite the normal
+  /// false: 2 components per bin, the summed (cos 2a, sin 2a) of the surface
+  /// tangent angle a; true: 3, the surface length in the bin first (a bin
+  /// holding walls of crossed directions is then not mistaken for an empty
+  /// one), e.g. 4 rings x 10 sectors x 3.
+  bool occupancy_component = true;
   double descriptor_radius = 2.0;      ///< [m] outer radius (2 m beat 4 m, DESIGN.md section 8)
   double descriptor_inner_radius = 0.35;  ///< [m] outer edge of the innermost radial bin; log spacing beyond
+  /// Points fade out linearly over this outer share of the radius, so that a
+  /// wall just at the rim does not flip in or out with a small shift.
+  double rim_taper = 0.5;
+  bool log_rings = true;  ///< log-spaced rings beyond the inner radius (false: evenly spaced)
+  /// Each bin's (cos, sin) vector is scaled to length |v|^bin_power before the
+  /// L2 normalization: < 1 keeps a long wall in one bin from drowning the rest.
+  double bin_power = 0.5;
   double min_descriptor_support = 1.0;  ///< [m] of surface inside the disc below which a keypoint is dropped
+  /// With more candidates than max_keypoints: true keeps those with the most
+  /// surface across the keypoint's own wall inside the disc (corners, doors,
+  /// openings: distinctive), false an evenly spread subset.
+  bool prefer_structure = true;
 
   /// Throws lshloc::Error naming the first field out of range.
   void validate() const;
 };
 
-/// Layout of the descriptor: bin (ring, sector) holds 2 floats at
-/// index 2 * (ring * kAngularBins + sector).
-inline constexpr std::size_t kRadialBins = 5;
-inline constexpr std::size_t kAngularBins = 12;
-static_assert(kRadialBins * kAngularBins * 2 == kDescriptorSize, "GSC layout must fill the descriptor");
 
 /// A scan endpoint with the local surface direction there, in a map frame.
 struct SurfacePoint {
@@ -63,6 +77,10 @@ struct ScanSurface {
   std::vector<double> range;  ///< [m] range of each point from the sensor
 };
 
+/// `surface` moved by the rigid motion `T_new_old` (points, tangents and the
+/// sensor pose): how a caller re-places a kept scan when its frame changes.
+ScanSurface transformed(const ScanSurface& surface, const Pose2& T_new_old);
+
 /// Statistics of the extractor's last call (counts add up over calls until reset).
 struct FeatureExtractorStats {
   std::size_t scans = 0;
@@ -79,7 +97,7 @@ struct FeatureExtractorStats {
 /// Keypoints sit at fixed arc-length spacing along smooth scan segments,
 /// centred on each segment; their orientation is the surface normal pointing
 /// towards the sensor. The descriptor is a log-polar histogram (5 rings x 12
-/// sectors, aligned with the normal) of the surface around the keypoint:
+/// sectors by default, aligned with the normal) of the surface around the keypoint:
 /// each bin sums, weighted by arc length and softly split between
 /// neighbouring bins, (cos 2a, sin 2a) of the surface tangent angle a
 /// relative to the normal (doubled: a surface has no sign). The result is
@@ -112,11 +130,17 @@ class FeatureExtractor {
   /// keypoints come from `scan` only.
   std::vector<Feature> extract(const ScanSurface& scan, std::span<const ScanSurface> context = {});
 
+  /// How much surface a descriptor was made of.
+  struct Support {
+    double surface = 0.0;  ///< [m] arc length inside the disc
+    double across = 0.0;   ///< [m] the same weighted by sin^2 of its angle to the keypoint's wall
+  };
+
   /// Descriptor of an oriented point `keypoint` over the given surfaces
-  /// (exposed for tests and tools). Returns the surface support [m] found
-  /// inside the disc; `out` is L2-normalized when the support is positive.
-  double describe(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
-                  Descriptor& out) const;
+  /// (exposed for tests and tools); `out` is L2-normalized when any surface
+  /// lies inside the disc.
+  Support describe(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
+                   Descriptor& out) const;
 
  private:
   FeatureExtractorConfig config_;
