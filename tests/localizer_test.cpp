@@ -18,7 +18,7 @@ sim::SyntheticScenarioConfig small_world() {
   c.buildings = 3;
   c.target_building = 1;
   c.map_scans = 900;
-  c.target_scans = 200;
+  c.target_scans = 300;
   return c;
 }
 
@@ -30,7 +30,7 @@ TEST(Localizer, FindsTheRightBuildingAndPoseInASyntheticWorld) {
   EXPECT_LT(*m.final_error_m, 0.3);
   EXPECT_LT(*m.final_heading_error_deg, 3.0);
   ASSERT_TRUE(m.localized_at.has_value());
-  EXPECT_LT(*m.localized_at, 120u);
+  EXPECT_LT(*m.localized_at, 200u);
   EXPECT_EQ(m.confident_wrong, 0u);
   EXPECT_GT(m.confident_scans, 0u);
   EXPECT_GT(run.map.features, 1000u);

@@ -60,6 +60,22 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
   cmd.add_option("--free-points", l.free_points_per_surface_point, "free-space data-points per surface data-point")
       ->capture_default_str()
       ->group(group);
+  auto& g = o.config.map;
+  const std::string map_group = "Global map (defaults are the library's)";
+  cmd.add_option("--grid-cell", g.occupancy.cell_size, "[m] occupancy pose-grid cell")->capture_default_str()->group(map_group);
+  cmd.add_option("--grid-theta-bins", g.occupancy.theta_bins, "heading bins of the occupancy grid")
+      ->capture_default_str()
+      ->group(map_group);
+  cmd.add_option("--grid-xy-tolerance", g.occupancy.xy_tolerance, "[cells] xy tolerance of the occupancy grid")
+      ->capture_default_str()
+      ->group(map_group);
+  cmd.add_option("--grid-theta-tolerance", g.occupancy.theta_tolerance, "[bins] heading tolerance of the occupancy grid")
+      ->capture_default_str()
+      ->group(map_group);
+  cmd.add_option("--free-cell", g.free_space.cell_size, "[m] free-space grid cell")->capture_default_str()->group(map_group);
+  cmd.add_option("--lsh-tables", g.database.L, "L: hash tables of the appearance database")
+      ->capture_default_str()
+      ->group(map_group);
   cmd.add_option("--free-penalty", l.free_space_penalty,
                  "score of a local point in space the map saw free, and of a local ray through a map wall (negated)")
       ->capture_default_str()

@@ -19,9 +19,9 @@ struct GlobalMapConfig {
   /// Occupancy of the (x, y, normal direction) grid: every scan endpoint is
   /// marked with the direction of its surface normal (towards the sensor),
   /// so a hypothesis can be checked against many points, not only keypoints.
-  PoseGridConfig occupancy{.cell_size = 0.15, .theta_bins = 36, .xy_tolerance = 1, .theta_tolerance = 1};
+  PoseGridConfig occupancy{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 1};
   /// Negative evidence: a 2-D grid of cells that mapper rays saw free.
-  PoseGridConfig free_space{.cell_size = 0.2, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0};
+  PoseGridConfig free_space{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0};
   double endpoint_spacing = 0.1;     ///< [m] endpoints closer than this along a scan are marked once
   std::size_t free_ray_stride = 3;   ///< every this many beams marks its ray as free space
   double free_ray_margin = 0.3;      ///< [m] the last part of a ray before its endpoint is not marked free

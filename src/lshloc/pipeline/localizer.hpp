@@ -18,8 +18,8 @@ namespace lshloc {
 /// When the localizer says "localized" (DESIGN.md: say it only when the
 /// evidence is strong; a confident answer should never be wrong).
 struct ConfidenceConfig {
-  std::uint32_t min_scored = 40;     ///< N of the best hypothesis at least this
-  double min_mean_score = 0.3;       ///< C/N of the best hypothesis at least this
+  std::uint32_t min_scored = 500;    ///< N of the best hypothesis at least this (about 10 scans of support)
+  double min_mean_score = 0.35;      ///< C/N of the best hypothesis at least this
   double min_margin = 0.15;          ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
   std::size_t stable_scans = 5;      ///< the best stayed in one place (1 m, 10 deg) this many scans
   /// Hysteresis of the reported estimate: the best hypothesis near the last
