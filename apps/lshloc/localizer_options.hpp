@@ -73,6 +73,12 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
       ->capture_default_str()
       ->group(map_group);
   cmd.add_option("--free-cell", g.free_space.cell_size, "[m] free-space grid cell")->capture_default_str()->group(map_group);
+  cmd.add_option("--keypoints", g.features.max_keypoints, "|U_new| of keypoints: at most this many per scan")
+      ->capture_default_str()
+      ->group(map_group);
+  cmd.add_option("--keypoint-spacing", g.features.keypoint_spacing, "[m] arc length between keypoints")
+      ->capture_default_str()
+      ->group(map_group);
   cmd.add_option("--lsh-tables", g.database.L, "L: hash tables of the appearance database")
       ->capture_default_str()
       ->group(map_group);

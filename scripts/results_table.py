@@ -1,0 +1,102 @@
+#!/usr/bin/env python3
+"""Markdown tables of the sweep's JSON lines (scripts/sweep.sh): results/*.jsonl -> stdout."""
+import json
+import statistics
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+
+def load(name):
+    path = Path("results") / f"{name}.jsonl"
+    if not path.exists():
+        return []
+    rows = [json.loads(l) for l in path.read_text().splitlines() if l.strip()]
+    return [r for r in rows if "failed" not in r]
+
+
+def fmt(v, digits=3):
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}"
+    return str(v)
+
+
+def grid():
+    rows = load("grid")
+    if not rows:
+        return
+    print("| building | R | map features | success | final error [m] | heading err [deg] | localized at | median error after [m] | CPU s to localize | confident / wrong | ms/scan | x real time |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in sorted(rows, key=lambda r: (r["building"], r["submaps"])):
+        print(f"| {r['building']} | {r['submaps']} | {r['map_features']} | {fmt(r['success'])} | {fmt(r['final_error_m'])} | "
+              f"{fmt(r['final_heading_error_deg'], 2)} | {fmt(r['localized_at'])} | {fmt(r['median_error_after_m'])} | "
+              f"{fmt(r['cpu_s_to_localize'], 2)} | {r['confident_scans']} / {r['confident_wrong']} | {fmt(r['ms_per_scan'], 2)} | "
+              f"{fmt(r['realtime_factor'], 0)} |")
+    ok = sum(r["success"] for r in rows)
+    errs = [r["final_error_m"] for r in rows if r["final_error_m"] is not None]
+    print(f"\n{ok}/{len(rows)} scenarios succeed; median final error {statistics.median(errs):.3f} m" if errs else "")
+    conf = sum(r["confident_scans"] for r in rows)
+    wrong = sum(r["confident_wrong"] for r in rows)
+    print(f"; confident estimates at ground-truth scans: {conf}, wrong: {wrong}.\n")
+
+
+def by(rows, key):
+    groups = defaultdict(list)
+    for r in rows:
+        groups[key(r)].append(r)
+    return groups
+
+
+def summary_line(rs):
+    ok = sum(r["success"] for r in rs)
+    at = sorted(r["localized_at"] for r in rs if r["success"] and r["localized_at"] is not None)
+    med = [r["median_error_after_m"] for r in rs if r["median_error_after_m"] is not None]
+    wrong = sum(r["confident_wrong"] for r in rs)
+    conf = sum(r["confident_scans"] for r in rs)
+    return (f"{ok}/{len(rs)} | {fmt(statistics.median(at) if at else None)} | "
+            f"{fmt(statistics.median(med) if med else None)} | {conf} / {wrong}")
+
+
+def orders():
+    rows = load("orders")
+    if not rows:
+        return
+    print("| building (R = 4) | order rule | success | final error [m] | localized at | median error after [m] | ms/scan |")
+    print("|---|---|---|---|---|---|---|")
+    for r in sorted(rows, key=lambda r: (r["building"], r.get("order_rule", ""))):
+        print(f"| {r['building']} | {r.get('order_rule')} | {fmt(r['success'])} | {fmt(r['final_error_m'])} | "
+              f"{fmt(r['localized_at'])} | {fmt(r['median_error_after_m'])} | {fmt(r['ms_per_scan'], 2)} |")
+    print()
+
+
+def ablation():
+    rows = load("ablation")
+    if not rows:
+        return
+    print("| building | R | hypotheses | map features | success | final error [m] | localized at | correct share after first fix |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in sorted(rows, key=lambda r: (r["building"], r["submaps"], r.get("hypotheses", ""))):
+        print(f"| {r['building']} | {r['submaps']} | {r.get('hypotheses')} | {r['map_features']} | {fmt(r['success'])} | "
+              f"{fmt(r['final_error_m'])} | {fmt(r['localized_at'])} | {fmt(r['correct_fraction_after'], 2)} |")
+    print()
+
+
+def starts():
+    rows = load("starts")
+    if not rows:
+        return
+    print("| building (R = 15) | starts succeeding | median localized at | median error after [m] | confident / wrong |")
+    print("|---|---|---|---|---|")
+    for b, rs in sorted(by(rows, lambda r: r["building"]).items()):
+        print(f"| {b} | {summary_line(rs)} |")
+    print(f"| all | {summary_line(rows)} |\n")
+
+
+if __name__ == "__main__":
+    parts = sys.argv[1:] or ["grid", "orders", "ablation", "starts"]
+    for p in parts:
+        globals()[p]()

@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Reproduces the end-to-end experiment of RESULTS.md: every line is one
+# `lshloc eval` JSON line, appended to results/<part>.jsonl.
+#   scripts/sweep.sh [PART...]   parts: grid (4 buildings x R in 1 4 9 15),
+#                                orders (iRANSAC order rules), ablation
+#                                (database vs random hypotheses), starts
+#                                (20 evenly spaced starts per building at R = 15)
+# Environment: LSHLOC (the executable, default build/bin/lshloc), JOBS
+# (parallel runs, default 2), LSHLOC_DATA (the data directory).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+LSHLOC=${LSHLOC:-build/bin/lshloc}
+JOBS=${JOBS:-2}
+mkdir -p results
+parts=("$@")
+[ ${#parts[@]} -eq 0 ] && parts=(grid orders ablation starts)
+
+run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
+  local out=$1; shift
+  local line
+  if line=$("$LSHLOC" eval --json "$@" 2>/dev/null | tail -n 1); then
+    echo "$line" >>"$out"
+  else
+    echo "{\"failed\": \"$*\"}" >>"$out"
+  fi
+}
+export -f run
+export LSHLOC
+
+jobs_for() {  # jobs_for PART: one line per eval to run
+  case $1 in
+    grid)
+      for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do echo "results/grid.jsonl --building $b --submaps $r"; done; done ;;
+    orders)
+      for b in fr079 fr101 intel aces; do for o in uniform recent fresh; do
+        echo "results/orders.jsonl --building $b --submaps 4 --order-rule $o"; done; done ;;
+    ablation)
+      for b in fr079 fr101 intel; do for r in 1 4 15; do for h in database random; do
+        echo "results/ablation.jsonl --building $b --submaps $r --hypotheses $h"; done; done; done ;;
+    starts)
+      while read -r b total; do
+        for i in $(seq 0 19); do
+          echo "results/starts.jsonl --building $b --submaps 15 --start $(( i * (total - 1000) / 19 )) --length 1000"
+        done
+      done <<'LIST'
+fr079 4934
+fr101 4758
+intel 13631
+aces 7374
+LIST
+      ;;
+    *) echo "unknown part $1" >&2; exit 2 ;;
+  esac
+}
+
+for p in "${parts[@]}"; do
+  rm -f "results/$p.jsonl"
+  jobs_for "$p" | xargs -P "$JOBS" -I{} bash -c 'run {}'
+  echo "$p: $(wc -l <"results/$p.jsonl") runs in results/$p.jsonl" >&2
+done
