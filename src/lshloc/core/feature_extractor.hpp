@@ -96,12 +96,14 @@ struct FeatureExtractorStats {
 ///
 /// Keypoints sit at fixed arc-length spacing along smooth scan segments,
 /// centred on each segment; their orientation is the surface normal pointing
-/// towards the sensor. The descriptor is a log-polar histogram (5 rings x 12
-/// sectors by default, aligned with the normal) of the surface around the keypoint:
-/// each bin sums, weighted by arc length and softly split between
-/// neighbouring bins, (cos 2a, sin 2a) of the surface tangent angle a
-/// relative to the normal (doubled: a surface has no sign). The result is
-/// L2-normalized, so L2 distance in [0, 2] measures dissimilarity.
+/// towards the sensor. The descriptor is a log-polar histogram (4 rings x 10
+/// sectors x 3 components by default, aligned with the normal) of the
+/// surface around the keypoint: each bin sums, weighted by arc length, faded
+/// towards the rim and softly split between neighbouring bins, the surface
+/// length and (cos 2a, sin 2a) of the surface tangent angle a relative to
+/// the normal (doubled: a surface has no sign). Each bin's vector is then
+/// compressed (|v|^bin_power) and the whole L2-normalized, so L2 distance in
+/// [0, 2] measures dissimilarity.
 ///
 /// Everything is computed from distances and relative angles, so a rigid
 /// motion of the input moves the keypoints with it and leaves the
