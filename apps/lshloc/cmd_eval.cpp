@@ -28,6 +28,7 @@ struct EvalOptions {
   bool json = false;
   std::string plot_dir;
   std::string trace;
+  std::vector<std::size_t> submaps{1};
   LocalizerOptions localizer;
 };
 
@@ -66,6 +67,64 @@ TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t su
   return r;
 }
 
+/// Runs one scenario: prints its JSON line, writes its figures and trace, and
+/// returns its error curve.
+io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config, const EvalOptions& opt,
+                              bool suffix_trace) {
+  const Scenario sc = io::load_scenario(catalog, config);
+  const ScenarioRunConfig run_config = make_run_config(opt.localizer);
+  const bool tty = isatty(fileno(stderr));
+  // With --trace: where the true hypothesis stands among the active ones.
+  std::vector<TruthRank> ranks(sc.target.scans.size());
+  LocalizerObserver observer;
+  if (!opt.trace.empty()) {
+    observer = [&](std::size_t i, const Localizer& loc) {
+      if (sc.target.truth[i]) ranks[i] = rank_of_truth(loc, *sc.target.truth[i], sc.target_submap);
+    };
+  }
+  const ScenarioRun run = run_scenario(
+      sc, run_config,
+      [&](std::size_t done, std::size_t total) {
+        if (tty && (done % 25 == 0 || done == total)) {
+          std::fprintf(stderr, "\r%s R=%zu: scan %zu/%zu", sc.config.building.c_str(), sc.config.submaps, done, total);
+          if (done == total) std::fprintf(stderr, "\n");
+        }
+      },
+      observer);
+  const LocalizationMetrics m =
+      evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
+  nlohmann::json j = scenario_json(sc, run, m);
+  j["order_rule"] = opt.localizer.order_rule;
+  j["hypotheses"] = opt.localizer.hypotheses;
+  std::printf("%s\n", j.dump().c_str());
+  std::fflush(stdout);
+  if (!opt.plot_dir.empty()) {
+    const std::string stem = write_scenario_figures(opt.plot_dir, sc, run, m);
+    std::fprintf(stderr, "figures: %s-{error,map}.{png,svg}\n", stem.c_str());
+  }
+  if (!opt.trace.empty()) {
+    const std::string path = suffix_trace ? opt.trace + ".R" + std::to_string(config.submaps) : opt.trace;
+    write_scenario_trace(path, sc, run, m);
+    std::FILE* f = std::fopen((path + ".truth.csv").c_str(), "w");
+    if (f == nullptr) throw Error(path + ".truth.csv: cannot write");
+    std::fprintf(f, "scan,near_truth,best_rank,best_mean,best_scored,active\n");
+    for (std::size_t i = 0; i < ranks.size(); ++i) {
+      if (sc.target.truth[i]) {
+        std::fprintf(f, "%zu,%zu,%zu,%.4f,%u,%zu\n", i, ranks[i].near, ranks[i].rank, ranks[i].mean, ranks[i].scored,
+                     ranks[i].active);
+      }
+    }
+    std::fclose(f);
+  }
+  io::ErrorSeries curve{"R = " + std::to_string(config.submaps), {}, {}};
+  for (std::size_t i = 0; i < m.error_per_scan_m.size(); ++i) {
+    if (std::isnan(m.error_per_scan_m[i])) continue;
+    curve.viewpoint.push_back(static_cast<double>(i));
+    curve.error_m.push_back(m.error_per_scan_m[i]);
+  }
+  return curve;
+}
+
 }  // namespace
 
 void add_eval_command(CLI::App& app, GlobalOptions& global) {
@@ -80,7 +139,11 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--start", opt->scenario.start,
                   "first raw scan of the window (default: fr079/fr101 2000, intel 5000, aces 3000, else 0)");
   cmd->add_option("--length", opt->scenario.length, "scans in the window")->capture_default_str();
-  cmd->add_option("--submaps", opt->scenario.submaps, "R: buildings in the global map (1..15)")->capture_default_str();
+  cmd->add_option("--submaps", opt->submaps,
+                  "R: buildings in the global map (1..15); a comma-separated list runs one scenario per R and, "
+                  "with --plot, draws their error curves together (the paper's Fig. 8)")
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->add_option("--guard", opt->scenario.guard_s, "[s] map scans this close to the window are left out")
       ->capture_default_str();
   cmd->add_option("--seed", opt->scenario.seed, "0: the fixed order of other buildings; else a seeded shuffle")
@@ -92,49 +155,19 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
   cmd->callback([&global, opt, cmd] {
     if (cmd->count("--start") == 0) opt->scenario.start = default_start(opt->scenario.building);
     const io::DatasetCatalog catalog(io::DatasetCatalog::resolve_data_dir(global.data_dir));
-    const Scenario sc = io::load_scenario(catalog, opt->scenario);
-    const ScenarioRunConfig config = make_run_config(opt->localizer);
-    const bool tty = isatty(fileno(stderr));
-    // With --trace: where the true hypothesis stands among the active ones.
-    std::vector<TruthRank> ranks(sc.target.scans.size());
-    LocalizerObserver observer;
-    if (!opt->trace.empty()) {
-      observer = [&](std::size_t i, const Localizer& loc) {
-        if (sc.target.truth[i]) ranks[i] = rank_of_truth(loc, *sc.target.truth[i], sc.target_submap);
-      };
+    std::vector<io::ErrorSeries> curves;
+    for (const std::size_t r : opt->submaps) {
+      ScenarioConfig scenario = opt->scenario;
+      scenario.submaps = r;
+      curves.push_back(eval_scenario(catalog, scenario, *opt, opt->submaps.size() > 1));
     }
-    const ScenarioRun run = run_scenario(
-        sc, config,
-        [&](std::size_t done, std::size_t total) {
-          if (tty && (done % 25 == 0 || done == total)) {
-            std::fprintf(stderr, "\r%s R=%zu: scan %zu/%zu", sc.config.building.c_str(), sc.config.submaps, done, total);
-            if (done == total) std::fprintf(stderr, "\n");
-          }
-        },
-        observer);
-    const LocalizationMetrics m =
-        evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
-    nlohmann::json j = scenario_json(sc, run, m);
-    j["order_rule"] = opt->localizer.order_rule;
-    j["hypotheses"] = opt->localizer.hypotheses;
-    std::printf("%s\n", j.dump().c_str());
-    std::fflush(stdout);
-    if (!opt->plot_dir.empty()) {
-      const std::string stem = write_scenario_figures(opt->plot_dir, sc, run, m);
-      std::fprintf(stderr, "figures: %s-{error,map}.{png,svg}\n", stem.c_str());
-    }
-    if (!opt->trace.empty()) {
-      write_scenario_trace(opt->trace, sc, run, m);
-      std::FILE* f = std::fopen((opt->trace + ".truth.csv").c_str(), "w");
-      if (f == nullptr) throw Error(opt->trace + ".truth.csv: cannot write");
-      std::fprintf(f, "scan,near_truth,best_rank,best_mean,best_scored,active\n");
-      for (std::size_t i = 0; i < ranks.size(); ++i) {
-        if (sc.target.truth[i]) {
-          std::fprintf(f, "%zu,%zu,%zu,%.4f,%u,%zu\n", i, ranks[i].near, ranks[i].rank, ranks[i].mean, ranks[i].scored,
-                       ranks[i].active);
-        }
-      }
-      std::fclose(f);
+    if (!opt->plot_dir.empty() && curves.size() > 1) {
+      const std::string stem = opt->plot_dir + "/" + opt->scenario.building + "-s" + std::to_string(opt->scenario.start);
+      const std::string title = opt->scenario.building + ", start " + std::to_string(opt->scenario.start) +
+                                ": error per viewpoint for each map size";
+      io::plot_error_curves(stem + "-error.png", title, curves);
+      io::plot_error_curves(stem + "-error.svg", title, curves);
+      std::fprintf(stderr, "figure: %s-error.{png,svg}\n", stem.c_str());
     }
   });
 }
