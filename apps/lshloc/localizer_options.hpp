@@ -54,6 +54,14 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
   cmd.add_option("--preference-z", r.preference_z, "best = argmax C/N - z/sqrt(N) (0: the paper's C/N)")
       ->capture_default_str()
       ->group(group);
+  cmd.add_option("--count-unknown", r.count_unknown,
+                 "N counts every score (true, the paper) or only points the map knows (false)")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--free-agreement", l.free_space_agreement,
+                 "score of a free-space data-point where the map saw free space")
+      ->capture_default_str()
+      ->group(group);
   cmd.add_option("--switch-margin", l.confidence.switch_margin, "hysteresis before the estimate moves elsewhere")
       ->capture_default_str()
       ->group(group);

@@ -66,6 +66,12 @@ struct IncrementalRansacConfig {
   /// one with long support (per-point scores lie in [-1, 1]). 0 gives the
   /// paper's C_j/N_j.
   double preference_z = 0.0;
+  /// Whether N_j counts every score (the paper) or only non-zero ones: with
+  /// scores +1 (the map agrees), -1 (it contradicts) and 0 (it does not
+  /// know), C_j / N_j is then the agreement among the points the map knows,
+  /// so a hypothesis is not marked down for the part of the local map that
+  /// lies where no mapper robot has been (the target's own window never is).
+  bool count_unknown = true;
   /// kFreshFirst by default: with a drifting local map it kept the best
   /// hypothesis right at 93-95% of viewpoints where the paper's kUniform
   /// managed 17-49% (docs/results/matching.md); without drift all are ~98-100%.
@@ -162,7 +168,8 @@ class IncrementalRansac {
       float* c = score_.data();
       std::uint32_t* nn = scored_.data();
       const float* s = scratch_.data();
-      for (std::size_t j = 0; j < m; ++j) c[j] += s[j], nn[j] += 1;
+      const std::uint32_t count_all = config_.count_unknown ? 1u : 0u;
+      for (std::size_t j = 0; j < m; ++j) c[j] += s[j], nn[j] += count_all | static_cast<std::uint32_t>(s[j] != 0.0f);
       stats_.scores += m;
     }
   }

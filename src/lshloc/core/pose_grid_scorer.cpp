@@ -93,12 +93,14 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
       std::fill_n(scores, v.size, 0.0f);
       return;
     }
-    const float through_wall = config_.ray_through_wall;
+    const float through_wall = config_.ray_through_wall, through_free = config_.ray_through_free;
     // Only cells that map rays never crossed count as walls: people and
     // doors leave cells marked both occupied and free.
     lookup_free_space(
         x, v, scores, [](std::size_t) { return true; },
-        [through_wall](CellFlags f) { return f == cell_flags::kOccupied ? through_wall : 0.0f; });
+        [through_wall, through_free](CellFlags f) {
+          return f == cell_flags::kOccupied ? through_wall : f == cell_flags::kFree ? through_free : 0.0f;
+        });
     return;
   }
   score_surface(x, v, scores);

@@ -19,6 +19,9 @@ struct PoseGridScorerConfig {
   /// free-space grid marked occupied and never free: a local ray through a map
   /// wall); such points score 0 elsewhere. Needs a free-space grid.
   float ray_through_wall = -1.0f;
+  /// Score of a kFreeSpace local point that lands where map rays saw free
+  /// space (a cell holding only kFree): the map agrees.
+  float ray_through_free = 0.0f;
 };
 
 /// A Scorer for IncrementalRansac (see there). Each call transforms one local

@@ -47,7 +47,8 @@ Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
               PoseGridScorerConfig{.hit = 1.0f,
                                    .free = -static_cast<float>(config_.free_space_penalty),
                                    .unknown = 0.0f,
-                                   .ray_through_wall = -static_cast<float>(config_.free_space_penalty)}),
+                                   .ray_through_wall = -static_cast<float>(config_.free_space_penalty),
+                                   .ray_through_free = static_cast<float>(config_.free_space_agreement)}),
       rng_(config_.seed) {}
 
 void Localizer::generate_hypotheses(const std::vector<Feature>& features) {

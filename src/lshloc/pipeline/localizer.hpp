@@ -52,6 +52,7 @@ struct LocalizerConfig {
                                  .recent_window = 8000};
   std::size_t candidates_per_feature = 100;  ///< k of each database query
   double free_space_penalty = 1.0;  ///< c(p, x) for a local point in space the map saw free
+  double free_space_agreement = 0.0;  ///< c(p, x) for a free-space point in space the map saw free
   std::size_t context_scans = 8;    ///< recent local scans whose surface enters descriptors
   double context_spacing = 0.3;     ///< [m] a scan joins the context after this much travel
   double data_point_spacing = 0.1;  ///< [m] endpoints thinned along a scan before sampling data-points
