@@ -15,12 +15,18 @@
 #include "lshloc/io/figures.hpp"
 #include "lshloc/pipeline/localization_metrics.hpp"
 #include "lshloc/pipeline/scenario_runner.hpp"
+#include "lshloc/sim/synthetic_scenario.hpp"
 #include "localizer_options.hpp"
 #include "scenario_report.hpp"
 
 namespace lshloc::app {
 
 namespace {
+
+/// Synthetic buildings added beyond the real ones: their world seed and
+/// size (about 30,000 features each, as the paper's synthesized submaps).
+constexpr std::uint64_t kSyntheticSeed = 1000;
+constexpr std::size_t kSyntheticScans = 3300;
 
 struct EvalOptions {
   ScenarioConfig scenario;
@@ -67,11 +73,25 @@ TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t su
   return r;
 }
 
+/// The scenario of `config`; beyond the real buildings (R > 15) synthetic
+/// buildings join the map as further submaps, each in its own frame.
+Scenario load_eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config) {
+  const std::size_t real = canonical_building_order().size();
+  ScenarioConfig real_config = config;
+  real_config.submaps = std::min(config.submaps, real);
+  Scenario sc = io::load_scenario(catalog, real_config);
+  for (std::size_t k = real; k < config.submaps; ++k) {
+    sc.submaps.push_back(sim::synthetic_submap(kSyntheticSeed + config.seed, k - real, kSyntheticScans));
+  }
+  sc.config.submaps = config.submaps;
+  return sc;
+}
+
 /// Runs one scenario: prints its JSON line, writes its figures and trace, and
 /// returns its error curve.
 io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config, const EvalOptions& opt,
                               bool suffix_trace) {
-  const Scenario sc = io::load_scenario(catalog, config);
+  Scenario sc = load_eval_scenario(catalog, config);
   const ScenarioRunConfig run_config = make_run_config(opt.localizer);
   const bool tty = isatty(fileno(stderr));
   // With --trace: where the true hypothesis stands among the active ones.
@@ -140,7 +160,8 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
                   "first raw scan of the window (default: fr079/fr101 2000, intel 5000, aces 3000, else 0)");
   cmd->add_option("--length", opt->scenario.length, "scans in the window")->capture_default_str();
   cmd->add_option("--submaps", opt->submaps,
-                  "R: buildings in the global map (1..15); a comma-separated list runs one scenario per R and, "
+                  "R: buildings in the global map (1..15 real; more adds synthetic buildings); a comma-separated "
+                  "list runs one scenario per R and, "
                   "with --plot, draws their error curves together (the paper's Fig. 8)")
       ->delimiter(',')
       ->capture_default_str();

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <unordered_set>
 
 #include "lshloc/core/error.hpp"
 #include "lshloc/io/figures.hpp"
@@ -70,8 +71,15 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
   fig.title = sc.config.building + " (submap " + std::to_string(sc.target_submap) +
               "): true (green) and estimated (blue) trajectory";
   const Submap& own = sc.submaps[sc.target_submap];
-  for (std::size_t k = 0; k < own.scans.size(); k += 3) {
-    for (const Point2& p : own.scans[k].endpoints(0.05, 20.0)) fig.map_points.push_back(own.scans[k].pose.transform(p));
+  // One point per 5 cm cell: the figure shows the walls, and its SVG stays small.
+  std::unordered_set<std::uint64_t> cells;
+  for (const LaserScan& scan : own.scans) {
+    for (const Point2& p : scan.endpoints(0.05, 20.0)) {
+      const Point2 g = scan.pose.transform(p);
+      const auto cx = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(g.x() / 0.05)));
+      const auto cy = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(g.y() / 0.05)));
+      if (cells.insert((std::uint64_t{cx} << 32) | cy).second) fig.map_points.push_back(g);
+    }
   }
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     if (sc.target.truth[i]) fig.true_trajectory.push_back(sc.target.truth[i]->translation());
