@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
@@ -33,7 +34,7 @@ Submap load_map_argument(const std::string& arg) {
   const auto comma = arg.find(',');
   const std::string log_path = arg.substr(0, comma);
   Submap s;
-  s.name = log_path;
+  s.name = std::filesystem::path(log_path).filename().string();
   std::vector<LaserScan> scans = io::read_carmen_log(log_path).scans;
   if (scans.empty()) throw Error(log_path + ": the map log has no laser scans (FLASER / ROBOTLASER1)");
   if (comma == std::string::npos) {
