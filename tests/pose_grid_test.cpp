@@ -288,5 +288,42 @@ TEST(PoseGridScorer, MatchesBruteForceDilatingAtInsert) { check_scorer(Tolerance
 TEST(PoseGridScorer, MatchesBruteForceProbingNeighbours) { check_scorer(ToleranceMode::kProbeNeighbours, 1, 1); }
 TEST(PoseGridScorer, MatchesBruteForceProbingHeadingOnly) { check_scorer(ToleranceMode::kProbeNeighbours, 0, 2); }
 
+TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
+  // Map of submap 0: a wall along x = 5 (normal heading pi), seen by rays that
+  // crossed x = 0..4 freely. The free-space grid marks the wall occupied.
+  PoseGridHashMap occupancy(PoseGridConfig{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 0});
+  PoseGridHashMap free_space(PoseGridConfig{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
+  for (double y = -2.0; y <= 2.0; y += 0.05) {
+    occupancy.insert(0, 5.01, y, kPi);
+    free_space.mark(0, 5.01, y, 0.0, cell_flags::kOccupied);
+    for (double x = 0.01; x < 4.0; x += 0.1) free_space.mark(0, x, y, 0.0, cell_flags::kFree);
+  }
+  // A cell both free and occupied (a person walked there): neither evidence.
+  free_space.mark(0, 2.01, 0.01, 0.0, cell_flags::kOccupied);
+  const PoseGridScorerConfig config{.hit = 1.0f, .free = -1.0f, .unknown = 0.0f, .ray_through_wall = -2.0f,
+                                    .ray_through_free = 0.5f};
+  PoseGridScorer scorer(occupancy, free_space, config);
+  // Hypotheses: identity in submap 0, identity in submap 1 (nothing mapped).
+  const std::uint32_t submap[2] = {0, 1};
+  const float zero[2] = {0, 0}, one[2] = {1, 1};
+  const HypothesisBatch v{submap, zero, zero, one, zero, zero, 2};
+  float c[2];
+  const auto score = [&](LocalPoint x) {
+    scorer(x, v, c);
+    EXPECT_EQ(c[1], 0.0f) << "submap 1 knows nothing";
+    return c[0];
+  };
+  using K = LocalPoint::Kind;
+  EXPECT_EQ(score({5.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 1.0f);    // on the wall, right normal
+  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kSurface}), 0.0f);                         // on the wall, wrong normal: unknown
+  EXPECT_EQ(score({1.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), -1.0f);   // a surface in free space
+  EXPECT_EQ(score({9.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 0.0f);    // beyond the map
+  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kFreeSpace}), -2.0f);                      // a ray through the wall
+  EXPECT_EQ(score({1.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.5f);                       // a ray where map rays passed
+  EXPECT_EQ(score({2.01f, 0.01f, 0.0f, K::kFreeSpace}), 0.0f);                       // free and occupied: no evidence
+  EXPECT_EQ(score({9.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);                       // beyond the map
+  EXPECT_THROW(PoseGridScorer(occupancy, occupancy, config), Error);  // the free-space grid must be 2-D
+}
+
 }  // namespace
 }  // namespace lshloc
