@@ -1,16 +1,11 @@
 #include "lshloc/pipeline/global_map.hpp"
 
-#include <chrono>
 #include <cmath>
 
 #include "lshloc/core/error.hpp"
+#include "lshloc/pipeline/cpu_time.hpp"
 
 namespace lshloc {
-
-namespace {
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-}  // namespace
 
 void GlobalMapConfig::validate() const {
   features.validate();
@@ -59,20 +54,20 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   ++state.scans;
   ++stats_.scans;
 
-  auto t0 = Clock::now();
+  CpuStopwatch watch;
   const ScanSurface surface = extractor_.surface(scan, laser_pose);
   const std::vector<Feature> features =
       extractor_.extract(surface, state.context);
-  stats_.extract_s += seconds_since(t0);
+  stats_.extract_s += watch.seconds();
 
-  t0 = Clock::now();
+  watch = CpuStopwatch();
   for (const Feature& f : features) database_.insert(f.descriptor, locations_.append(submap, f.pose));
-  stats_.database_insert_s += seconds_since(t0);
+  stats_.database_insert_s += watch.seconds();
   stats_.features += features.size();
 
-  t0 = Clock::now();
+  watch = CpuStopwatch();
   mark_grids(submap, scan, laser_pose, surface);
-  stats_.grid_s += seconds_since(t0);
+  stats_.grid_s += watch.seconds();
 
   // Keep the recent surface as descriptor context for the next scans.
   if (state.context.empty() ||

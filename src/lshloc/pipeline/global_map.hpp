@@ -32,6 +32,8 @@ struct GlobalMapConfig {
   void validate() const;
 };
 
+/// Counts, sizes and costs of the global map; times are the feeding thread's
+/// CPU seconds (cpu_time.hpp).
 struct GlobalMapStats {
   std::size_t submaps = 0;
   std::size_t scans = 0;

@@ -2,18 +2,16 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 
 #include "lshloc/core/error.hpp"
+#include "lshloc/pipeline/cpu_time.hpp"
 #include "lshloc/core/pose_grid_scorer.hpp"
 
 namespace lshloc {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 /// Whether two hypotheses put the robot's current pose `local` (in the local
 /// frame) at the same place: compared at the robot, not at the local frame's
@@ -115,16 +113,16 @@ void Localizer::sample_data_points(const LaserScan& scan, const ScanSurface& sur
 
 LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
   ++stats_.scans;
-  auto t0 = Clock::now();
+  CpuStopwatch watch;
   const ScanMatchResult match = matcher_.add_scan(scan);
-  stats_.scan_matching_s += seconds_since(t0);
+  stats_.scan_matching_s += watch.seconds();
 
   // Features of this scan in the local frame, with recent local scans as context.
-  t0 = Clock::now();
+  watch = CpuStopwatch();
   const ScanSurface surface = extractor_.surface(scan, match.laser_pose);
   const std::vector<Feature> features =
       extractor_.extract(surface, context_);
-  stats_.extract_s += seconds_since(t0);
+  stats_.extract_s += watch.seconds();
   stats_.features += features.size();
   if (context_.empty() || translation_distance(last_context_pose_, match.laser_pose) >= config_.context_spacing) {
     context_.push_back(surface);
@@ -132,9 +130,9 @@ LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
     if (context_.size() > config_.context_scans) context_.erase(context_.begin());
   }
 
-  t0 = Clock::now();
+  watch = CpuStopwatch();
   generate_hypotheses(features);
-  stats_.query_s += seconds_since(t0);
+  stats_.query_s += watch.seconds();
 
   if (config_.track_reported && reported_) {
     // Children of the reported hypothesis, perturbed about the robot's pose:
@@ -151,11 +149,11 @@ LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
     hypotheses_.insert(hypotheses_.begin(), children.begin(), children.end());
   }
   sample_data_points(scan, surface);
-  t0 = Clock::now();
+  watch = CpuStopwatch();
   ransac_.add_scan(data_points_, hypotheses_);
   stats_.data_points += std::min(data_points_.size(), config_.ransac.new_features_per_scan);
   ransac_.run(scorer_);
-  stats_.ransac_s += seconds_since(t0);
+  stats_.ransac_s += watch.seconds();
 
   last_local_pose_ = match.laser_pose;
   return estimate(match.laser_pose);

@@ -89,6 +89,8 @@ struct LocalizationEstimate {
   Pose2 local_pose;             ///< the scan's laser pose in the local frame
 };
 
+/// Counts and costs of the localizer; times are the calling thread's CPU
+/// seconds (cpu_time.hpp).
 struct LocalizerStats {
   std::size_t scans = 0;
   std::size_t features = 0;       ///< local features extracted

@@ -1,7 +1,8 @@
 #include "lshloc/pipeline/scenario_runner.hpp"
 
+#include "lshloc/pipeline/cpu_time.hpp"
+
 #include <chrono>
-#include <ctime>
 
 namespace lshloc {
 
@@ -9,12 +10,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 }  // namespace
-
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 std::vector<ScanEstimate> ScenarioRun::scan_estimates() const {
   std::vector<ScanEstimate> out;

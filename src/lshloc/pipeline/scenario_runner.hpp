@@ -2,6 +2,7 @@
 #include <functional>
 #include <vector>
 
+#include "lshloc/pipeline/cpu_time.hpp"
 #include "lshloc/pipeline/global_map.hpp"
 #include "lshloc/pipeline/localization_metrics.hpp"
 #include "lshloc/pipeline/localizer.hpp"
@@ -75,7 +76,5 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
 ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress = {},
                          const LocalizerObserver& observer = {});
 
-/// [s] CPU time of this process so far (all threads).
-double process_cpu_seconds();
 
 }  // namespace lshloc
