@@ -28,7 +28,7 @@ struct LshConfig {
   std::size_t bucket_capacity = 64;
   FullBucket full_bucket = FullBucket::kReservoir;  ///< seeded from `seed`: deterministic per insertion order
   /// A query counts at most this many bucket entries over all tables.
-  std::size_t max_candidates = 1000;
+  std::size_t max_candidates = 600;
   /// 0: candidates are ranked by collision count alone (buckets hold ids
   /// only). Else each entry also keeps a sign sketch of this many bits
   /// (multiple of 64; random Gaussian hyperplanes, seeded) under its id, and
