@@ -102,6 +102,39 @@ TEST(ScanMatcher, NoisyRangesStillRecoverMotion) {
   expect_pose_near(last, truth[0].between(truth.back()), 0.02, 0.3 * kDeg, "final pose with 1 cm range noise");
 }
 
+// fr079's odometry integrates backward driving as forward motion: the
+// odometry guess is then off by twice the step, beyond what a match may
+// correct, and the matcher must follow the constant-velocity guess instead.
+TEST(ScanMatcher, BackwardDrivingSeenAsForwardByOdometry) {
+  std::vector<Pose2> truth{Pose2(6.0, 4.5, 0.0)};
+  std::vector<Pose2> odo{Pose2(1.0, 1.0, 0.5)};
+  for (int i = 0; i < 10; ++i) {
+    const double step = i < 2 ? 0.1 : i < 4 ? 0.2 : 0.3;  // backward, speeding up
+    truth.push_back(truth.back() * Pose2(-step, 0.0, 0.0));
+    odo.push_back(odo.back() * Pose2(step, 0.0, 0.0));
+  }
+  test::LaserSim sim(test::test_room());
+  const auto run = [&](double retry_difference) {
+    ScanMatcherConfig c;
+    c.velocity_guess_difference = retry_difference;
+    ScanMatcher matcher(c);
+    Pose2 last;
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      last = matcher.add_scan(sim.scan(truth[i], odo[i], 0.2 * static_cast<double>(i))).laser_pose;
+    }
+    return std::make_pair(last, matcher.stats());
+  };
+  const auto [with_retry, stats] = run(0.01);
+  expect_pose_near(with_retry, truth[0].between(truth.back()), 0.01, 0.2 * kDeg, "final pose, backward driving");
+  EXPECT_EQ(stats.matched, truth.size() - 1);
+  EXPECT_GT(stats.velocity_matches, 0u);
+  EXPECT_EQ(stats.odometry_fallbacks, 0u);
+  // From the odometry guess alone ICP settles next to it: wrong by metres.
+  const auto [without_retry, stats_off] = run(1e9);
+  EXPECT_GT(translation_distance(without_retry, truth[0].between(truth.back())), 0.5);
+  EXPECT_EQ(stats_off.velocity_retries, 0u);
+}
+
 TEST(ScanMatcher, FeaturelessCorridorKeepsOdometryAlongItsAxis) {
   // 200 m long, 2 m wide, nothing along it: the scan fixes y and heading but
   // says nothing about x.

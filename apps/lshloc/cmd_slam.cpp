@@ -74,6 +74,7 @@ void apply_setting(ScanMatcherConfig& c, const std::string& setting) {
   else if (name == "min_correspondences") c.min_correspondences = count();
   else if (name == "max_correction_translation") c.max_correction_translation = value;
   else if (name == "max_correction_rotation") c.max_correction_rotation = value;
+  else if (name == "velocity_guess_difference") c.velocity_guess_difference = value;
   else if (name == "odometry_prior") c.odometry_prior = value != 0.0;
   else if (name == "point_sigma") c.point_sigma = value;
   else if (name == "odometry_sigma_translation") c.odometry_sigma_translation = value;

@@ -65,6 +65,20 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
   cmd.add_option("--switch-margin", l.confidence.switch_margin, "hysteresis before the estimate moves elsewhere")
       ->capture_default_str()
       ->group(group);
+  cmd.add_option("--duel-points", l.confidence.duel_points,
+                 "data-points of the whole local map on which a challenger elsewhere must beat the reported place (0: no duel)")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--refine-points", l.refine_points,
+                 "data-points of the newest --refine-window on which the reported place is refined each scan (0: off)")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--refine-window", l.refine_window, "newest data-points the refinement draws from")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--duel-margin", l.confidence.duel_margin, "mean-score lead the challenger needs in the duel")
+      ->capture_default_str()
+      ->group(group);
   cmd.add_option("--free-points", l.free_points_per_surface_point, "free-space data-points per surface data-point")
       ->capture_default_str()
       ->group(group);

@@ -67,6 +67,7 @@ void ScanMatcherConfig::validate() const {
   require(min_correspondences >= 3, "min_correspondences", ">= 3 (three unknowns)");
   require(max_correction_translation > 0.0, "max_correction_translation", "> 0 [m]");
   require(max_correction_rotation > 0.0, "max_correction_rotation", "> 0 [rad]");
+  require(velocity_guess_difference >= 0.0, "velocity_guess_difference", ">= 0 [m, rad]");
 }
 
 ScanMatcher::ScanMatcher(ScanMatcherConfig config) : config_(config) {
@@ -329,6 +330,20 @@ Pose2 ScanMatcher::align(const Pose2& guess, const Pose2& laser_step, ScanMatchR
   return pose;
 }
 
+bool ScanMatcher::match(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result) {
+  const Pose2 refined = align(guess, laser_step, result);
+  stats_.iterations += result.iterations;
+  const Pose2 correction = guess.between(refined);
+  const bool plausible = std::hypot(correction.x, correction.y) <= config_.max_correction_translation &&
+                         std::abs(correction.theta) <= config_.max_correction_rotation;
+  if (result.correspondences >= config_.min_correspondences && result.quality >= config_.min_quality && plausible &&
+      (result.converged || !config_.reject_unconverged)) {
+    result.laser_pose = refined;
+    return true;
+  }
+  return false;
+}
+
 ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
   if (!finite_pose(scan.odometry)) {
     throw Error("ScanMatcher::add_scan: scan at t=" + std::to_string(scan.timestamp) + " has a non-finite odometry pose");
@@ -357,15 +372,32 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
       result.source = ScanMatchSource::kOdometry;
       if (!map_points_.empty()) {
         thin_source(endpoints_);
-        const Pose2 refined = align(guess, laser_step, result);
-        stats_.iterations += result.iterations;
-        const Pose2 correction = guess.between(refined);
-        const bool plausible = std::hypot(correction.x, correction.y) <= config_.max_correction_translation &&
-                               std::abs(correction.theta) <= config_.max_correction_rotation;
-        if (result.correspondences >= config_.min_correspondences && result.quality >= config_.min_quality &&
-            plausible && (result.converged || !config_.reject_unconverged)) {
+        bool ok = match(guess, laser_step, result);
+        // Odometry can be wrong in ways ICP does not undo from its guess (the
+        // fr079 log integrates backward driving as forward motion, and ICP
+        // then settles next to the wrong guess): where the constant-velocity
+        // prediction disagrees, match from it too and keep the better fit.
+        const double dt = scan.timestamp - previous_timestamp_;
+        if (previous_dt_ > 0.0 && dt > 0.0) {
+          const double k = std::clamp(dt / previous_dt_, 0.0, 3.0);
+          const Pose2 velocity_step(k * previous_laser_step_.x, k * previous_laser_step_.y,
+                                    k * previous_laser_step_.theta);
+          const Pose2 d = laser_step.between(velocity_step);
+          if (std::hypot(d.x, d.y) > config_.velocity_guess_difference ||
+              std::abs(d.theta) > config_.velocity_guess_difference) {
+            ++stats_.velocity_retries;
+            ScanMatchResult retry = result;
+            retry.laser_pose = guess;
+            if (match(previous_laser_pose_ * velocity_step, velocity_step, retry) &&
+                (!ok || retry.quality > result.quality)) {
+              ++stats_.velocity_matches;
+              result = retry;
+              ok = true;
+            }
+          }
+        }
+        if (ok) {
           result.source = ScanMatchSource::kMatched;
-          result.laser_pose = refined;
           ++stats_.matched;
           if (result.degenerate) ++stats_.degenerate;
         }
@@ -390,9 +422,14 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
     result.new_keyframe = true;
   }
 
+  if (have_previous_) {
+    previous_laser_step_ = previous_laser_pose_.between(result.laser_pose);
+    previous_dt_ = scan.timestamp - previous_timestamp_;
+  }
   have_previous_ = true;
   previous_odometry_ = scan.odometry;
   previous_laser_pose_ = result.laser_pose;
+  previous_timestamp_ = scan.timestamp;
   return result;
 }
 

@@ -74,6 +74,10 @@ struct ScanMatcherConfig {
   std::size_t min_correspondences = 20;  ///< fewer: the match is rejected
   double max_correction_translation = 0.5;  ///< [m] larger change of the odometry guess: rejected
   double max_correction_rotation = 0.35;    ///< [rad] (about 20 deg) larger change: rejected
+  /// [m, rad] where the constant-velocity prediction differs from the
+  /// odometry prediction by more than this (translation or rotation), the
+  /// scan is matched from both and the fit with more inliers is kept.
+  double velocity_guess_difference = 0.03;
   /// Reject matches whose ICP did not converge within max_iterations: they
   /// oscillate between correspondence sets, and on sparse or cluttered scans
   /// such matches are where the heading jumps by degrees.
@@ -111,6 +115,8 @@ struct ScanMatcherStats {
   std::size_t scans = 0;
   std::size_t matched = 0;
   std::size_t odometry_fallbacks = 0;
+  std::size_t velocity_retries = 0;  ///< scans also matched from the constant-velocity prediction
+  std::size_t velocity_matches = 0;  ///< ... where that match was kept
   std::size_t stationary = 0;
   std::size_t degenerate = 0;  ///< matched scans with at least one degenerate direction
   std::size_t keyframes = 0;   ///< keyframes ever added
@@ -166,12 +172,18 @@ class ScanMatcher {
   /// ICP from `guess` (the odometry prediction, `laser_step` the odometry
   /// step of the laser); fills result fields, returns the refined pose.
   Pose2 align(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result) const;
+  /// ICP from `guess`; true (and `result` filled with the refined pose) when
+  /// the match passes every acceptance test.
+  bool match(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result);
 
   ScanMatcherConfig config_;
   ScanMatcherStats stats_;
   bool have_previous_ = false;
   Pose2 previous_odometry_;
   Pose2 previous_laser_pose_;
+  double previous_timestamp_ = 0.0;
+  Pose2 previous_laser_step_;  ///< laser motion of the previous scan (local frame, its own laser frame)
+  double previous_dt_ = 0.0;   ///< [s] time that motion took
   std::deque<Keyframe> keyframes_;
 
   // Local map: points bucketed by a dense grid over their bounding box.

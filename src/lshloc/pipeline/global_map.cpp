@@ -15,8 +15,8 @@ void GlobalMapConfig::validate() const {
   if (free_space.theta_bins != 1) throw Error("GlobalMapConfig: free_space must be a 2-D grid (theta_bins = 1)");
   if (!(endpoint_spacing >= 0.0)) throw Error("GlobalMapConfig: endpoint_spacing must be >= 0 m");
   if (free_ray_stride == 0) throw Error("GlobalMapConfig: free_ray_stride must be >= 1 (beams)");
-  if (!(free_ray_margin >= 0.0) || !(free_ray_max_range > 0.0)) {
-    throw Error("GlobalMapConfig: free_ray_margin must be >= 0 m and free_ray_max_range > 0 m");
+  if (!(free_ray_margin >= 0.0) || !(free_ray_max_range > 0.0) || !(free_ray_no_return_range >= 0.0)) {
+    throw Error("GlobalMapConfig: free_ray_margin and free_ray_no_return_range must be >= 0 m and free_ray_max_range > 0 m");
   }
 }
 
@@ -99,7 +99,8 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
     const BeamStatus status = scan.status(i);
     if (status == BeamStatus::kInvalid) continue;
     const double r = scan.ranges[i];
-    const double reach = std::min(status == BeamStatus::kValid ? r - config_.free_ray_margin : config_.free_ray_max_range,
+    const double reach = std::min(status == BeamStatus::kValid ? r - config_.free_ray_margin
+                                                               : config_.free_ray_no_return_range,
                                   config_.free_ray_max_range);
     const double a = scan.bearing(i);
     const double dx = c * std::cos(a) - s * std::sin(a), dy = s * std::cos(a) + c * std::sin(a);

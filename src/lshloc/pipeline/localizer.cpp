@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <span>
+#include <utility>
 
 #include "lshloc/core/error.hpp"
 #include "lshloc/pipeline/cpu_time.hpp"
@@ -32,6 +34,9 @@ void LocalizerConfig::validate() const {
   if (candidates_per_feature == 0) throw Error("LocalizerConfig: candidates_per_feature must be >= 1");
   if (!(free_space_penalty >= 0.0)) throw Error("LocalizerConfig: free_space_penalty must be >= 0");
   if (confidence.stable_scans == 0) throw Error("LocalizerConfig: confidence.stable_scans must be >= 1");
+  if (refine_points > 0 && !(refine_step_m > 0.0 && refine_step_deg > 0.0)) {
+    throw Error("LocalizerConfig: refine_step_m and refine_step_deg must be > 0 when refine_points > 0");
+  }
 }
 
 Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
@@ -176,15 +181,36 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
       if (!same_place(h.hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) continue;
       if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
     }
-    if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) best = *incumbent;
+    if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) {
+      best = *incumbent;
+    } else if (cc.duel_points > 0 && !same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) {
+      ++stats_.duels;
+      const auto [challenger_mean, incumbent_mean] = duel(best->hypothesis, *reported_);
+      if (challenger_mean - incumbent_mean > cc.duel_margin) {
+        ++stats_.duels_won;
+      } else if (incumbent != nullptr) {
+        best = *incumbent;
+      } else {
+        const auto n = static_cast<std::uint32_t>(sample_.size());
+        best = ScoredHypothesis{*reported_, incumbent_mean * n, n};
+      }
+    }
   }
   recent_best_.push_back(best ? std::optional<Hypothesis>(best->hypothesis) : std::nullopt);
   if (recent_best_.size() > cc.stable_scans) recent_best_.pop_front();
   if (!best) return e;
-  reported_ = best->hypothesis;
+  // Tracking: the reported place follows the local map's drift by a small
+  // search on recent data-points, from the last report when the place is
+  // kept (or iRANSAC's hypothesis there, whichever fits better).
+  const bool kept = reported_ && same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle);
+  if (config_.refine_points > 0) {
+    reported_ = kept ? refine(*reported_, best->hypothesis, local_pose) : refine(best->hypothesis, std::nullopt, local_pose);
+  } else {
+    reported_ = best->hypothesis;
+  }
   e.has_estimate = true;
-  e.submap = best->hypothesis.submap;
-  e.T_submap_local = best->hypothesis.T_submap_local;
+  e.submap = reported_->submap;
+  e.T_submap_local = reported_->T_submap_local;
   e.pose = e.T_submap_local * local_pose;
   e.mean_score = best->mean_score();
   e.scored = best->scored;
@@ -202,6 +228,77 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
   for (const auto& h : recent_best_) stable = stable && h && same_place(*h, best->hypothesis, local_pose, cc.same_place_m, same_angle);
   e.localized = stable && e.scored >= cc.min_scored && e.mean_score >= cc.min_mean_score && e.margin >= cc.min_margin;
   return e;
+}
+
+void Localizer::sample_points(std::size_t window, std::size_t n) {
+  const std::size_t size = ransac_.features().size();
+  sample_.clear();
+  if (size == 0 || n == 0) return;
+  const std::size_t first = window > 0 && window < size ? size - window : 0;
+  std::uniform_int_distribution<std::size_t> any(first, size - 1);
+  for (std::size_t k = 0; k < n; ++k) sample_.push_back(static_cast<std::uint32_t>(any(rng_)));
+}
+
+void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums) {
+  const std::size_t m = hypotheses.size();
+  batch_submap_.resize(m), batch_tx_.resize(m), batch_ty_.resize(m), batch_cos_.resize(m), batch_sin_.resize(m),
+      batch_theta_.resize(m), batch_out_.resize(m);
+  for (std::size_t j = 0; j < m; ++j) {
+    const Pose2& T = hypotheses[j].T_submap_local;
+    batch_submap_[j] = hypotheses[j].submap;
+    batch_tx_[j] = static_cast<float>(T.x);
+    batch_ty_[j] = static_cast<float>(T.y);
+    batch_cos_[j] = static_cast<float>(std::cos(T.theta));
+    batch_sin_[j] = static_cast<float>(std::sin(T.theta));
+    batch_theta_[j] = static_cast<float>(T.theta);
+  }
+  const HypothesisBatch batch{batch_submap_.data(), batch_tx_.data(), batch_ty_.data(), batch_cos_.data(),
+                              batch_sin_.data(),    batch_theta_.data(), m};
+  sums.assign(m, 0.0);
+  const std::span<const LocalPoint> points = ransac_.features();
+  for (std::uint32_t i : sample_) {
+    scorer_(points[i], batch, batch_out_.data());
+    for (std::size_t j = 0; j < m; ++j) sums[j] += batch_out_[j];
+  }
+}
+
+std::pair<double, double> Localizer::duel(const Hypothesis& challenger, const Hypothesis& incumbent) {
+  sample_points(0, config_.confidence.duel_points);
+  if (sample_.empty()) return {0.0, 0.0};
+  const std::array<Hypothesis, 2> pair{challenger, incumbent};
+  score_on_sample(pair, sums_);
+  const auto n = static_cast<double>(sample_.size());
+  return {sums_[0] / n, sums_[1] / n};
+}
+
+Hypothesis Localizer::refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose) {
+  sample_points(config_.refine_window, config_.refine_points);
+  if (sample_.empty()) return h;
+  if (alternative) {
+    const std::array<Hypothesis, 2> starts{h, *alternative};
+    score_on_sample(starts, sums_);
+    if (sums_[1] > sums_[0]) h = *alternative;
+  }
+  double m = config_.refine_step_m, a = config_.refine_step_deg * M_PI / 180.0;
+  const Pose2& P = local_pose;
+  std::array<Hypothesis, 7> moves;
+  for (std::size_t round = 0; round < config_.refine_rounds; ++round) {
+    moves[0] = h;
+    std::size_t k = 1;
+    for (const Pose2& d : {Pose2(m, 0, 0), Pose2(-m, 0, 0), Pose2(0, m, 0), Pose2(0, -m, 0), Pose2(0, 0, a),
+                           Pose2(0, 0, -a)}) {
+      moves[k++] = {h.submap, h.T_submap_local * (P * d * P.inverse())};
+    }
+    score_on_sample(moves, sums_);
+    const auto winner = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
+    if (winner == 0) {
+      m *= 0.5, a *= 0.5;
+    } else {
+      h = moves[winner];
+      ++stats_.refine_moves;
+    }
+  }
+  return h;
 }
 
 LocalizerStats Localizer::stats() const {

@@ -3,6 +3,8 @@
 #include <deque>
 #include <optional>
 #include <random>
+#include <span>
+#include <utility>
 #include <vector>
 
 #include "lshloc/core/feature_extractor.hpp"
@@ -26,6 +28,15 @@ struct ConfidenceConfig {
   /// reported one (within `same_place_m`, `same_place_deg`) stays reported
   /// unless a hypothesis elsewhere beats its C/N by more than this.
   double switch_margin = 0.02;
+  /// Before the estimate moves elsewhere, the challenger and the incumbent
+  /// are scored on the same `duel_points` data-points drawn uniformly from
+  /// the whole local map, and the move happens only if the challenger's mean
+  /// score is higher by more than `duel_margin`. iRANSAC's C/N compares
+  /// hypotheses scored on different points: a young look-alike scored only
+  /// where the target left the mapped area otherwise beats the true place,
+  /// whose support lies in the older scans. 0 disables the duel.
+  std::size_t duel_points = 1000;
+  double duel_margin = 0.03;
   double same_place_m = 1.0;    ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
 };
@@ -71,6 +82,17 @@ struct LocalizerConfig {
   bool track_reported = true;
   double track_step_m = 0.1;     ///< [m]
   double track_step_deg = 1.0;   ///< [deg]
+  /// Each scan the reported hypothesis is refined by a pattern search (moves
+  /// of +-refine_step_m along x and y and +-refine_step_deg about the
+  /// robot, halved when none helps, refine_rounds rounds) on refine_points
+  /// data-points drawn from the newest refine_window: iRANSAC's hypotheses
+  /// keep the pose they were born with, while the local map drifts under
+  /// them. 0 points: report iRANSAC's hypothesis as it is.
+  std::size_t refine_points = 400;
+  std::size_t refine_window = 4000;
+  std::size_t refine_rounds = 4;
+  double refine_step_m = 0.1;     ///< [m]
+  double refine_step_deg = 1.0;   ///< [deg]
   std::uint64_t seed = 0x10ca112e;  ///< the random control's choices
 
   void validate() const;
@@ -100,6 +122,9 @@ struct LocalizerStats {
   double extract_s = 0.0;         ///< [s]
   double query_s = 0.0;           ///< [s] database retrieval
   double ransac_s = 0.0;          ///< [s] iRANSAC iterations (scoring)
+  std::size_t duels = 0;          ///< challenger-incumbent duels run
+  std::size_t duels_won = 0;      ///< duels the challenger won (the estimate moved)
+  std::size_t refine_moves = 0;   ///< accepted moves of the tracking refinement
   IncrementalRansacStats ransac;
   ScanMatcherStats scan_matcher;
   double us_query_per_feature() const { return features ? 1e6 * query_s / static_cast<double>(features) : 0.0; }
@@ -130,6 +155,17 @@ class Localizer {
   void generate_hypotheses(const std::vector<Feature>& features);
   void sample_data_points(const LaserScan& scan, const ScanSurface& surface);
   LocalizationEstimate estimate(const Pose2& local_pose);
+  /// Mean scores of `challenger` and `incumbent` over the same duel_points
+  /// data-points drawn uniformly from iRANSAC's U.
+  std::pair<double, double> duel(const Hypothesis& challenger, const Hypothesis& incumbent);
+  /// `h` (or `alternative`, if it fits the sample better) refined by the
+  /// pattern search of refine_points about the robot's `local_pose`.
+  Hypothesis refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose);
+  /// Draws n indices of iRANSAC's U, uniformly from its newest `window`
+  /// (0: all), into sample_.
+  void sample_points(std::size_t window, std::size_t n);
+  /// sums[j] = sum over sample_ of hypothesis j's score.
+  void score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums);
 
   const GlobalMap& map_;
   LocalizerConfig config_;
@@ -155,6 +191,10 @@ class Localizer {
   std::vector<Candidate> candidates_;
   std::vector<Hypothesis> hypotheses_;
   std::vector<LocalPoint> data_points_;
+  std::vector<std::uint32_t> sample_;
+  std::vector<double> sums_;
+  std::vector<std::uint32_t> batch_submap_;
+  std::vector<float> batch_tx_, batch_ty_, batch_cos_, batch_sin_, batch_theta_, batch_out_;
   std::mt19937_64 rng_;
 };
 
