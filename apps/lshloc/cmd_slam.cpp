@@ -17,6 +17,7 @@
 #include "commands.hpp"
 #include "lshloc/core/error.hpp"
 #include "lshloc/core/relations_metric.hpp"
+#include "lshloc/core/pose_graph_slam.hpp"
 #include "lshloc/core/scan_matcher.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/dataset_catalog.hpp"
@@ -29,6 +30,7 @@ namespace {
 
 struct SlamOptions {
   std::string log, relations, out, per_scan;
+  bool no_loop_closure = false;
   bool json = false;
   double max_range = ScanMatcherConfig{}.max_range;
   std::size_t window = ScanMatcherConfig{}.window_keyframes;
@@ -36,8 +38,10 @@ struct SlamOptions {
   std::optional<double> laser_offset;  ///< --laser-offset [m], overrides the log's PARAM
 };
 
-/// Applies `--set NAME=VALUE` to the matcher's config (tuning experiments).
-void apply_setting(ScanMatcherConfig& c, const std::string& setting) {
+/// Applies `--set NAME=VALUE` to the matcher's or (NAME starting "graph.")
+/// the loop-closing graph's config (tuning experiments).
+void apply_setting(PoseGraphSlamConfig& slam, const std::string& setting) {
+  ScanMatcherConfig& c = slam.matcher;
   const auto eq = setting.find('=');
   if (eq == std::string::npos) throw Error("--set '" + setting + "': expected NAME=VALUE");
   const std::string name = setting.substr(0, eq), text = setting.substr(eq + 1);
@@ -86,7 +90,18 @@ void apply_setting(ScanMatcherConfig& c, const std::string& setting) {
   else if (name == "converged_translation") c.converged_translation = value;
   else if (name == "converged_rotation") c.converged_rotation = value;
   else if (name == "keep_oldest_map_points") c.keep_oldest_map_points = value != 0.0;
-  else throw Error("--set: unknown scan matcher parameter '" + name + "' (see ScanMatcherConfig)");
+  else if (name == "graph.node_distance") slam.node_distance = value;
+  else if (name == "graph.loop_min_travel") slam.loop_min_travel = value;
+  else if (name == "graph.loop_window_per_m") slam.loop_window_per_m = value;
+  else if (name == "graph.loop_max_window") slam.loop_max_window = value;
+  else if (name == "graph.loop_window_deg") slam.loop_window_deg = value;
+  else if (name == "graph.loop_min_score") slam.loop_min_score = value;
+  else if (name == "graph.loop_max_runner_up") slam.loop_max_runner_up = value;
+  else if (name == "graph.loop_sigma_xy") slam.loop_sigma_xy = value;
+  else if (name == "graph.robust_scale") slam.graph.robust_scale = value;
+  else if (name == "graph.edge_sigma_xy_per_m") slam.edge_sigma_xy_per_m = value;
+  else if (name == "graph.edge_sigma_theta_per_m_deg") slam.edge_sigma_theta_per_m_deg = value;
+  else throw Error("--set: unknown parameter '" + name + "' (see ScanMatcherConfig, or graph.* in PoseGraphSlamConfig)");
 }
 
 /// What the catalog knows about the building whose raw log is `log`.
@@ -143,10 +158,14 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   }
   config.max_range = opt.max_range;
   config.window_keyframes = opt.window;
-  for (const auto& setting : opt.settings) apply_setting(config, setting);
-  ScanMatcher matcher(config);
+  PoseGraphSlamConfig slam_config;
+  slam_config.matcher = config;
+  slam_config.loop_closure = !opt.no_loop_closure;
+  for (const auto& setting : opt.settings) apply_setting(slam_config, setting);
+  config = slam_config.matcher;
+  PoseGraphSlam slam(slam_config);
 
-  std::vector<StampedPose> trajectory, odometry;
+  std::vector<StampedPose> trajectory, matched, odometry;
   trajectory.reserve(log.scans.size());
   odometry.reserve(log.scans.size());
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> per_scan(nullptr, &std::fclose);
@@ -160,9 +179,9 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   for (std::size_t i = 0; i < log.scans.size(); ++i) {
     const LaserScan& scan = log.scans[i];
     const auto start = Clock::now();
-    const ScanMatchResult r = matcher.add_scan(scan);
+    const ScanMatchResult r = slam.add_scan(scan);
     busy += Clock::now() - start;
-    trajectory.push_back({scan.timestamp, r.robot_pose});
+    matched.push_back({scan.timestamp, r.robot_pose});
     odometry.push_back({scan.timestamp, scan.odometry});
     if (per_scan) {
       static constexpr const char* kSource[] = {"first", "matched", "odometry", "stationary"};
@@ -176,14 +195,24 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
     }
   }
   if (progress) std::fprintf(stderr, "\r%zu / %zu scans\n", log.scans.size(), log.scans.size());
+  {
+    const auto start = Clock::now();
+    slam.finish();
+    busy += Clock::now() - start;
+  }
+  {
+    const std::vector<Pose2> poses = slam.robot_poses();
+    for (std::size_t i = 0; i < poses.size(); ++i) trajectory.push_back({log.scans[i].timestamp, poses[i]});
+  }
   const double seconds = std::chrono::duration<double>(busy).count();
   const double scans_per_s = seconds > 0.0 ? static_cast<double>(log.scans.size()) / seconds : 0.0;
 
   if (!opt.out.empty()) io::write_tum_trajectory(opt.out, trajectory);
 
-  std::optional<RelationsError> ours, odom, gmapping, ours_on_gmapping;
+  std::optional<RelationsError> ours, ours_matched, odom, gmapping, ours_on_gmapping;
   if (!opt.relations.empty()) {
     ours = evaluate_relations(trajectory, relations);
+    ours_matched = evaluate_relations(matched, relations);
     odom = evaluate_relations(odometry, relations);
     if (ours->matched == 0) {
       throw Error(opt.relations + ": none of its " + std::to_string(relations.size()) +
@@ -209,12 +238,15 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
     }
   }
 
-  const ScanMatcherStats& st = matcher.stats();
+  const ScanMatcherStats& st = slam.matcher().stats();
+  const PoseGraphSlamStats& gs = slam.stats();
   if (opt.json) {
     nlohmann::json j = {{"scans", log.scans.size()},
                         {"relations", ours ? nlohmann::json(ours->matched) : nlohmann::json(nullptr)},
                         {"trans_err_m", metric_or_null(ours, false)},
                         {"rot_err_deg", metric_or_null(ours, true)},
+                        {"scan_matching_trans_err_m", metric_or_null(ours_matched, false)},
+                        {"scan_matching_rot_err_deg", metric_or_null(ours_matched, true)},
                         {"odom_trans_err_m", metric_or_null(odom, false)},
                         {"odom_rot_err_deg", metric_or_null(odom, true)},
                         {"gmapping_trans_err_m", metric_or_null(gmapping, false)},
@@ -228,14 +260,20 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
                         {"odometry_fallbacks", st.odometry_fallbacks},
                         {"stationary", st.stationary},
                         {"degenerate", st.degenerate},
-                        {"keyframes", st.keyframes}};
+                        {"keyframes", st.keyframes},
+                        {"loop_closure", slam_config.loop_closure},
+                        {"graph_nodes", gs.nodes},
+                        {"loop_attempts", gs.loop_attempts},
+                        {"loop_closures", gs.loop_closures},
+                        {"loop_ambiguous", gs.loop_ambiguous},
+                        {"optimizations", gs.optimizations}};
     std::printf("%s\n", j.dump().c_str());
     return;
   }
-  std::printf("%s: %zu scans, %.0f scans/s (matcher only); matched %zu, odometry fallbacks %zu, stationary %zu, "
-              "degenerate %zu, keyframes %zu\n",
+  std::printf("%s: %zu scans, %.0f scans/s (matching and loop closure); matched %zu, odometry fallbacks %zu, "
+              "stationary %zu, degenerate %zu, keyframes %zu; graph nodes %zu, loop closures %zu of %zu attempts\n",
               opt.log.c_str(), log.scans.size(), scans_per_s, st.matched, st.odometry_fallbacks, st.stationary,
-              st.degenerate, st.keyframes);
+              st.degenerate, st.keyframes, gs.nodes, gs.loop_closures, gs.loop_attempts);
   if (ours) {
     std::printf("relations: %zu of %zu matched\n", ours->matched, ours->relations);
     const auto row = [](const char* name, const std::optional<RelationsError>& e) {
@@ -246,7 +284,8 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
       std::printf("  %-30s  trans %.4f m  rot %.3f deg  (%zu relations)\n", name, e->mean_translation,
                   e->mean_rotation * 180.0 / std::numbers::pi, e->matched);
     };
-    row("lshloc", ours);
+    row(slam_config.loop_closure ? "lshloc (with loop closure)" : "lshloc", ours);
+    if (slam_config.loop_closure) row("lshloc scan matching only", ours_matched);
     row("odometry", odom);
     row("gmapping", gmapping);
     row("lshloc on gmapping's relations", ours_on_gmapping);
@@ -275,6 +314,9 @@ void add_slam_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--laser-offset", opt->laser_offset,
                   "[m] the front laser's mounting offset ahead of the robot's centre (default: the log's\n"
                   "PARAM robot_frontlaser_offset, else the data README's value for fr079/fr101 (-0.04), else 0); also applied to the GMapping poses, which are laser poses");
+  cmd->add_flag("--no-loop-closure", opt->no_loop_closure,
+               "scan matching only (the localizer's local map); by default a pose graph closes loops by correlative "
+               "matching");
   cmd->add_option("--set", opt->settings, "NAME=VALUE: override a ScanMatcherConfig field (repeatable)");
   cmd->callback([opt, &global] { run_slam(*opt, global); });
 }
