@@ -79,6 +79,9 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
   cmd.add_option("--duel-margin", l.confidence.duel_margin, "mean-score lead the challenger needs in the duel")
       ->capture_default_str()
       ->group(group);
+  cmd.add_option("--duel-z", l.confidence.duel_z, "... and that many standard errors of the paired difference")
+      ->capture_default_str()
+      ->group(group);
   cmd.add_option("--free-points", l.free_points_per_surface_point, "free-space data-points per surface data-point")
       ->capture_default_str()
       ->group(group);

@@ -181,18 +181,25 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
       if (!same_place(h.hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) continue;
       if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
     }
+    if (incumbent != nullptr) anchor_ = incumbent->hypothesis;
     if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) {
       best = *incumbent;
     } else if (cc.duel_points > 0 && !same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) {
       ++stats_.duels;
-      const auto [challenger_mean, incumbent_mean] = duel(best->hypothesis, *reported_);
-      if (challenger_mean - incumbent_mean > cc.duel_margin) {
+      std::vector<Hypothesis> incumbents{*reported_};
+      if (anchor_ && same_place(*anchor_, *reported_, local_pose, cc.same_place_m, same_angle)) {
+        incumbents.push_back(*anchor_);
+      }
+      const Duel d = duel(best->hypothesis, incumbents);
+      const double lead = d.challenger_mean - d.incumbent_mean;
+      if (lead > cc.duel_margin && lead > cc.duel_z * d.lead_stderr) {
         ++stats_.duels_won;
+        anchor_ = best->hypothesis;
       } else if (incumbent != nullptr) {
         best = *incumbent;
       } else {
         const auto n = static_cast<std::uint32_t>(sample_.size());
-        best = ScoredHypothesis{*reported_, incumbent_mean * n, n};
+        best = ScoredHypothesis{incumbents[d.incumbent], d.incumbent_mean * n, n};
       }
     }
   }
@@ -255,20 +262,33 @@ void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vec
   const HypothesisBatch batch{batch_submap_.data(), batch_tx_.data(), batch_ty_.data(), batch_cos_.data(),
                               batch_sin_.data(),    batch_theta_.data(), m};
   sums.assign(m, 0.0);
+  first_two_sq_diff_ = 0.0;
   const std::span<const LocalPoint> points = ransac_.features();
   for (std::uint32_t i : sample_) {
     scorer_(points[i], batch, batch_out_.data());
     for (std::size_t j = 0; j < m; ++j) sums[j] += batch_out_[j];
+    if (m >= 2) first_two_sq_diff_ += double(batch_out_[0] - batch_out_[1]) * double(batch_out_[0] - batch_out_[1]);
   }
 }
 
-std::pair<double, double> Localizer::duel(const Hypothesis& challenger, const Hypothesis& incumbent) {
+Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents) {
   sample_points(0, config_.confidence.duel_points);
-  if (sample_.empty()) return {0.0, 0.0};
-  const std::array<Hypothesis, 2> pair{challenger, incumbent};
+  if (sample_.empty() || incumbents.empty()) return {};
+  // The incumbent place is represented by whichever of its hypotheses fits
+  // the whole local map best: the tracked report follows the recent drift,
+  // iRANSAC's hypothesis there may fit the older scans better.
+  std::size_t chosen = 0;
+  if (incumbents.size() > 1) {
+    score_on_sample(incumbents, sums_);
+    chosen = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
+  }
+  const std::array<Hypothesis, 2> pair{challenger, incumbents[chosen]};
   score_on_sample(pair, sums_);
   const auto n = static_cast<double>(sample_.size());
-  return {sums_[0] / n, sums_[1] / n};
+  Duel d{sums_[0] / n, sums_[1] / n, 0.0, chosen};
+  const double lead = d.challenger_mean - d.incumbent_mean;
+  if (n > 1.0) d.lead_stderr = std::sqrt(std::max(0.0, (first_two_sq_diff_ / n - lead * lead) / (n - 1.0)));
+  return d;
 }
 
 Hypothesis Localizer::refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose) {
@@ -277,7 +297,7 @@ Hypothesis Localizer::refine(Hypothesis h, const std::optional<Hypothesis>& alte
   if (alternative) {
     const std::array<Hypothesis, 2> starts{h, *alternative};
     score_on_sample(starts, sums_);
-    if (sums_[1] > sums_[0]) h = *alternative;
+    if (sums_[1] - sums_[0] > config_.refine_min_gain * static_cast<double>(sample_.size())) h = *alternative;
   }
   double m = config_.refine_step_m, a = config_.refine_step_deg * M_PI / 180.0;
   const Pose2& P = local_pose;
@@ -291,7 +311,11 @@ Hypothesis Localizer::refine(Hypothesis h, const std::optional<Hypothesis>& alte
     }
     score_on_sample(moves, sums_);
     const auto winner = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
-    if (winner == 0) {
+    // Where the map knows little (most points score 0) every move looks
+    // alike; a move must win by a clear share of the points, or the pose
+    // would wander on noise.
+    const double gain = sums_[winner] - sums_[0];
+    if (winner == 0 || gain < config_.refine_min_gain * static_cast<double>(sample_.size())) {
       m *= 0.5, a *= 0.5;
     } else {
       h = moves[winner];

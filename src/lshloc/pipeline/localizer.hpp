@@ -31,12 +31,14 @@ struct ConfidenceConfig {
   /// Before the estimate moves elsewhere, the challenger and the incumbent
   /// are scored on the same `duel_points` data-points drawn uniformly from
   /// the whole local map, and the move happens only if the challenger's mean
-  /// score is higher by more than `duel_margin`. iRANSAC's C/N compares
+  /// score is higher by more than `duel_margin` and by more than `duel_z`
+  /// standard errors of the paired difference. iRANSAC's C/N compares
   /// hypotheses scored on different points: a young look-alike scored only
   /// where the target left the mapped area otherwise beats the true place,
   /// whose support lies in the older scans. 0 disables the duel.
   std::size_t duel_points = 1000;
   double duel_margin = 0.03;
+  double duel_z = 3.0;
   double same_place_m = 1.0;    ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
 };
@@ -93,6 +95,7 @@ struct LocalizerConfig {
   std::size_t refine_rounds = 4;
   double refine_step_m = 0.1;     ///< [m]
   double refine_step_deg = 1.0;   ///< [deg]
+  double refine_min_gain = 0.02;  ///< a move must raise the mean score on the sample by this much
   std::uint64_t seed = 0x10ca112e;  ///< the random control's choices
 
   void validate() const;
@@ -155,16 +158,24 @@ class Localizer {
   void generate_hypotheses(const std::vector<Feature>& features);
   void sample_data_points(const LaserScan& scan, const ScanSurface& surface);
   LocalizationEstimate estimate(const Pose2& local_pose);
-  /// Mean scores of `challenger` and `incumbent` over the same duel_points
-  /// data-points drawn uniformly from iRANSAC's U.
-  std::pair<double, double> duel(const Hypothesis& challenger, const Hypothesis& incumbent);
+  struct Duel {
+    double challenger_mean = 0.0;
+    double incumbent_mean = 0.0;
+    double lead_stderr = 0.0;  ///< standard error of the mean paired difference
+    std::size_t incumbent = 0;  ///< which of the incumbents stood for its place
+  };
+  /// Mean scores of `challenger` and the best of `incumbents` (hypotheses of
+  /// one place) over the same duel_points data-points drawn uniformly from
+  /// iRANSAC's U.
+  Duel duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents);
   /// `h` (or `alternative`, if it fits the sample better) refined by the
   /// pattern search of refine_points about the robot's `local_pose`.
   Hypothesis refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose);
   /// Draws n indices of iRANSAC's U, uniformly from its newest `window`
   /// (0: all), into sample_.
   void sample_points(std::size_t window, std::size_t n);
-  /// sums[j] = sum over sample_ of hypothesis j's score.
+  /// sums[j] = sum over sample_ of hypothesis j's score (and
+  /// first_two_sq_diff_ the sum of the squared differences of the first two).
   void score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums);
 
   const GlobalMap& map_;
@@ -178,6 +189,9 @@ class Localizer {
   Pose2 last_context_pose_;
   std::deque<std::optional<Hypothesis>> recent_best_;
   std::optional<Hypothesis> reported_;
+  /// iRANSAC's last hypothesis at the reported place: it keeps the pose that
+  /// fitted the older scans after preemption cut it and tracking moved on.
+  std::optional<Hypothesis> anchor_;
   Pose2 last_local_pose_;
   LocalizerStats stats_;
   // Scratch reused between scans.
@@ -193,6 +207,7 @@ class Localizer {
   std::vector<LocalPoint> data_points_;
   std::vector<std::uint32_t> sample_;
   std::vector<double> sums_;
+  double first_two_sq_diff_ = 0.0;
   std::vector<std::uint32_t> batch_submap_;
   std::vector<float> batch_tx_, batch_ty_, batch_cos_, batch_sin_, batch_theta_, batch_out_;
   std::mt19937_64 rng_;
