@@ -6,6 +6,7 @@
 
 #include "lshloc/core/error.hpp"
 #include "lshloc/io/dataset_catalog.hpp"
+#include "lshloc/sim/simulator.hpp"
 #include "test_support.hpp"
 
 namespace lshloc {
@@ -63,6 +64,29 @@ TEST(Scenario, SplitsAroundTheWindowWithAGuard) {
     }
   }
   EXPECT_EQ(with_truth, 4u);
+}
+
+TEST(Scenario, BuildingsWithoutCorrectedLogsAreMappedBySlam) {
+  // A simulated building whose recording has raw scans only: the submap's
+  // poses must come from SLAM, far closer to the truth than its odometry.
+  const sim::RunBuilding rb = sim::run_building(5, 0, sim::SimulationConfig{.scans = 1500});
+  const sim::SyntheticBuilding building = sim::generate_building(rb.building);
+  BuildingRecording rec = sim::simulate_recording(building, rb.simulation);
+  const std::vector<LaserScan> corrected = rec.corrected_scans;
+  rec.corrected_scans.clear();
+  rec.truth.clear();
+  const Submap submap = whole_building_submap(rec);
+  ASSERT_TRUE(submap.poses_from_slam);
+  ASSERT_EQ(submap.scans.size(), corrected.size());
+  double slam_worst = 0.0, odometry_worst = 0.0;
+  const Pose2 truth0 = corrected.front().pose, odometry0 = rec.raw_scans.front().pose;
+  for (std::size_t i = 0; i < corrected.size(); ++i) {
+    const Pose2 truth = truth0.between(corrected[i].pose);  // frame: the first laser pose
+    slam_worst = std::max(slam_worst, translation_distance(submap.scans[i].pose, truth));
+    odometry_worst = std::max(odometry_worst, translation_distance(odometry0.between(rec.raw_scans[i].pose), truth));
+  }
+  EXPECT_LT(slam_worst, 0.3);
+  EXPECT_GT(odometry_worst, 2.0 * slam_worst);
 }
 
 TEST(Scenario, RejectsWindowsThatDoNotFit) {

@@ -25,20 +25,28 @@ struct LocalizeOptions {
   std::string target;
   std::string out;
   bool json = false;
+  bool map_slam = false;
   LocalizerOptions localizer;
 };
 
-/// "LOG" (poses from the log's own FLASER poses) or "LOG,POSES" (poses from a
+/// "LOG" (poses from the log's own FLASER poses, or with `slam` from
+/// lshloc's SLAM over the raw log) or "LOG,POSES" (poses from a
 /// `timestamp x y theta` file joined to the log's scans within 1 ms).
-Submap load_map_argument(const std::string& arg) {
+Submap load_map_argument(const std::string& arg, bool slam) {
   const auto comma = arg.find(',');
   const std::string log_path = arg.substr(0, comma);
   Submap s;
   s.name = std::filesystem::path(log_path).filename().string();
-  std::vector<LaserScan> scans = io::read_carmen_log(log_path).scans;
+  io::CarmenLog log = io::read_carmen_log(log_path);
+  std::vector<LaserScan> scans = std::move(log.scans);
   if (scans.empty()) throw Error(log_path + ": the map log has no laser scans (FLASER / ROBOTLASER1)");
   if (comma == std::string::npos) {
-    s.scans = std::move(scans);
+    if (slam) {
+      s.scans = slam_mapped_scans(scans, log.front_laser_offset());
+      s.poses_from_slam = true;
+    } else {
+      s.scans = std::move(scans);
+    }
     return s;
   }
   const std::string poses_path = arg.substr(comma + 1);
@@ -66,19 +74,23 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   auto* cmd = app.add_subcommand(
       "localize",
       "Localize a target robot's log in a global map made of one or more mapped logs.\n"
-      "Each --map LOG is a submap posed by its own FLASER poses (a corrected log), or\n"
-      "--map LOG,POSES takes the poses from a `timestamp x y theta` file.\n"
+      "Each --map LOG is a submap posed by its own FLASER poses (a corrected log; with\n"
+      "--map-slam, a raw log posed by lshloc's SLAM), or --map LOG,POSES takes the\n"
+      "poses from a `timestamp x y theta` file.\n"
       "Writes the estimated trajectory (TUM; a side CSV names the submap of each scan).");
   cmd->add_option("--map", opt->maps, "map log[,poses file]; repeat or comma-free list for several submaps")
       ->required();
   cmd->add_option("--target", opt->target, "the target robot's raw log (odometry + scans)")->required();
   cmd->add_option("--out", opt->out, "estimated trajectory, TUM format (plus OUT.csv with submap per scan)");
   cmd->add_flag("--json", opt->json, "print a JSON summary line");
+  cmd->add_flag("--map-slam", opt->map_slam,
+                "map logs given without a poses file are raw logs: pose their scans by lshloc's SLAM (scan matching "
+                "and loop closure) instead of taking their FLASER poses");
   add_localizer_options(*cmd, opt->localizer);
   cmd->callback([opt, &global] {
     (void)global;
     Scenario sc;
-    for (const auto& m : opt->maps) sc.submaps.push_back(load_map_argument(m));
+    for (const auto& m : opt->maps) sc.submaps.push_back(load_map_argument(m, opt->map_slam));
     io::CarmenLog target = io::read_carmen_log(opt->target);
     if (target.scans.empty()) throw Error(opt->target + ": the target log has no laser scans");
     sc.target.building = opt->target;

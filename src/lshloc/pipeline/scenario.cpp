@@ -4,6 +4,7 @@
 #include <random>
 
 #include "lshloc/core/error.hpp"
+#include "lshloc/core/pose_graph_slam.hpp"
 #include "lshloc/core/time_join.hpp"
 
 namespace lshloc {
@@ -37,6 +38,18 @@ std::vector<std::string> other_buildings(const ScenarioConfig& config) {
   return others;
 }
 
+std::vector<LaserScan> slam_mapped_scans(const std::vector<LaserScan>& raw, const Pose2& laser_offset) {
+  PoseGraphSlamConfig config;
+  config.matcher.laser_offset = laser_offset;
+  PoseGraphSlam slam(config);
+  for (const LaserScan& s : raw) slam.add_scan(s);
+  slam.finish();
+  const std::vector<Pose2> poses = slam.laser_poses();
+  std::vector<LaserScan> out = raw;
+  for (std::size_t i = 0; i < out.size(); ++i) out[i].pose = poses[i];
+  return out;
+}
+
 void split_target_building(const BuildingRecording& rec, const ScenarioConfig& config, Submap& map_side,
                            TargetRun& target) {
   const auto& raw = rec.raw_scans;
@@ -62,10 +75,14 @@ void split_target_building(const BuildingRecording& rec, const ScenarioConfig& c
       if (outside(rec.truth[k].timestamp)) map_side.scans.push_back(rec.corrected_scans[k]);
     }
   } else {
-    map_side.poses_from_odometry = true;
+    // No corrected log: the mapper robot's own SLAM gives the map poses,
+    // from the raw scans outside the window only.
+    map_side.poses_from_slam = true;
+    std::vector<LaserScan> kept;
     for (const auto& s : raw) {
-      if (outside(s.timestamp)) map_side.scans.push_back(s);
+      if (outside(s.timestamp)) kept.push_back(s);
     }
+    map_side.scans = slam_mapped_scans(kept, rec.laser_offset);
   }
 
   target = {};
@@ -92,8 +109,8 @@ Submap whole_building_submap(const BuildingRecording& rec) {
   if (!rec.corrected_scans.empty()) {
     s.scans = rec.corrected_scans;
   } else {
-    s.scans = rec.raw_scans;
-    s.poses_from_odometry = true;
+    s.scans = slam_mapped_scans(rec.raw_scans, rec.laser_offset);
+    s.poses_from_slam = true;
   }
   return s;
 }

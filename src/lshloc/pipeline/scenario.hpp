@@ -23,7 +23,9 @@ struct BuildingRecording {
 struct Submap {
   std::string name;
   std::vector<LaserScan> scans;  ///< each scan's `pose` is its laser pose in the submap frame
-  bool poses_from_odometry = false;  ///< true when no corrected log existed
+  /// true when no corrected log existed and the poses come from lshloc's
+  /// own SLAM (scan matching with loop closure, PoseGraphSlam) on raw scans
+  bool poses_from_slam = false;
 };
 
 /// The target robot's run: raw scans with odometry, and ground truth where known.
@@ -62,10 +64,16 @@ std::vector<std::string> other_buildings(const ScenarioConfig& config);
 
 /// The target's window and its own submap, built from its recording: map scans
 /// are corrected scans whose raw time stamp lies more than guard_s outside the
-/// window (or, with no corrected log, raw scans with odometry poses).
+/// window (or, with no corrected log, raw scans outside it with poses from
+/// slam_mapped_scans()).
 /// Throws lshloc::Error when the window does not fit the log.
 void split_target_building(const BuildingRecording& rec, const ScenarioConfig& config, Submap& map_side,
                            TargetRun& target);
+
+/// `raw` with each scan's pose replaced by its laser pose from PoseGraphSlam
+/// (scan matching and loop closure; the first laser pose is the frame's
+/// origin): how a mapper robot without a corrected log builds its submap.
+std::vector<LaserScan> slam_mapped_scans(const std::vector<LaserScan>& raw, const Pose2& laser_offset);
 
 /// A whole building as a submap (for the R-1 others).
 Submap whole_building_submap(const BuildingRecording& rec);
