@@ -57,7 +57,7 @@ def summary_line(rs):
     med = [r["median_error_after_m"] for r in rs if r["median_error_after_m"] is not None]
     wrong = sum(r["confident_wrong"] for r in rs)
     conf = sum(r["confident_scans"] for r in rs)
-    return (f"{ok}/{len(rs)} | {fmt(statistics.median(at) if at else None)} | "
+    return (f"{ok}/{len(rs)} | {fmt(statistics.median(at) if at else None, 1)} | "
             f"{fmt(statistics.median(med) if med else None)} | {conf} / {wrong}")
 
 
