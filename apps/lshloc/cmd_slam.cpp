@@ -1,7 +1,8 @@
-// `lshloc slam --log LOG [--relations REL] [--out traj.tum] [--json]`: builds
-// the local map of a raw log by scan matching, writes the trajectory and, with
-// relations, scores it (and raw odometry, and GMapping where the catalog has
-// its poses) by the Kümmerle et al. (2009) relations metric.
+// `lshloc slam --log LOG [--relations REL] [--out traj.tum] [--json]`: maps a
+// raw log by scan matching plus loop closure (PoseGraphSlam), writes the
+// trajectory and, with relations, scores it (and the scan matching alone, raw
+// odometry, and GMapping where the catalog has its poses) by the Kümmerle et
+// al. (2009) relations metric.
 #include <unistd.h>
 
 #include <chrono>
@@ -266,6 +267,7 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
                         {"loop_attempts", gs.loop_attempts},
                         {"loop_closures", gs.loop_closures},
                         {"loop_ambiguous", gs.loop_ambiguous},
+                        {"loop_poor", gs.loop_poor},
                         {"optimizations", gs.optimizations}};
     std::printf("%s\n", j.dump().c_str());
     return;
@@ -297,9 +299,10 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
 
 void add_slam_command(CLI::App& app, GlobalOptions& global) {
   auto* cmd = app.add_subcommand("slam",
-                                 "Build the local map of a raw CARMEN log by scan matching (the target robot's\n"
-                                 "\"simple scan matching as SLAM\") and report its accuracy by the Kuemmerle et al.\n"
-                                 "(2009) relations metric, next to raw odometry and GMapping.");
+                                 "Map a raw CARMEN log by scan matching (the target robot's local map) plus a\n"
+                                 "pose graph that closes loops by correlative matching, and report its accuracy by\n"
+                                 "the Kuemmerle et al. (2009) relations metric, next to the scan matching alone, raw\n"
+                                 "odometry and GMapping.");
   auto opt = std::make_shared<SlamOptions>();
   cmd->add_option("--log", opt->log, "raw CARMEN log (odometry + scans), plain or .gz")->required();
   cmd->add_option("--relations", opt->relations, "Kuemmerle benchmark relations (t1 t2 dx dy dz roll pitch yaw)");
