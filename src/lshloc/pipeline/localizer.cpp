@@ -25,6 +25,19 @@ bool same_place(const Hypothesis& a, const Hypothesis& b, const Pose2& local, do
   return translation_distance(pa, pb) <= dist_m && angle_distance(pa.theta, pb.theta) <= angle_rad;
 }
 
+/// `h` moved by +-step_m along x and y and +-step_rad in heading about the
+/// robot's local pose P: T' = T * P * d * P^-1, so that a small move of the
+/// robot's global pose stays small however far the local origin lies.
+std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P, double step_m, double step_rad) {
+  std::array<Hypothesis, 6> out;
+  std::size_t k = 0;
+  for (const Pose2& d : {Pose2(step_m, 0, 0), Pose2(-step_m, 0, 0), Pose2(0, step_m, 0), Pose2(0, -step_m, 0),
+                         Pose2(0, 0, step_rad), Pose2(0, 0, -step_rad)}) {
+    out[k++] = {h.submap, h.T_submap_local * (P * d * P.inverse())};
+  }
+  return out;
+}
+
 }  // namespace
 
 void LocalizerConfig::validate() const {
@@ -140,17 +153,10 @@ LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
   stats_.query_s += watch.seconds();
 
   if (config_.track_reported && reported_) {
-    // Children of the reported hypothesis, perturbed about the robot's pose:
-    // T' = T * P * d * P^-1 with P the scan's local pose.
-    const Pose2& P = match.laser_pose;
-    const double m = config_.track_step_m, a = config_.track_step_deg * M_PI / 180.0;
-    // First in line: iRANSAC keeps only the first |V_new| of a scan.
-    std::array<Hypothesis, 6> children;
-    std::size_t k = 0;
-    for (const Pose2& d : {Pose2(m, 0, 0), Pose2(-m, 0, 0), Pose2(0, m, 0), Pose2(0, -m, 0), Pose2(0, 0, a),
-                           Pose2(0, 0, -a)}) {
-      children[k++] = {reported_->submap, reported_->T_submap_local * (P * d * P.inverse())};
-    }
+    // Children of the reported hypothesis, perturbed about the robot's pose;
+    // first in line: iRANSAC keeps only the first |V_new| of a scan.
+    const auto children = moves_about_robot(*reported_, match.laser_pose, config_.track_step_m,
+                                            config_.track_step_deg * M_PI / 180.0);
     hypotheses_.insert(hypotheses_.begin(), children.begin(), children.end());
   }
   sample_data_points(scan, surface);
@@ -186,10 +192,12 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
       best = *incumbent;
     } else if (cc.duel_points > 0 && !same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) {
       ++stats_.duels;
-      std::vector<Hypothesis> incumbents{*reported_};
+      std::array<Hypothesis, 2> held{*reported_, {}};
+      std::size_t held_count = 1;
       if (anchor_ && same_place(*anchor_, *reported_, local_pose, cc.same_place_m, same_angle)) {
-        incumbents.push_back(*anchor_);
+        held[held_count++] = *anchor_;
       }
+      const std::span<const Hypothesis> incumbents(held.data(), held_count);
       const Duel d = duel(best->hypothesis, incumbents);
       const double lead = d.challenger_mean - d.incumbent_mean;
       if (lead > cc.duel_margin && lead > cc.duel_z * d.lead_stderr) {
@@ -246,7 +254,8 @@ void Localizer::sample_points(std::size_t window, std::size_t n) {
   for (std::size_t k = 0; k < n; ++k) sample_.push_back(static_cast<std::uint32_t>(any(rng_)));
 }
 
-void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums) {
+void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums,
+                                double* first_two_sq_diff) {
   const std::size_t m = hypotheses.size();
   batch_submap_.resize(m), batch_tx_.resize(m), batch_ty_.resize(m), batch_cos_.resize(m), batch_sin_.resize(m),
       batch_theta_.resize(m), batch_out_.resize(m);
@@ -262,13 +271,17 @@ void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vec
   const HypothesisBatch batch{batch_submap_.data(), batch_tx_.data(), batch_ty_.data(), batch_cos_.data(),
                               batch_sin_.data(),    batch_theta_.data(), m};
   sums.assign(m, 0.0);
-  first_two_sq_diff_ = 0.0;
+  double sq = 0.0;
   const std::span<const LocalPoint> points = ransac_.features();
   for (std::uint32_t i : sample_) {
     scorer_(points[i], batch, batch_out_.data());
     for (std::size_t j = 0; j < m; ++j) sums[j] += batch_out_[j];
-    if (m >= 2) first_two_sq_diff_ += double(batch_out_[0] - batch_out_[1]) * double(batch_out_[0] - batch_out_[1]);
+    if (first_two_sq_diff != nullptr) {
+      const double d = double(batch_out_[0]) - double(batch_out_[1]);
+      sq += d * d;
+    }
   }
+  if (first_two_sq_diff != nullptr) *first_two_sq_diff = sq;
 }
 
 Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents) {
@@ -283,11 +296,12 @@ Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hy
     chosen = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
   }
   const std::array<Hypothesis, 2> pair{challenger, incumbents[chosen]};
-  score_on_sample(pair, sums_);
+  double sq_diff = 0.0;
+  score_on_sample(pair, sums_, &sq_diff);
   const auto n = static_cast<double>(sample_.size());
   Duel d{sums_[0] / n, sums_[1] / n, 0.0, chosen};
   const double lead = d.challenger_mean - d.incumbent_mean;
-  if (n > 1.0) d.lead_stderr = std::sqrt(std::max(0.0, (first_two_sq_diff_ / n - lead * lead) / (n - 1.0)));
+  if (n > 1.0) d.lead_stderr = std::sqrt(std::max(0.0, (sq_diff / n - lead * lead) / (n - 1.0)));
   return d;
 }
 
@@ -300,15 +314,11 @@ Hypothesis Localizer::refine(Hypothesis h, const std::optional<Hypothesis>& alte
     if (sums_[1] - sums_[0] > config_.refine_min_gain * static_cast<double>(sample_.size())) h = *alternative;
   }
   double m = config_.refine_step_m, a = config_.refine_step_deg * M_PI / 180.0;
-  const Pose2& P = local_pose;
   std::array<Hypothesis, 7> moves;
   for (std::size_t round = 0; round < config_.refine_rounds; ++round) {
     moves[0] = h;
-    std::size_t k = 1;
-    for (const Pose2& d : {Pose2(m, 0, 0), Pose2(-m, 0, 0), Pose2(0, m, 0), Pose2(0, -m, 0), Pose2(0, 0, a),
-                           Pose2(0, 0, -a)}) {
-      moves[k++] = {h.submap, h.T_submap_local * (P * d * P.inverse())};
-    }
+    const auto around = moves_about_robot(h, local_pose, m, a);
+    std::copy(around.begin(), around.end(), moves.begin() + 1);
     score_on_sample(moves, sums_);
     const auto winner = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
     // Where the map knows little (most points score 0) every move looks

@@ -174,9 +174,11 @@ class Localizer {
   /// Draws n indices of iRANSAC's U, uniformly from its newest `window`
   /// (0: all), into sample_.
   void sample_points(std::size_t window, std::size_t n);
-  /// sums[j] = sum over sample_ of hypothesis j's score (and
-  /// first_two_sq_diff_ the sum of the squared differences of the first two).
-  void score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums);
+  /// sums[j] = sum over sample_ of hypothesis j's score; with
+  /// `first_two_sq_diff`, also the sum of the squared per-point differences
+  /// of hypotheses 0 and 1 (at least two then).
+  void score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums,
+                       double* first_two_sq_diff = nullptr);
 
   const GlobalMap& map_;
   LocalizerConfig config_;
@@ -207,7 +209,6 @@ class Localizer {
   std::vector<LocalPoint> data_points_;
   std::vector<std::uint32_t> sample_;
   std::vector<double> sums_;
-  double first_two_sq_diff_ = 0.0;
   std::vector<std::uint32_t> batch_submap_;
   std::vector<float> batch_tx_, batch_ty_, batch_cos_, batch_sin_, batch_theta_, batch_out_;
   std::mt19937_64 rng_;
