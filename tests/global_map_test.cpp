@@ -18,7 +18,7 @@ namespace {
 LaserScan half_blind_scan(double range) {
   LaserScan s;
   s.max_range = 81.0;
-  s.ranges.assign(181, 81.91);
+  s.ranges.assign(181, 81.91f);
   s.angle_min = -std::numbers::pi / 2.0;
   s.angle_increment = std::numbers::pi / 180.0;
   for (std::size_t i = 91; i < s.ranges.size(); ++i) s.ranges[i] = static_cast<float>(range);
@@ -59,6 +59,41 @@ TEST(GlobalMap, NoReturnRangeIsAConfigurableReach) {
   EXPECT_FALSE(seen_free(map, 1.0, 2.0 - 6.0)) << "beyond the configured reach";
   c.free_ray_no_return_range = -1.0;
   EXPECT_THROW(GlobalMap{c}, Error);
+}
+
+}  // namespace
+}  // namespace lshloc
+
+namespace lshloc {
+namespace {
+
+/// 181 beams over 180 degrees from a sensor at the origin facing +x: a
+/// straight wall along y = wall_y to the left returns where the beam meets
+/// it within 12 m, every other beam returns nothing.
+LaserScan wall_to_the_left(double wall_y) {
+  LaserScan s = half_blind_scan(81.91);
+  for (std::size_t i = 0; i < s.ranges.size(); ++i) {
+    const double b = s.bearing(i);
+    const double r = b > 0.0 ? wall_y / std::sin(b) : 1e9;
+    s.ranges[i] = r < 12.0 ? static_cast<float>(r) : 81.91f;
+  }
+  return s;
+}
+
+TEST(GlobalMap, RaysAlongAWallDoNotMarkItFree) {
+  // Seen from far down a corridor, a wall gets sparse returns (1.3 m apart
+  // at 9 m), and the rays that meet it at a shallow angle run inside its
+  // cells before their endpoint: none of the wall's cells may read free.
+  GlobalMap map;
+  map.add_submap("corridor");
+  map.add_scan(0, wall_to_the_left(1.1), Pose2(0.0, 0.0, 0.0));
+  for (double x = 1.0; x <= 10.0; x += 0.05) {
+    const CellFlags f = map.free_space().probe(0, x, 1.1, 0.0);
+    EXPECT_FALSE((f & cell_flags::kFree) != 0 && (f & cell_flags::kOccupied) == 0) << "wall cell at x = " << x;
+  }
+  // The open corridor in front of the wall still reads free.
+  EXPECT_TRUE(seen_free(map, 3.0, 0.3));
+  EXPECT_TRUE(seen_free(map, 1.0, 0.5));
 }
 
 }  // namespace

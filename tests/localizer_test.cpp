@@ -63,3 +63,70 @@ TEST(Localizer, SaysNotLocalizedInABuildingThatIsNotInTheMap) {
 
 }  // namespace
 }  // namespace lshloc
+
+namespace lshloc {
+namespace {
+
+/// The first index of `estimates` from which every estimate of `run` (fed
+/// from index `offset` on) is in `submap` within `tolerance_m` of the truth
+/// (estimates.size() if none).
+std::size_t recovered_at(const std::vector<LocalizationEstimate>& estimates, const TargetRun& run, std::size_t offset,
+                         std::uint32_t submap, double tolerance_m) {
+  std::size_t at = estimates.size();
+  for (std::size_t i = offset + run.scans.size(); i-- > offset;) {
+    const auto& truth = run.truth[i - offset];
+    const LocalizationEstimate& e = estimates[i];
+    if (!truth) continue;
+    if (!e.has_estimate || e.submap != submap || translation_distance(e.pose, *truth) > tolerance_m) break;
+    at = i;
+  }
+  return at;
+}
+
+TEST(Localizer, RecoversWhenCarriedToAnotherBuilding) {
+  // The kidnapped robot: the target localizes in building 1, then is carried
+  // into building 2 while its odometry reports a normal step. Its local map
+  // now joins two buildings; the old half still supports the old place, so
+  // the recovery rests on the recent data-points (duel_recent_margin).
+  sim::SyntheticScenarioConfig c = small_world();
+  const Scenario first = sim::synthetic_scenario(c);  // its map: building 1 without the first run's window
+  c.target_building = 2;
+  TargetRun second = sim::synthetic_scenario(c).target;
+  // Continue the clock and the odometry across the splice.
+  const LaserScan& last = first.target.scans.back();
+  const double dt = last.timestamp - first.target.scans[first.target.scans.size() - 2].timestamp;
+  const double shift_t = last.timestamp + dt - second.scans.front().timestamp;
+  const Pose2 step = first.target.scans[first.target.scans.size() - 2].odometry.inverse() * last.odometry;
+  const Pose2 shift_odometry = last.odometry * step * second.scans.front().odometry.inverse();
+  std::vector<LaserScan> scans = first.target.scans;
+  for (LaserScan s : second.scans) {
+    s.timestamp += shift_t;
+    s.odometry = shift_odometry * s.odometry;
+    s.pose = shift_odometry * s.pose;
+    scans.push_back(std::move(s));
+  }
+
+  GlobalMap map;
+  MapFeeder feeder(map, first.submaps);
+  feeder.feed_until(1.0);
+  const auto run = [&](double recent_margin) {
+    LocalizerConfig config;
+    config.confidence.duel_recent_margin = recent_margin;
+    config.scan_matcher.laser_offset = first.target.laser_offset;
+    Localizer localizer(map, config);
+    std::vector<LocalizationEstimate> out;
+    for (const LaserScan& s : scans) out.push_back(localizer.add_scan(s));
+    return out;
+  };
+  const std::size_t n1 = first.target.scans.size();
+  const auto with = run(0.15);
+  ASSERT_LT(recovered_at(with, first.target, 0, 1, 0.5), n1) << "localizes in building 1 first";
+  const std::size_t back = recovered_at(with, second, n1, 2, 0.5);
+  EXPECT_LT(back, scans.size()) << "found building 2 after the kidnapping";
+  const auto without = run(0.0);
+  // Measured: back at scan 453 of 600 with it, never without it.
+  EXPECT_LT(back, recovered_at(without, second, n1, 2, 0.5)) << "the recent-window duel recovers sooner";
+}
+
+}  // namespace
+}  // namespace lshloc

@@ -52,14 +52,24 @@ struct TruthRank {
   double mean = 0.0;
   std::uint32_t scored = 0;
   std::size_t active = 0;
+  Pose2 local;                ///< the scan's laser pose in the local frame
+  double truth_all = 0.0;     ///< mean score of the true pose over the whole local map
+  double truth_recent = 0.0;  ///< ... over iRANSAC's recent window
+  double reported_all = 0.0;  ///< mean score of the reported pose over the whole local map
 };
 
-TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t submap) {
+TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t submap,
+                        const LocalizationEstimate* reported) {
   TruthRank r;
   const double z = loc.config().ransac.preference_z;
   const auto active = loc.ransac().active();
   r.active = active.size();
   const Pose2 local = loc.last_local_pose();
+  r.local = local;
+  const Hypothesis true_hypothesis{static_cast<std::uint32_t>(submap), truth * local.inverse()};
+  r.truth_all = loc.mean_score_of(true_hypothesis);
+  r.truth_recent = loc.mean_score_of(true_hypothesis, loc.config().ransac.recent_window);
+  if (reported) r.reported_all = loc.mean_score_of({reported->submap, reported->T_submap_local});
   double best = -1e30;
   for (const auto& h : active) {
     if (h.hypothesis.submap != submap) continue;
@@ -98,8 +108,10 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   std::vector<TruthRank> ranks(sc.target.scans.size());
   LocalizerObserver observer;
   if (!opt.trace.empty()) {
-    observer = [&](std::size_t i, const Localizer& loc) {
-      if (sc.target.truth[i]) ranks[i] = rank_of_truth(loc, *sc.target.truth[i], sc.target_submap);
+    observer = [&](std::size_t i, const Localizer& loc, const LocalizationEstimate& e) {
+      if (sc.target.truth[i]) {
+        ranks[i] = rank_of_truth(loc, *sc.target.truth[i], sc.target_submap, e.has_estimate ? &e : nullptr);
+      }
     };
   }
   const ScenarioRun run = run_scenario(
@@ -127,11 +139,13 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     write_scenario_trace(path, sc, run, m);
     std::FILE* f = std::fopen((path + ".truth.csv").c_str(), "w");
     if (f == nullptr) throw Error(path + ".truth.csv: cannot write");
-    std::fprintf(f, "scan,near_truth,best_rank,best_mean,best_scored,active\n");
+    std::fprintf(f, "scan,near_truth,best_rank,best_mean,best_scored,active,local_x,local_y,local_theta,"
+                    "truth_all_mean,truth_recent_mean,reported_all_mean\n");
     for (std::size_t i = 0; i < ranks.size(); ++i) {
       if (sc.target.truth[i]) {
-        std::fprintf(f, "%zu,%zu,%zu,%.4f,%u,%zu\n", i, ranks[i].near, ranks[i].rank, ranks[i].mean, ranks[i].scored,
-                     ranks[i].active);
+        const TruthRank& r = ranks[i];
+        std::fprintf(f, "%zu,%zu,%zu,%.4f,%u,%zu,%.4f,%.4f,%.5f,%.4f,%.4f,%.4f\n", i, r.near, r.rank, r.mean, r.scored,
+                     r.active, r.local.x, r.local.y, r.local.theta, r.truth_all, r.truth_recent, r.reported_all);
       }
     }
     std::fclose(f);

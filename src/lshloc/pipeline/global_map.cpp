@@ -56,8 +56,7 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
 
   CpuStopwatch watch;
   const ScanSurface surface = extractor_.surface(scan, laser_pose);
-  const std::vector<Feature> features =
-      extractor_.extract(surface, state.context);
+  const std::vector<Feature> features = extractor_.extract(surface, state.context);
   stats_.extract_s += watch.seconds();
 
   watch = CpuStopwatch();
@@ -95,23 +94,51 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   // grid so that walls never read as free.
   const double step = config_.free_space.cell_size;
   const double c = std::cos(laser_pose.theta), s = std::sin(laser_pose.theta);
+  const auto beam_endpoint = [&](std::size_t i) {  // in the laser frame
+    const double a = scan.bearing(i);
+    return Point2(scan.ranges[i] * std::cos(a), scan.ranges[i] * std::sin(a));
+  };
+  const auto valid = [&](std::size_t i) { return i < scan.size() && scan.status(i) == BeamStatus::kValid; };
   for (std::size_t i = 0; i < scan.size(); i += config_.free_ray_stride) {
     const BeamStatus status = scan.status(i);
     if (status == BeamStatus::kInvalid) continue;
     const double r = scan.ranges[i];
-    const double reach = std::min(status == BeamStatus::kValid ? r - config_.free_ray_margin
-                                                               : config_.free_ray_no_return_range,
-                                  config_.free_ray_max_range);
+    double reach = config_.free_ray_no_return_range;
+    if (status == BeamStatus::kValid) {
+      // A ray that meets its wall at a shallow angle runs beside it, within
+      // a cell, for cell / sin(angle) before the endpoint: walls seen only
+      // from far down a corridor would read as free between the sparse
+      // endpoints. The angle comes from the neighbouring beams' endpoints
+      // (the shallower side, as the wall may end at either).
+      const Point2 p = beam_endpoint(i);
+      const Point2 ray = p / r;
+      double sin_incidence = 1.0;
+      for (const std::size_t j : {i - 1, i + 1}) {
+        if (!valid(j)) continue;  // also i - 1 wrapped below 0
+        const Point2 along = beam_endpoint(j) - p;
+        const double length = along.norm();
+        if (length > 0.0) {
+          sin_incidence = std::min(sin_incidence, std::abs(ray.x() * along.y() - ray.y() * along.x()) / length);
+        }
+      }
+      const double margin = std::max(config_.free_ray_margin, step / std::max(sin_incidence, 1e-3));
+      reach = r - margin;
+    }
+    reach = std::min(reach, config_.free_ray_max_range);
     const double a = scan.bearing(i);
     const double dx = c * std::cos(a) - s * std::sin(a), dy = s * std::cos(a) + c * std::sin(a);
     for (double d = 0.0; d < reach; d += step) {
       free_space_.mark(submap, sensor.x() + d * dx, sensor.y() + d * dy, 0.0, cell_flags::kFree);
     }
   }
-  for (const SurfacePoint& p : surface.points) {
+  // Every return (not only the smooth segments' points: sparse returns from
+  // far walls are no segments) marks its cell and neighbours occupied.
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range) continue;
+    const Point2 p = laser_pose.transform(beam_endpoint(i));
     for (int ix = -1; ix <= 1; ++ix) {
       for (int iy = -1; iy <= 1; ++iy) {
-        free_space_.mark(submap, p.position.x() + ix * step, p.position.y() + iy * step, 0.0, cell_flags::kOccupied);
+        free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0, cell_flags::kOccupied);
       }
     }
   }

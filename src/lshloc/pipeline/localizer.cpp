@@ -59,13 +59,16 @@ Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
       extractor_(config_.features),
       ransac_(config_.ransac),
       query_(map.database()),
-      scorer_(map.occupancy(), map.free_space(),
-              PoseGridScorerConfig{.hit = 1.0f,
-                                   .free = -static_cast<float>(config_.free_space_penalty),
-                                   .unknown = 0.0f,
-                                   .ray_through_wall = -static_cast<float>(config_.free_space_penalty),
-                                   .ray_through_free = static_cast<float>(config_.free_space_agreement)}),
+      scorer_(map.occupancy(), map.free_space(), scorer_config()),
       rng_(config_.seed) {}
+
+PoseGridScorerConfig Localizer::scorer_config() const {
+  return {.hit = 1.0f,
+          .free = -static_cast<float>(config_.free_space_penalty),
+          .unknown = 0.0f,
+          .ray_through_wall = -static_cast<float>(config_.free_space_penalty),
+          .ray_through_free = static_cast<float>(config_.free_space_agreement)};
+}
 
 void Localizer::generate_hypotheses(const std::vector<Feature>& features) {
   candidates_.clear();
@@ -198,9 +201,22 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
         held[held_count++] = *anchor_;
       }
       const std::span<const Hypothesis> incumbents(held.data(), held_count);
-      const Duel d = duel(best->hypothesis, incumbents);
-      const double lead = d.challenger_mean - d.incumbent_mean;
-      if (lead > cc.duel_margin && lead > cc.duel_z * d.lead_stderr) {
+      const auto wins = [&](const Duel& duel_result, double margin) {
+        const double lead = duel_result.challenger_mean - duel_result.incumbent_mean;
+        return lead > margin && lead > cc.duel_z * duel_result.lead_stderr;
+      };
+      const Duel d = duel(best->hypothesis, incumbents, 0);
+      bool won = wins(d, cc.duel_margin);
+      if (!won && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
+        // iRANSAC dropped every hypothesis at the reported place: only the
+        // duel holds it there, on old scans that the local map's drift may
+        // have bent. Where the recent data-points contradict the reported
+        // place (a target in space the map has not seen scores about 0
+        // there, not below), a clear lead on them suffices.
+        const Duel recent = duel(best->hypothesis, incumbents, config_.ransac.recent_window);
+        won = recent.incumbent_mean < cc.duel_recent_contradiction && wins(recent, cc.duel_recent_margin);
+      }
+      if (won) {
         ++stats_.duels_won;
         anchor_ = best->hypothesis;
       } else if (incumbent != nullptr) {
@@ -284,8 +300,9 @@ void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vec
   if (first_two_sq_diff != nullptr) *first_two_sq_diff = sq;
 }
 
-Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents) {
-  sample_points(0, config_.confidence.duel_points);
+Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents,
+                                std::size_t window) {
+  sample_points(window, config_.confidence.duel_points);
   if (sample_.empty() || incumbents.empty()) return {};
   // The incumbent place is represented by whichever of its hypotheses fits
   // the whole local map best: the tracked report follows the recent drift,
@@ -333,6 +350,25 @@ Hypothesis Localizer::refine(Hypothesis h, const std::optional<Hypothesis>& alte
     }
   }
   return h;
+}
+
+double Localizer::mean_score_of(const Hypothesis& h, std::size_t window) const {
+  const std::span<const LocalPoint> points = ransac_.features();
+  const std::size_t first = window > 0 && window < points.size() ? points.size() - window : 0;
+  if (first >= points.size()) return 0.0;
+  PoseGridScorer scorer(map_.occupancy(), map_.free_space(), scorer_config());
+  const auto submap = h.submap;
+  const auto tx = static_cast<float>(h.T_submap_local.x), ty = static_cast<float>(h.T_submap_local.y);
+  const auto c = static_cast<float>(std::cos(h.T_submap_local.theta)), s = static_cast<float>(std::sin(h.T_submap_local.theta));
+  const auto theta = static_cast<float>(h.T_submap_local.theta);
+  const HypothesisBatch batch{&submap, &tx, &ty, &c, &s, &theta, 1};
+  double sum = 0.0;
+  float out = 0.0f;
+  for (std::size_t i = first; i < points.size(); ++i) {
+    scorer(points[i], batch, &out);
+    sum += out;
+  }
+  return sum / static_cast<double>(points.size() - first);
 }
 
 LocalizerStats Localizer::stats() const {

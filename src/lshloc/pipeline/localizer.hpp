@@ -39,6 +39,17 @@ struct ConfidenceConfig {
   std::size_t duel_points = 1000;
   double duel_margin = 0.03;
   double duel_z = 3.0;
+  /// When iRANSAC holds no hypothesis at the reported place any more (only
+  /// the duel keeps it) and the newest ransac.recent_window data-points
+  /// contradict it (its mean score there is below duel_recent_contradiction),
+  /// the challenger also wins by leading on them by duel_recent_margin (and
+  /// duel_z standard errors). Over a long history the local map bends, and
+  /// a true place whose older scans the drift has moved loses the whole-map
+  /// duel to a stale report; a kidnapped robot, too. 0: off.
+  double duel_recent_margin = 0.15;
+  /// Mean score below which recent data-points contradict a place: where the
+  /// map knows nothing the mean is about 0, and no support is no evidence.
+  double duel_recent_contradiction = -0.05;
   double same_place_m = 1.0;    ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
 };
@@ -153,8 +164,13 @@ class Localizer {
   const IncrementalRansac& ransac() const { return ransac_; }
   /// The last scan's laser pose in the local frame.
   const Pose2& last_local_pose() const { return last_local_pose_; }
+  /// Mean score of `h` over every data-point of iRANSAC's U, or over its
+  /// newest `window` (0: all), exactly (no sampling): for diagnostics, e.g.
+  /// how the true pose fits the local map. Costs |U| scores.
+  double mean_score_of(const Hypothesis& h, std::size_t window = 0) const;
 
  private:
+  PoseGridScorerConfig scorer_config() const;
   void generate_hypotheses(const std::vector<Feature>& features);
   void sample_data_points(const LaserScan& scan, const ScanSurface& surface);
   LocalizationEstimate estimate(const Pose2& local_pose);
@@ -166,8 +182,8 @@ class Localizer {
   };
   /// Mean scores of `challenger` and the best of `incumbents` (hypotheses of
   /// one place) over the same duel_points data-points drawn uniformly from
-  /// iRANSAC's U.
-  Duel duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents);
+  /// iRANSAC's U, or from its newest `window` (0: all).
+  Duel duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents, std::size_t window);
   /// `h` (or `alternative`, if it fits the sample better) refined by the
   /// pattern search of refine_points about the robot's `local_pose`.
   Hypothesis refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose);

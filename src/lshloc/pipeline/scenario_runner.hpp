@@ -39,9 +39,10 @@ struct ScenarioRun {
 
 /// Progress callback: (target scans done, total); may be empty.
 using Progress = std::function<void(std::size_t, std::size_t)>;
-/// Called after each target scan with its index and the localizer (for
-/// diagnostics that look inside it); may be empty.
-using LocalizerObserver = std::function<void(std::size_t, const Localizer&)>;
+/// Called after each target scan with its index, the localizer and its
+/// estimate (for diagnostics that look inside it; its CPU time is not
+/// counted as the localizer's); may be empty.
+using LocalizerObserver = std::function<void(std::size_t, const Localizer&, const LocalizationEstimate&)>;
 
 /// Feeds submaps' scans (with their map poses) to a global map as mapper
 /// robots working in parallel would: one scan of each submap in turn.
