@@ -80,7 +80,7 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
       ->capture_default_str()
       ->group(group);
   cmd.add_option("--duel-recent-margin", l.confidence.duel_recent_margin,
-                 "lead on the recent data-points that also wins a duel once iRANSAC dropped the reported place and they contradict it (0: off)")
+                 "lead on the recent data-points that also wins a duel once iRANSAC dropped the reported place (0: off)")
       ->capture_default_str()
       ->group(group);
   cmd.add_option("--duel-z", l.confidence.duel_z, "... and that many standard errors of the paired difference")

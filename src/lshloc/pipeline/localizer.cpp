@@ -210,11 +210,8 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
       if (!won && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
         // iRANSAC dropped every hypothesis at the reported place: only the
         // duel holds it there, on old scans that the local map's drift may
-        // have bent. Where the recent data-points contradict the reported
-        // place (a target in space the map has not seen scores about 0
-        // there, not below), a clear lead on them suffices.
-        const Duel recent = duel(best->hypothesis, incumbents, config_.ransac.recent_window);
-        won = recent.incumbent_mean < cc.duel_recent_contradiction && wins(recent, cc.duel_recent_margin);
+        // have bent. A clear lead on the recent data-points then suffices.
+        won = wins(duel(best->hypothesis, incumbents, config_.ransac.recent_window), cc.duel_recent_margin);
       }
       if (won) {
         ++stats_.duels_won;

@@ -40,16 +40,12 @@ struct ConfidenceConfig {
   double duel_margin = 0.03;
   double duel_z = 3.0;
   /// When iRANSAC holds no hypothesis at the reported place any more (only
-  /// the duel keeps it) and the newest ransac.recent_window data-points
-  /// contradict it (its mean score there is below duel_recent_contradiction),
-  /// the challenger also wins by leading on them by duel_recent_margin (and
-  /// duel_z standard errors). Over a long history the local map bends, and
-  /// a true place whose older scans the drift has moved loses the whole-map
-  /// duel to a stale report; a kidnapped robot, too. 0: off.
+  /// the duel keeps it), the challenger also wins by leading on the newest
+  /// ransac.recent_window data-points by this much (and duel_z standard
+  /// errors). Over a long history the local map bends, and a true place
+  /// whose older scans the drift has moved loses the whole-map duel to a
+  /// stale report; a kidnapped robot, too. 0: off.
   double duel_recent_margin = 0.15;
-  /// Mean score below which recent data-points contradict a place: where the
-  /// map knows nothing the mean is about 0, and no support is no evidence.
-  double duel_recent_contradiction = -0.05;
   double same_place_m = 1.0;    ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
 };
