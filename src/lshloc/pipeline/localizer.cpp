@@ -93,8 +93,17 @@ void Localizer::generate_hypotheses(const std::vector<Feature>& features) {
     }
   }
   // Most colliding tables first; keeps each feature's own ranking on ties.
-  std::stable_sort(candidates_.begin(), candidates_.end(),
-                   [](const Candidate& a, const Candidate& b) { return a.count > b.count; });
+  // A counting sort: counts are at most the number of tables, and a
+  // comparison sort of up to k candidates per feature cost as much as the
+  // queries themselves (and grew as the buckets filled).
+  std::uint16_t max_count = 0;
+  for (const Candidate& c : candidates_) max_count = std::max(max_count, c.count);
+  count_start_.assign(static_cast<std::size_t>(max_count) + 2, 0);
+  for (const Candidate& c : candidates_) ++count_start_[max_count - c.count + 1];
+  for (std::size_t k = 1; k < count_start_.size(); ++k) count_start_[k] += count_start_[k - 1];
+  sorted_candidates_.resize(candidates_.size());
+  for (const Candidate& c : candidates_) sorted_candidates_[count_start_[max_count - c.count]++] = c;
+  candidates_.swap(sorted_candidates_);
   const std::size_t budget = std::min(candidates_.size(), config_.ransac.new_hypotheses_per_scan);
   for (std::size_t i = 0; i < budget; ++i) {
     const MapLocation& loc = store[candidates_[i].id];

@@ -216,7 +216,8 @@ class Localizer {
     std::uint32_t feature;
     std::uint32_t id;
   };
-  std::vector<Candidate> candidates_;
+  std::vector<Candidate> candidates_, sorted_candidates_;
+  std::vector<std::uint32_t> count_start_;
   std::vector<Hypothesis> hypotheses_;
   std::vector<LocalPoint> data_points_;
   std::vector<std::uint32_t> sample_;
