@@ -24,7 +24,7 @@ struct GlobalMapConfig {
   PoseGridConfig free_space{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0};
   double endpoint_spacing = 0.1;     ///< [m] endpoints closer than this along a scan are marked once
   std::size_t free_ray_stride = 3;   ///< every this many beams marks its ray as free space
-  double free_ray_margin = 0.3;      ///< [m] the last part of a ray before its endpoint is not marked free
+  double free_ray_margin = 0.3;      ///< [m] at least this last part of a ray is not marked free (more at shallow angles)
   double free_ray_max_range = 12.0;  ///< [m] rays are marked free up to this range
   /// [m] how far a beam without a return is marked free. 0: not at all, as
   /// glass and dark surfaces return nothing too, and a free run through them
