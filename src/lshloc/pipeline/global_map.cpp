@@ -94,10 +94,12 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   // grid so that walls never read as free.
   const double step = config_.free_space.cell_size;
   const double c = std::cos(laser_pose.theta), s = std::sin(laser_pose.theta);
-  const auto beam_endpoint = [&](std::size_t i) {  // in the laser frame
+  // Every beam's endpoint in the laser frame, computed once for both passes.
+  beam_endpoints_.resize(scan.size());
+  for (std::size_t i = 0; i < scan.size(); ++i) {
     const double a = scan.bearing(i);
-    return Point2(scan.ranges[i] * std::cos(a), scan.ranges[i] * std::sin(a));
-  };
+    beam_endpoints_[i] = Point2(scan.ranges[i] * std::cos(a), scan.ranges[i] * std::sin(a));
+  }
   const auto valid = [&](std::size_t i) { return i < scan.size() && scan.status(i) == BeamStatus::kValid; };
   for (std::size_t i = 0; i < scan.size(); i += config_.free_ray_stride) {
     const BeamStatus status = scan.status(i);
@@ -110,12 +112,12 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
       // from far down a corridor would read as free between the sparse
       // endpoints. The angle comes from the neighbouring beams' endpoints
       // (the shallower side, as the wall may end at either).
-      const Point2 p = beam_endpoint(i);
+      const Point2& p = beam_endpoints_[i];
       const Point2 ray = p / r;
       double sin_incidence = 1.0;
       for (const std::size_t j : {i - 1, i + 1}) {
         if (!valid(j)) continue;  // also i - 1 wrapped below 0
-        const Point2 along = beam_endpoint(j) - p;
+        const Point2 along = beam_endpoints_[j] - p;
         const double length = along.norm();
         if (length > 0.0) {
           sin_incidence = std::min(sin_incidence, std::abs(ray.x() * along.y() - ray.y() * along.x()) / length);
@@ -135,7 +137,7 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   // far walls are no segments) marks its cell and neighbours occupied.
   for (std::size_t i = 0; i < scan.size(); ++i) {
     if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range) continue;
-    const Point2 p = laser_pose.transform(beam_endpoint(i));
+    const Point2 p = laser_pose.transform(beam_endpoints_[i]);
     for (int ix = -1; ix <= 1; ++ix) {
       for (int iy = -1; iy <= 1; ++iy) {
         free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0, cell_flags::kOccupied);

@@ -103,6 +103,7 @@ class GlobalMap {
   PoseGridHashMap free_space_;
   std::vector<SubmapState> submaps_;
   GlobalMapStats stats_;
+  std::vector<Point2> beam_endpoints_;  // scratch of mark_grids
 };
 
 /// The direction [rad] of the normal of a surface with direction `tangent`

@@ -49,20 +49,18 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
   run.cpu_s.reserve(scans.size());
   const double cpu0 = process_cpu_seconds();
   double excluded_cpu = 0.0;
+  // Mapper scans and diagnostics run between target scans: not the localizer's cost.
+  const auto excluded = [&](const auto& work) {
+    const double c0 = process_cpu_seconds();
+    work();
+    excluded_cpu += process_cpu_seconds() - c0;
+  };
   const auto t0 = Clock::now();
   for (std::size_t i = 0; i < scans.size(); ++i) {
-    if (before_scan) {
-      const double c0 = process_cpu_seconds();
-      before_scan(i);
-      excluded_cpu += process_cpu_seconds() - c0;
-    }
+    if (before_scan) excluded([&] { before_scan(i); });
     run.estimates.push_back(localizer.add_scan(scans[i]));
     run.cpu_s.push_back(process_cpu_seconds() - cpu0 - excluded_cpu);
-    if (observer) {  // diagnostics: not the localizer's cost
-      const double c0 = process_cpu_seconds();
-      observer(i, localizer, run.estimates.back());
-      excluded_cpu += process_cpu_seconds() - c0;
-    }
+    if (observer) excluded([&] { observer(i, localizer, run.estimates.back()); });
     if (progress) progress(i + 1, scans.size());
   }
   run.localize_s = seconds_since(t0);
