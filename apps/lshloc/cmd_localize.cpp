@@ -10,6 +10,7 @@
 
 #include "commands.hpp"
 #include "localizer_options.hpp"
+#include "scenario_report.hpp"
 #include "lshloc/core/error.hpp"
 #include "lshloc/core/time_join.hpp"
 #include "lshloc/io/carmen_reader.hpp"
@@ -136,8 +137,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     j["final_submap"] = last.has_estimate ? nlohmann::json(sc.submaps[last.submap].name) : nlohmann::json();
     j["final_pose"] = last.has_estimate ? nlohmann::json({last.pose.x, last.pose.y, last.pose.theta}) : nlohmann::json();
     j["final_mean_score"] = last.mean_score;
-    j["ms_per_scan"] = 1e3 * run.localize_cpu_s / static_cast<double>(run.estimates.size());
-    j["realtime_factor"] = run.localize_cpu_s > 0 ? run.log_duration_s / run.localize_cpu_s : 0.0;
+    add_localizer_cost(j, run);
     if (opt->json) {
       std::printf("%s\n", j.dump().c_str());
     } else {

@@ -3,9 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <unordered_set>
 
 #include "lshloc/core/error.hpp"
+#include "lshloc/core/voxel_thinning.hpp"
 #include "lshloc/io/figures.hpp"
 
 namespace lshloc::app {
@@ -38,9 +38,7 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
       break;
     }
   }
-  const double scans = static_cast<double>(std::max<std::size_t>(run.estimates.size(), 1));
-  j["ms_per_scan"] = 1e3 * run.localize_cpu_s / scans;
-  j["realtime_factor"] = run.localize_cpu_s > 0 ? run.log_duration_s / run.localize_cpu_s : 0.0;
+  add_localizer_cost(j, run);
   j["us_update_per_feature"] = run.map.us_update_per_feature();
   j["us_query_per_feature"] = run.localizer.us_query_per_feature();
   j["ns_per_score"] = run.localizer.ns_per_score();
@@ -51,6 +49,20 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["map_build_s"] = run.map_build_s;
   j["bytes_per_feature"] = run.map.bytes_per_feature();
   return j;
+}
+
+void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run) {
+  const double scans = static_cast<double>(std::max<std::size_t>(run.estimates.size(), 1));
+  const LocalizerStats& s = run.localizer;
+  const double staged = s.scan_matching_s + s.extract_s + s.query_s + s.ransac_s;
+  j["ms_per_scan"] = 1e3 * run.localize_cpu_s / scans;
+  j["realtime_factor"] = run.localize_cpu_s > 0 ? run.log_duration_s / run.localize_cpu_s : 0.0;
+  // "other": confidence duels, tracking refinement, data-point sampling, bookkeeping.
+  j["ms_per_scan_by_stage"] = {{"scan_matching", 1e3 * s.scan_matching_s / scans},
+                               {"features", 1e3 * s.extract_s / scans},
+                               {"retrieval", 1e3 * s.query_s / scans},
+                               {"ransac", 1e3 * s.ransac_s / scans},
+                               {"other", 1e3 * std::max(0.0, run.localize_cpu_s - staged) / scans}};
 }
 
 std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const ScenarioRun& run,
@@ -76,15 +88,10 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
               "): true (green) and estimated (blue) trajectory";
   const Submap& own = sc.submaps[sc.target_submap];
   // One point per 5 cm cell: the figure shows the walls, and its SVG stays small.
-  std::unordered_set<std::uint64_t> cells;
   for (const LaserScan& scan : own.scans) {
-    for (const Point2& p : scan.endpoints(0.05, 20.0)) {
-      const Point2 g = scan.pose.transform(p);
-      const auto cx = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(g.x() / 0.05)));
-      const auto cy = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(g.y() / 0.05)));
-      if (cells.insert((std::uint64_t{cx} << 32) | cy).second) fig.map_points.push_back(g);
-    }
+    for (const Point2& p : scan.endpoints(0.05, 20.0)) fig.map_points.push_back(scan.pose.transform(p));
   }
+  thin_to_voxels(fig.map_points, 0.05);
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     if (sc.target.truth[i]) fig.true_trajectory.push_back(sc.target.truth[i]->translation());
     const auto& e = run.estimates[i];

@@ -13,6 +13,11 @@ namespace lshloc::app {
 /// The metrics of DESIGN.md section 5 and the run's costs, as `lshloc eval` prints them.
 nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m);
 
+/// The localizer's cost over the run: ms_per_scan, realtime_factor and
+/// ms_per_scan_by_stage (scan_matching, features, retrieval, ransac, other).
+/// Keys are added to `j`.
+void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run);
+
 /// Writes STEM-error.{png,svg} (error per viewpoint, the paper's Fig. 8) and
 /// STEM-map.{png,svg} (trajectories over the target's submap, Figs. 5-6) into
 /// `dir`; returns STEM.

@@ -3,29 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <unordered_set>
 
 #include "lshloc/core/error.hpp"
+#include "lshloc/core/voxel_thinning.hpp"
 
 namespace lshloc {
 
 namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
-
-/// One point per voxel cell (the first seen), in scan order.
-std::vector<Point2> thin(const std::vector<Point2>& points, double voxel) {
-  std::vector<Point2> out;
-  std::unordered_set<std::uint64_t> seen;
-  for (const Point2& p : points) {
-    const auto ix = static_cast<std::int32_t>(std::floor(p.x() / voxel));
-    const auto iy = static_cast<std::int32_t>(std::floor(p.y() / voxel));
-    const std::uint64_t key = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(ix)) << 32) |
-                              static_cast<std::uint32_t>(iy);
-    if (seen.insert(key).second) out.push_back(p);
-  }
-  return out;
-}
 
 }  // namespace
 
@@ -73,7 +59,8 @@ ScanMatchResult PoseGraphSlam::add_scan(const LaserScan& scan) {
     node.local = r.laser_pose;
     node.path = path_;
     node.scan = stats_.scans - 1;
-    node.points = thin(scan.endpoints(config_.matcher.min_range, config_.matcher.max_range), config_.node_voxel);
+    node.points = scan.endpoints(config_.matcher.min_range, config_.matcher.max_range);
+    thin_to_voxels(node.points, config_.node_voxel);
     if (nodes_.empty()) {
       graph_.add_node(r.laser_pose);
     } else {

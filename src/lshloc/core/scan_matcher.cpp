@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lshloc/core/error.hpp"
+#include "lshloc/core/voxel_thinning.hpp"
 
 namespace lshloc {
 
@@ -179,23 +180,7 @@ void ScanMatcher::rebuild_map() {
     stats_.map_points = 0;
     return;
   }
-  if (config_.map_voxel > 0.0) {
-    const double inv = 1.0 / config_.map_voxel;
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(all.size());
-    for (std::size_t i = 0; i < all.size(); ++i) {
-      const auto ix = static_cast<std::int32_t>(std::floor(all[i].position.x() * inv));
-      const auto iy = static_cast<std::int32_t>(std::floor(all[i].position.y() * inv));
-      keys[i] = {(static_cast<std::uint64_t>(static_cast<std::uint32_t>(ix)) << 32) | static_cast<std::uint32_t>(iy),
-                 static_cast<std::uint32_t>(i)};
-    }
-    std::sort(keys.begin(), keys.end());  // ties by index: the preferred keyframe first
-    std::vector<MapPoint> unique;
-    unique.reserve(all.size());
-    for (std::size_t i = 0; i < keys.size(); ++i) {
-      if (i == 0 || keys[i].first != keys[i - 1].first) unique.push_back(all[keys[i].second]);
-    }
-    all.swap(unique);
-  }
+  thin_to_voxels(all, config_.map_voxel, [](const MapPoint& m) -> const Point2& { return m.position; });
   // Dense grid over the map's bounding box (bounded by the window and range).
   double x0 = all[0].position.x(), y0 = all[0].position.y(), x1 = x0, y1 = y0;
   for (const auto& m : all) {
