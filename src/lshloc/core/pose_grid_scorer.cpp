@@ -11,6 +11,11 @@
 namespace lshloc {
 
 namespace {
+/// Lookups are prefetched this many hypotheses ahead, far enough to cover a
+/// DRAM miss: on fr079 with 15 buildings (BENCHMARKS.md) 12 gave 22 ns per
+/// score, 24 gave 19.6, 40 and 64 gave 18.
+constexpr std::size_t kAhead = 40;
+
 /// floor() to int for |v| < 2^31, branch-free and inlined (std::floor on
 /// float is a library call without SSE4.1). Values beyond +-1e6 cells are
 /// clamped first; pack_xy() rejects them as outside the grid anyway.
@@ -77,7 +82,6 @@ void PoseGridScorer::lookup_free_space(const LocalPoint& x, const HypothesisBatc
     home_[m] = static_cast<std::uint32_t>(table.home(xy_[m], 0));
     selected_[m++] = static_cast<std::uint32_t>(j);
   }
-  constexpr std::size_t kAhead = 12;
   for (std::size_t k = 0; k < std::min(kAhead, m); ++k) table.prefetch(home_[k]);
   for (std::size_t k = 0; k < m; ++k) {
     if (k + kAhead < m) table.prefetch(home_[k + kAhead]);
@@ -166,7 +170,6 @@ void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v
   const int xy_tol = probe ? grid_.config().xy_tolerance : 0;
   const bool theta_window = probe && grid_.config().theta_tolerance > 0 && grid_.theta_bins() > 1;
   const float lut[4] = {value_[0], value_[1], value_[2], value_[3]};  // local: no aliasing with scores
-  constexpr std::size_t kAhead = 12;
   const std::int32_t* __restrict ix = ix_.data();
   const std::int32_t* __restrict iy = iy_.data();
   const std::int32_t* __restrict it = it_.data();
