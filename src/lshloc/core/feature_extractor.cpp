@@ -32,7 +32,7 @@ ScanSurface transformed(const ScanSurface& surface, const Pose2& T_new_old) {
   out.sensor_pose = T_new_old * surface.sensor_pose;
   for (SurfacePoint& p : out.points) {
     p.position = T_new_old.transform(p.position);
-    p.tangent = T_new_old.transform_angle(p.tangent);
+    p.set_tangent(T_new_old.transform_angle(p.tangent));
   }
   return out;
 }
@@ -112,7 +112,7 @@ ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const 
       const double after = j + 1 < n ? arc[j + 1] - arc[j] : 0.0;
       SurfacePoint sp;
       sp.position = kept[b + j];
-      sp.tangent = std::atan2(d.y(), d.x());
+      sp.set_tangent(std::atan2(d.y(), d.x()));
       sp.weight = 0.5 * (before + after);
       out.points.push_back(sp);
       out.range.push_back(kept_range[b + j]);
@@ -158,7 +158,7 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
       const double fa = vc - vf;
       const int a0 = ((static_cast<int>(vf) % kSectors) + kSectors) % kSectors, a1 = (a0 + 1) % kSectors;
       // Tangent relative to the keypoint normal, doubled: cos/sin(2(t - theta)).
-      const double ct = std::cos(2.0 * sp.tangent), st = std::sin(2.0 * sp.tangent);
+      const double ct = sp.cos2t, st = sp.sin2t;
       const double weight = sp.weight * taper;
       const double comp_c = (ct * c2 + st * s2) * weight, comp_s = (st * c2 - ct * s2) * weight;
       const std::array<std::pair<int, double>, 4> bins{{{r0 * kSectors + a0, (1 - fr) * (1 - fa)},

@@ -1,4 +1,5 @@
 #pragma once
+#include <cmath>
 #include <cstddef>
 #include <span>
 #include <vector>
@@ -65,6 +66,13 @@ struct SurfacePoint {
   Point2 position;       ///< [m] in the map frame
   double tangent = 0.0;  ///< [rad] direction of the surface (sign-free: only 2*tangent matters)
   double weight = 0.0;   ///< [m] arc length of surface this point stands for (density-free histograms)
+  /// cos and sin of 2 * tangent, which describe() needs for every keypoint
+  /// near the point: computed once here (set_tangent keeps them in step).
+  double cos2t = 1.0, sin2t = 0.0;
+  void set_tangent(double t) {
+    tangent = t;
+    cos2t = std::cos(2.0 * t), sin2t = std::sin(2.0 * t);
+  }
 };
 
 /// One scan's endpoints in a map frame, split into smooth segments and
