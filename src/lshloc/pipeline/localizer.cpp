@@ -105,7 +105,12 @@ void Localizer::generate_hypotheses(const std::vector<Feature>& features) {
   for (const Candidate& c : candidates_) sorted_candidates_[count_start_[max_count - c.count]++] = c;
   candidates_.swap(sorted_candidates_);
   const std::size_t budget = std::min(candidates_.size(), config_.ransac.new_hypotheses_per_scan);
+  // The candidates' locations lie anywhere in a store of millions: prefetch
+  // ahead so that their cache misses overlap.
+  constexpr std::size_t kAhead = 16;
+  for (std::size_t i = 0; i < std::min(kAhead, budget); ++i) __builtin_prefetch(&store[candidates_[i].id]);
   for (std::size_t i = 0; i < budget; ++i) {
+    if (i + kAhead < budget) __builtin_prefetch(&store[candidates_[i + kAhead].id]);
     const MapLocation& loc = store[candidates_[i].id];
     hypotheses_.push_back(
         hypothesis_from_correspondence(loc.submap, loc.pose(), features[candidates_[i].feature].pose));
