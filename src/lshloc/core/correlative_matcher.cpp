@@ -1,6 +1,7 @@
 #include "lshloc/core/correlative_matcher.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -114,14 +115,19 @@ CorrelativeMatch CorrelativeMatcher::match(std::span<const Point2> reference, st
     double upper;
     std::int32_t heading, dx, dy;  // block of translations [dx, dx + B) x [dy, dy + B)
   };
+  // Each sum is a chain of dependent additions, so kLanes translations are
+  // summed side by side (each still point after point: the same sums).
+  constexpr std::int32_t kLanes = 4;
   std::vector<Block> blocks;
   for (std::int32_t h = 0; h < static_cast<std::int32_t>(headings); ++h) {
     const std::size_t row = static_cast<std::size_t>(h) * n;
     for (std::int32_t dy = -reach; dy <= reach; dy += B) {
-      for (std::int32_t dx = -reach; dx <= reach; dx += B) {
-        double sum = 0.0;
-        for (std::size_t k = 0; k < n; ++k) sum += coarse_at(base_x[row + k] + dx, base_y[row + k] + dy);
-        blocks.push_back({sum * inv_n, h, dx, dy});
+      for (std::int32_t dx0 = -reach; dx0 <= reach; dx0 += kLanes * B) {
+        std::array<double, kLanes> sum{};
+        for (std::size_t k = 0; k < n; ++k) {
+          for (std::int32_t g = 0; g < kLanes; ++g) sum[g] += coarse_at(base_x[row + k] + dx0 + g * B, base_y[row + k] + dy);
+        }
+        for (std::int32_t g = 0; g < kLanes && dx0 + g * B <= reach; ++g) blocks.push_back({sum[g] * inv_n, h, dx0 + g * B, dy});
       }
     }
   }
@@ -134,13 +140,19 @@ CorrelativeMatch CorrelativeMatcher::match(std::span<const Point2> reference, st
     for (const Block& blk : blocks) {
       if (blk.upper <= best) break;
       const std::size_t row = static_cast<std::size_t>(blk.heading) * n;
+      const std::int32_t dx_end = std::min(blk.dx + B, reach + 1);
       for (std::int32_t dy = blk.dy; dy < std::min(blk.dy + B, reach + 1); ++dy) {
-        for (std::int32_t dx = blk.dx; dx < std::min(blk.dx + B, reach + 1); ++dx) {
-          if (!keep(dx, dy)) continue;
-          double sum = 0.0;
-          for (std::size_t k = 0; k < n; ++k) sum += fine_at(base_x[row + k] + dx, base_y[row + k] + dy);
-          ++result.evaluated;
-          if (sum * inv_n > best) best = sum * inv_n, bh = blk.heading, bx = dx, by = dy;
+        for (std::int32_t dx0 = blk.dx; dx0 < dx_end; dx0 += kLanes) {
+          std::array<double, kLanes> sum{};
+          for (std::size_t k = 0; k < n; ++k) {
+            for (std::int32_t g = 0; g < kLanes; ++g) sum[g] += fine_at(base_x[row + k] + dx0 + g, base_y[row + k] + dy);
+          }
+          for (std::int32_t g = 0; g < kLanes && dx0 + g < dx_end; ++g) {
+            const std::int32_t dx = dx0 + g;
+            if (!keep(dx, dy)) continue;
+            ++result.evaluated;
+            if (sum[g] * inv_n > best) best = sum[g] * inv_n, bh = blk.heading, bx = dx, by = dy;
+          }
         }
       }
     }
