@@ -39,6 +39,22 @@ TEST(GlobalMap, MarksValidRaysFreeUpToTheirEndpoint) {
   EXPECT_FALSE(seen_free(map, 1.0, 2.0 + 8.0)) << "behind the wall";
 }
 
+TEST(GlobalMap, OnlyAReturnsOwnCellHoldsTheReturn) {
+  // Returns dilate into their neighbours as occupied (so that walls never
+  // read free), but a local ray is judged "through a wall" only on the
+  // returns' own cells.
+  GlobalMap map;
+  map.add_submap("room");
+  map.add_scan(0, half_blind_scan(5.9), Pose2(1.1, 2.0, 0.0));
+  const auto flags = [&](double x, double y) { return map.free_space().probe(0, x, y, 0.0); };
+  const double cell = map.config().free_space.cell_size;
+  // The beam at bearing +90 degrees returns at (1.1, 7.9), the farthest
+  // return from the x axis (all lie on a circle about the sensor).
+  EXPECT_NE(flags(1.1, 7.9) & cell_flags::kReturn, 0) << "the return's cell";
+  EXPECT_NE(flags(1.1, 7.9 + cell) & cell_flags::kOccupied, 0) << "dilated behind the wall";
+  EXPECT_EQ(flags(1.1, 7.9 + cell) & cell_flags::kReturn, 0) << "a neighbour holds no return";
+}
+
 TEST(GlobalMap, BeamsWithoutReturnMarkNothingByDefault) {
   // Glass and dark walls return nothing: a no-return ray is no proof of free
   // space (fr079: rooms never seen read as free and contradicted the truth).

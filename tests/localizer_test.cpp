@@ -130,3 +130,35 @@ TEST(Localizer, RecoversWhenCarriedToAnotherBuilding) {
 
 }  // namespace
 }  // namespace lshloc
+
+namespace lshloc {
+namespace {
+
+TEST(Localizer, KeepsItsPlaceWhileDrivingWhereTheMapKnowsNothing) {
+  // The map of the target's building lacks every scan taken within 4 m of
+  // the last third of the target's run (as aces' mappers never drove where
+  // its default window ends): after localizing, the target drives where its
+  // map holds little, and keeps its place by its own local map.
+  Scenario sc = sim::synthetic_scenario(small_world());
+  const TargetRun& target = sc.target;
+  const std::size_t from = 2 * target.scans.size() / 3;
+  std::vector<LaserScan>& mapped = sc.submaps[sc.target_submap].scans;
+  const std::size_t before = mapped.size();
+  std::erase_if(mapped, [&](const LaserScan& s) {
+    for (std::size_t i = from; i < target.truth.size(); ++i) {
+      if (target.truth[i] && translation_distance(*target.truth[i], s.pose) < 4.0) return true;
+    }
+    return false;
+  });
+  ASSERT_LT(mapped.size(), before - 100) << "the test needs a sizeable unmapped part";
+  const ScenarioRun run = run_scenario(sc, ScenarioRunConfig{});
+  const auto m = evaluate_localization(run.scan_estimates(), target.truth, static_cast<std::uint32_t>(sc.target_submap));
+  ASSERT_TRUE(m.localized_at.has_value());
+  EXPECT_LT(*m.localized_at, from);
+  ASSERT_TRUE(m.final_error_m.has_value()) << "the final estimate left the target's building";
+  EXPECT_LT(*m.final_error_m, 1.0);
+  EXPECT_EQ(m.confident_wrong, 0u);
+}
+
+}  // namespace
+}  // namespace lshloc

@@ -290,12 +290,14 @@ TEST(PoseGridScorer, MatchesBruteForceProbingHeadingOnly) { check_scorer(Toleran
 
 TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   // Map of submap 0: a wall along x = 5 (normal heading pi), seen by rays that
-  // crossed x = 0..4 freely. The free-space grid marks the wall occupied.
+  // crossed x = 0..4 freely. The free-space grid marks the wall's cells as
+  // holding returns and, as GlobalMap dilates, the cells beyond it occupied.
   PoseGridHashMap occupancy(PoseGridConfig{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 0});
   PoseGridHashMap free_space(PoseGridConfig{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
   for (double y = -2.0; y <= 2.0; y += 0.05) {
     occupancy.insert(0, 5.01, y, kPi);
-    free_space.mark(0, 5.01, y, 0.0, cell_flags::kOccupied);
+    free_space.mark(0, 5.01, y, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
+    free_space.mark(0, 5.26, y, 0.0, cell_flags::kOccupied);
     for (double x = 0.01; x < 4.0; x += 0.1) free_space.mark(0, x, y, 0.0, cell_flags::kFree);
   }
   // A cell both free and occupied (a person walked there): neither evidence.
@@ -319,6 +321,7 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   EXPECT_EQ(score({1.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), -1.0f);   // a surface in free space
   EXPECT_EQ(score({9.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 0.0f);    // beyond the map
   EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kFreeSpace}), -2.0f);                      // a ray through the wall
+  EXPECT_EQ(score({5.26f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);  // beside the wall's returns: no evidence
   EXPECT_EQ(score({1.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.5f);                       // a ray where map rays passed
   EXPECT_EQ(score({2.01f, 0.01f, 0.0f, K::kFreeSpace}), 0.0f);                       // free and occupied: no evidence
   EXPECT_EQ(score({9.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);                       // beyond the map

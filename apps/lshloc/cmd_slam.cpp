@@ -24,6 +24,7 @@
 #include "lshloc/io/dataset_catalog.hpp"
 #include "lshloc/io/ground_truth.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
+#include "lshloc/pipeline/localizer.hpp"
 
 namespace lshloc::app {
 
@@ -32,6 +33,7 @@ namespace {
 struct SlamOptions {
   std::string log, relations, out, per_scan;
   bool no_loop_closure = false;
+  bool localizer_matcher = false;
   bool json = false;
   double max_range = ScanMatcherConfig{}.max_range;
   std::size_t window = ScanMatcherConfig{}.window_keyframes;
@@ -148,7 +150,7 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   std::vector<Relation> relations;
   if (!opt.relations.empty()) relations = io::read_relations(opt.relations);
 
-  ScanMatcherConfig config;
+  ScanMatcherConfig config = opt.localizer_matcher ? LocalizerConfig{}.scan_matcher : ScanMatcherConfig{};
   const KnownLog known = known_log(opt.log, global.data_dir);
   if (opt.laser_offset) {
     config.laser_offset = Pose2(*opt.laser_offset, 0.0, 0.0);
@@ -320,6 +322,9 @@ void add_slam_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_flag("--no-loop-closure", opt->no_loop_closure,
                "scan matching only (the localizer's local map); by default a pose graph closes loops by correlative "
                "matching");
+  cmd->add_flag("--localizer-matcher", opt->localizer_matcher,
+                "start from the localizer's matcher settings (LocalizerConfig::scan_matcher: denser points, normals "
+                "from 3 points) instead of the mapping defaults");
   cmd->add_option("--set", opt->settings, "NAME=VALUE: override a ScanMatcherConfig field (repeatable)");
   cmd->callback([opt, &global] { run_slam(*opt, global); });
 }

@@ -83,6 +83,11 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
                  "lead on the recent data-points that also wins a duel once iRANSAC dropped the reported place (0: off)")
       ->capture_default_str()
       ->group(group);
+  cmd.add_option("--duel-recent-evidence", l.confidence.duel_recent_min_evidence,
+                 "... but a once well-supported place loses so only where its map scores at least this share of the "
+                 "recent data-points (a place the map barely knows is not contradicted by them)")
+      ->capture_default_str()
+      ->group(group);
   cmd.add_option("--duel-z", l.confidence.duel_z, "... and that many standard errors of the paired difference")
       ->capture_default_str()
       ->group(group);

@@ -18,6 +18,9 @@ using CellFlags = std::uint8_t;
 namespace cell_flags {
 inline constexpr CellFlags kOccupied = 1;  ///< a map feature / scan endpoint lies in the cell
 inline constexpr CellFlags kFree = 2;      ///< a map ray passed through the cell (negative evidence)
+/// A scan return lies in this very cell, not only in a neighbour that
+/// dilation marked kOccupied (free-space grid only).
+inline constexpr CellFlags kReturn = 4;
 }  // namespace cell_flags
 
 /// How a probe tolerates neighbouring cells.

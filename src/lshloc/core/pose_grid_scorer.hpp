@@ -16,8 +16,8 @@ struct PoseGridScorerConfig {
   float free = 0.0f;     ///< score of a point whose cell holds only kFree (e.g. -0.5: a penalty)
   float unknown = 0.0f;  ///< score of a point in a cell the map knows nothing about
   /// Score of a kFreeSpace local point that lands on a map wall (a cell of the
-  /// free-space grid marked occupied and never free: a local ray through a map
-  /// wall); such points score 0 elsewhere. Needs a free-space grid.
+  /// free-space grid holding a return, kReturn, and never free: a local ray
+  /// through a map wall); such points score 0 elsewhere. Needs a free-space grid.
   float ray_through_wall = -1.0f;
   /// Score of a kFreeSpace local point that lands where map rays saw free
   /// space (a cell holding only kFree): the map agrees.
@@ -41,7 +41,7 @@ class PoseGridScorer {
   /// cells) of the space map rays saw free, where walls are marked occupied:
   /// a kSurface point that misses `grid` scores `free` when its cell there
   /// holds only kFree, else `unknown`; a kFreeSpace point scores
-  /// `ray_through_wall` on a cell holding only kOccupied, else 0.
+  /// `ray_through_wall` on a cell holding kReturn but not kFree, else 0.
   PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
 
   void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);

@@ -20,7 +20,9 @@ struct ScanMatcherConfig {
   // --- which beams are used ---
   double min_range = 0.1;   ///< [m] shorter readings are ignored (the robot itself, dust)
   double max_range = 25.0;  ///< [m] longer readings (incl. the ~81.9 m no-return) are ignored
-  double scan_voxel = 0.08;  ///< [m] scan points used for matching are kept at least this far apart
+  /// [m] scan points used for matching are kept at least this far apart
+  /// (the localizer's local map uses 0.05, LocalizerConfig::scan_matcher)
+  double scan_voxel = 0.08;
 
   // --- local map (rolling window of keyframes) ---
   std::size_t window_keyframes = 60;  ///< keyframes kept in the local map (bounds cost per scan)
@@ -35,7 +37,9 @@ struct ScanMatcherConfig {
                                       ///< normal_beam_gaps beam spacings at the point's range) fit its line
   double normal_beam_gaps = 3.0;      ///< [-] so that sparse far walls (1 deg beams at 15 m) still get lines
   std::size_t normal_max_neighbours = 6;  ///< [-] neighbours each side at most (bounds the work per point)
-  std::size_t normal_min_points = 4;  ///< fewer neighbours: the point gets no normal, is not a map point
+  /// Fewer points (itself included): it gets no normal, is not a map point.
+  /// (The localizer's local map uses 3, LocalizerConfig::scan_matcher.)
+  std::size_t normal_min_points = 4;
   double max_line_flatness = 0.1;     ///< [-] max eigenvalue ratio (small/large) for a line point
 
   // --- ICP (point-to-line, Gauss-Newton) ---

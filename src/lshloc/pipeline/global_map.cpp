@@ -134,13 +134,18 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
     }
   }
   // Every return (not only the smooth segments' points: sparse returns from
-  // far walls are no segments) marks its cell and neighbours occupied.
+  // far walls are no segments) marks its cell and neighbours occupied, and
+  // its own cell as holding a return: a local ray through the map's wall is
+  // judged on those alone, as the neighbours of a wall seen only from far
+  // away (never crossed by map rays) are often free space.
   for (std::size_t i = 0; i < scan.size(); ++i) {
     if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range) continue;
     const Point2 p = laser_pose.transform(beam_endpoints_[i]);
     for (int ix = -1; ix <= 1; ++ix) {
       for (int iy = -1; iy <= 1; ++iy) {
-        free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0, cell_flags::kOccupied);
+        const bool own = ix == 0 && iy == 0;
+        free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0,
+                         own ? cell_flags::kOccupied | cell_flags::kReturn : cell_flags::kOccupied);
       }
     }
   }

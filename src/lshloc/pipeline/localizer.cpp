@@ -224,8 +224,12 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
       if (!won && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
         // iRANSAC dropped every hypothesis at the reported place: only the
         // duel holds it there, on old scans that the local map's drift may
-        // have bent. A clear lead on the recent data-points then suffices.
-        won = wins(duel(best->hypothesis, incumbents, config_.ransac.recent_window), cc.duel_recent_margin);
+        // have bent. A clear lead on the recent data-points then suffices,
+        // unless the place was once well supported and its map knows almost
+        // nothing about the recent points.
+        const Duel recent = duel(best->hypothesis, incumbents, config_.ransac.recent_window);
+        won = wins(recent, cc.duel_recent_margin) &&
+              (!reported_supported_ || recent.incumbent_evidence >= cc.duel_recent_min_evidence);
       }
       if (won) {
         ++stats_.duels_won;
@@ -250,6 +254,8 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
   } else {
     reported_ = best->hypothesis;
   }
+  const bool supported = best->scored >= cc.min_scored && best->mean_score() >= cc.min_mean_score;
+  reported_supported_ = (kept && reported_supported_) || supported;
   e.has_estimate = true;
   e.submap = reported_->submap;
   e.T_submap_local = reported_->T_submap_local;
@@ -282,7 +288,7 @@ void Localizer::sample_points(std::size_t window, std::size_t n) {
 }
 
 void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums,
-                                double* first_two_sq_diff) {
+                                PairSums* pair) {
   const std::size_t m = hypotheses.size();
   batch_submap_.resize(m), batch_tx_.resize(m), batch_ty_.resize(m), batch_cos_.resize(m), batch_sin_.resize(m),
       batch_theta_.resize(m), batch_out_.resize(m);
@@ -298,17 +304,18 @@ void Localizer::score_on_sample(std::span<const Hypothesis> hypotheses, std::vec
   const HypothesisBatch batch{batch_submap_.data(), batch_tx_.data(), batch_ty_.data(), batch_cos_.data(),
                               batch_sin_.data(),    batch_theta_.data(), m};
   sums.assign(m, 0.0);
-  double sq = 0.0;
+  PairSums two;
   const std::span<const LocalPoint> points = ransac_.features();
   for (std::uint32_t i : sample_) {
     scorer_(points[i], batch, batch_out_.data());
     for (std::size_t j = 0; j < m; ++j) sums[j] += batch_out_[j];
-    if (first_two_sq_diff != nullptr) {
+    if (pair != nullptr) {
       const double d = double(batch_out_[0]) - double(batch_out_[1]);
-      sq += d * d;
+      two.squared_difference += d * d;
+      two.second_absolute += std::abs(double(batch_out_[1]));
     }
   }
-  if (first_two_sq_diff != nullptr) *first_two_sq_diff = sq;
+  if (pair != nullptr) *pair = two;
 }
 
 Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents,
@@ -324,12 +331,17 @@ Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hy
     chosen = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
   }
   const std::array<Hypothesis, 2> pair{challenger, incumbents[chosen]};
-  double sq_diff = 0.0;
-  score_on_sample(pair, sums_, &sq_diff);
+  PairSums pair_sums;
+  score_on_sample(pair, sums_, &pair_sums);
   const auto n = static_cast<double>(sample_.size());
-  Duel d{sums_[0] / n, sums_[1] / n, 0.0, chosen};
+  Duel d{.challenger_mean = sums_[0] / n,
+         .incumbent_mean = sums_[1] / n,
+         .incumbent_evidence = pair_sums.second_absolute / n,
+         .incumbent = chosen};
   const double lead = d.challenger_mean - d.incumbent_mean;
-  if (n > 1.0) d.lead_stderr = std::sqrt(std::max(0.0, (sq_diff / n - lead * lead) / (n - 1.0)));
+  if (n > 1.0) {
+    d.lead_stderr = std::sqrt(std::max(0.0, (pair_sums.squared_difference / n - lead * lead) / (n - 1.0)));
+  }
   return d;
 }
 

@@ -46,6 +46,16 @@ struct ConfidenceConfig {
   /// whose older scans the drift has moved loses the whole-map duel to a
   /// stale report; a kidnapped robot, too. 0: off.
   double duel_recent_margin = 0.15;
+  /// ... but a reported place that was once well supported (iRANSAC gave
+  /// it min_scored data-points at a mean of min_mean_score) loses so only
+  /// where the map knows its surroundings: on at least this share of the
+  /// recent data-points, its map scores them (hit, or local walls in space
+  /// the map saw free, local rays through map walls). Where the map holds
+  /// almost nothing about the reported place, the recent scans are no
+  /// evidence against it (aces: the robot drives from a junction into a
+  /// corridor the mappers saw only from far away, and a fully mapped
+  /// look-alike fits those scans better).
+  double duel_recent_min_evidence = 0.1;
   double same_place_m = 1.0;    ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
 };
@@ -57,7 +67,13 @@ enum class HypothesisSource : std::uint8_t {
 };
 
 struct LocalizerConfig {
-  ScanMatcherConfig scan_matcher;   ///< the target's local map
+  /// The target's local map. It keeps far walls' sparse returns (line
+  /// normals from 3 points) and matches more scan points (5 cm apart): over
+  /// 1000-scan windows its heading drifts 0.9 instead of 2.4 degrees on
+  /// aces (median of 20), 0.8 instead of 1.3 on fr079
+  /// (docs/results/local-map.md). Mapping (PoseGraphSlam) keeps the
+  /// ScanMatcherConfig defaults: its loop closures got worse with these.
+  ScanMatcherConfig scan_matcher{.laser_offset = {}, .scan_voxel = 0.05, .normal_min_points = 3};
   FeatureExtractorConfig features;  ///< must equal the global map's
   /// iRANSAC as measured best on real logs (RESULTS.md): 40 data-points per
   /// scan (surface and free-space), 50 iterations per scan halving once per
@@ -174,6 +190,9 @@ class Localizer {
     double challenger_mean = 0.0;
     double incumbent_mean = 0.0;
     double lead_stderr = 0.0;  ///< standard error of the mean paired difference
+    /// Mean |score| of the incumbent: the share of the points on which the
+    /// map says anything at its place (scores are +-1 or 0).
+    double incumbent_evidence = 0.0;
     std::size_t incumbent = 0;  ///< which of the incumbents stood for its place
   };
   /// Mean scores of `challenger` and the best of `incumbents` (hypotheses of
@@ -186,11 +205,16 @@ class Localizer {
   /// Draws n indices of iRANSAC's U, uniformly from its newest `window`
   /// (0: all), into sample_.
   void sample_points(std::size_t window, std::size_t n);
-  /// sums[j] = sum over sample_ of hypothesis j's score; with
-  /// `first_two_sq_diff`, also the sum of the squared per-point differences
-  /// of hypotheses 0 and 1 (at least two then).
+  /// Sums over sample_ of two hypotheses' scores that a duel needs beyond
+  /// their plain sums.
+  struct PairSums {
+    double squared_difference = 0.0;  ///< of the per-point scores of hypotheses 0 and 1
+    double second_absolute = 0.0;     ///< of hypothesis 1's |score|
+  };
+  /// sums[j] = sum over sample_ of hypothesis j's score; with `pair`, also
+  /// the PairSums of hypotheses 0 and 1 (at least two then).
   void score_on_sample(std::span<const Hypothesis> hypotheses, std::vector<double>& sums,
-                       double* first_two_sq_diff = nullptr);
+                       PairSums* pair = nullptr);
 
   const GlobalMap& map_;
   LocalizerConfig config_;
@@ -206,6 +230,9 @@ class Localizer {
   /// iRANSAC's last hypothesis at the reported place: it keeps the pose that
   /// fitted the older scans after preemption cut it and tracking moved on.
   std::optional<Hypothesis> anchor_;
+  /// The reported place has met the confidence test's absolute part
+  /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
+  bool reported_supported_ = false;
   Pose2 last_local_pose_;
   LocalizerStats stats_;
   // Scratch reused between scans.
