@@ -102,7 +102,7 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
     // walls: people and doors leave cells marked both occupied and free, and
     // a dilated neighbour of a wall is where the target's rays along that
     // wall pass (aces, RESULTS.md: on a corridor the map saw only from far
-    // away, 5-8% of the true pose's free-space points landed there).
+    // away, up to 8% of the true pose's newest data-points landed there).
     constexpr CellFlags kWallBits = cell_flags::kReturn | cell_flags::kFree;
     lookup_free_space(
         x, v, scores, [](std::size_t) { return true; },
