@@ -38,6 +38,21 @@ def raw_stamps(path):
     return stamps
 
 
+def truth_poses(path):
+    """[(raw stamp, x, y, theta)] of a ground-truth poses file, in file order."""
+    poses = []
+    with open(path) as f:
+        for n, line in enumerate(f, 1):
+            if not line.strip() or line.startswith("#"):
+                continue
+            try:
+                t, x, y, theta = map(float, line.split()[:4])
+            except ValueError:
+                sys.exit(f"{path}:{n}: expected 'timestamp x y theta'")
+            poses.append((t, x, y, theta))
+    return poses
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("building", choices=sorted(RAW))
@@ -50,12 +65,7 @@ def main():
     if not 0 <= a.start < len(stamps):
         sys.exit(f"start {a.start} outside the log's {len(stamps)} scans")
     t0, t1 = stamps[a.start], stamps[min(a.start + a.length, len(stamps)) - 1]
-    poses = []
-    with open(os.path.join(a.data, POSES[a.building])) as f:
-        for line in f:
-            if line.strip() and not line.startswith("#"):
-                t, x, y, _ = map(float, line.split()[:4])
-                poses.append((t, x, y))
+    poses = truth_poses(os.path.join(a.data, POSES[a.building]))
     window = [q for q in poses if t0 <= q[0] <= t1]
     kept = [q for q in poses if q[0] < t0 - a.guard or q[0] > t1 + a.guard]
     if not window or not kept:

@@ -18,7 +18,7 @@ import subprocess
 import sys
 import tempfile
 
-from window_coverage import POSES, RAW
+from window_coverage import POSES, RAW, truth_poses
 
 
 def wrap(a):
@@ -32,8 +32,8 @@ def relative(a, b):
     return c * dx + s * dy, -s * dx + c * dy, wrap(b[2] - a[2])
 
 
-def read_poses(path, tum):
-    """[(stamp rounded to 10 ms, (x, y, theta))] of a TUM file or a poses file, in file order."""
+def read_tum(path):
+    """[(stamp rounded to 10 ms, (x, y, theta))] of a TUM trajectory, in file order."""
     out = []
     with open(path) as f:
         for n, line in enumerate(f, 1):
@@ -41,13 +41,10 @@ def read_poses(path, tum):
                 continue
             a = line.split()
             try:
-                if tum:
-                    theta = 2.0 * math.atan2(float(a[6]), float(a[7]))
-                    out.append((round(float(a[0]), 2), (float(a[1]), float(a[2]), theta)))
-                else:
-                    out.append((round(float(a[0]), 2), (float(a[1]), float(a[2]), float(a[3]))))
+                theta = 2.0 * math.atan2(float(a[6]), float(a[7]))
+                out.append((round(float(a[0]), 2), (float(a[1]), float(a[2]), theta)))
             except (IndexError, ValueError):
-                sys.exit(f"{path}:{n}: expected {'timestamp x y z qx qy qz qw' if tum else 'timestamp x y theta'}")
+                sys.exit(f"{path}:{n}: expected 'timestamp x y z qx qy qz qw'")
     return out
 
 
@@ -65,8 +62,8 @@ def main():
         cmd = [a.lshloc, "slam", "--log", os.path.join(a.data, RAW[a.building]), "--no-loop-closure",
                "--localizer-matcher", "--out", tum]
         subprocess.run(cmd + a.slam_args, check=True, stdout=subprocess.DEVNULL)
-        estimate = read_poses(tum, tum=True)
-    truth = dict(read_poses(os.path.join(a.data, POSES[a.building]), tum=False))
+        estimate = read_tum(tum)
+    truth = {round(t, 2): (x, y, theta) for t, x, y, theta in truth_poses(os.path.join(a.data, POSES[a.building]))}
     if len(estimate) < a.length:
         sys.exit(f"the log has {len(estimate)} scans, fewer than one window of {a.length}")
     headings, ends = [], []

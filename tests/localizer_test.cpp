@@ -128,12 +128,6 @@ TEST(Localizer, RecoversWhenCarriedToAnotherBuilding) {
   EXPECT_LT(back, recovered_at(without, second, n1, 2, 0.5)) << "the recent-window duel recovers sooner";
 }
 
-}  // namespace
-}  // namespace lshloc
-
-namespace lshloc {
-namespace {
-
 TEST(Localizer, KeepsItsPlaceWhileDrivingWhereTheMapKnowsNothing) {
   // The map of the target's building lacks every scan taken within 4 m of
   // the last third of the target's run (as aces' mappers never drove where
