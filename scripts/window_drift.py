@@ -8,7 +8,7 @@ window's first to its last ground-truth scan with the ground truth's: the
 heading error [deg] and the end-point error [m]. Extra arguments go to
 `lshloc slam` (e.g. --set normal_min_points=4, the mapping default).
 
-    scripts/window_drift.py aces [--lshloc build/bin/lshloc] [--data ../shared/data] [-- --set scan_voxel=0.08]
+    scripts/window_drift.py aces [--per-window] [--lshloc build/bin/lshloc] [--data ../shared/data] [-- --set scan_voxel=0.08]
 """
 import argparse
 import math
@@ -55,6 +55,7 @@ def main():
     p.add_argument("--windows", type=int, default=20)
     p.add_argument("--lshloc", default="build/bin/lshloc")
     p.add_argument("--data", default=os.environ.get("LSHLOC_DATA", "../shared/data"))
+    p.add_argument("--per-window", action="store_true", help="also print each window's start and drift")
     p.add_argument("slam_args", nargs="*", help="passed to lshloc slam")
     a = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -76,6 +77,8 @@ def main():
         e, g = relative(ea, eb), relative(truth[ta], truth[tb])
         headings.append(abs(math.degrees(wrap(e[2] - g[2]))))
         ends.append(math.hypot(e[0] - g[0], e[1] - g[1]))
+        if a.per_window:
+            print(f"start {first}: heading drift {headings[-1]:.2f} deg, end-point error {ends[-1]:.2f} m")
     if not headings:
         sys.exit("no window holds two ground-truth scans")
     print(f"{a.building}: {len(headings)} windows of {a.length} scans; heading drift [deg] median "

@@ -55,6 +55,24 @@ TEST(GlobalMap, OnlyAReturnsOwnCellHoldsTheReturn) {
   EXPECT_EQ(flags(1.1, 7.9 + cell) & cell_flags::kReturn, 0) << "a neighbour holds no return";
 }
 
+TEST(GlobalMap, NotesWhereTheMapHasASurfaceNormal) {
+  // A wall seen densely has normals (kNormal beside kReturn); a lone return
+  // (a far wall seen at a grazing angle) has none, and only there may a
+  // local wall point of any heading count as support.
+  GlobalMap map;
+  map.add_submap("room");
+  LaserScan lone = half_blind_scan(5.9);
+  lone.ranges.assign(lone.ranges.size(), 81.91f);
+  lone.ranges[45] = 5.0f;  // bearing -45 degrees
+  map.add_scan(0, half_blind_scan(5.9), Pose2(1.1, 2.0, 0.0));
+  map.add_scan(0, lone, Pose2(1.1, 2.0, 0.0));
+  const auto flags = [&](double x, double y) { return map.free_space().probe(0, x, y, 0.0); };
+  EXPECT_NE(flags(1.1, 7.9) & cell_flags::kNormal, 0) << "the dense wall's return";
+  const double d = 5.0 / std::numbers::sqrt2;
+  EXPECT_NE(flags(1.1 + d, 2.0 - d) & cell_flags::kReturn, 0) << "the lone return";
+  EXPECT_EQ(flags(1.1 + d, 2.0 - d) & cell_flags::kNormal, 0) << "no normal from one return";
+}
+
 TEST(GlobalMap, BeamsWithoutReturnMarkNothingByDefault) {
   // Glass and dark walls return nothing: a no-return ray is no proof of free
   // space (fr079: rooms never seen read as free and contradicted the truth).

@@ -296,14 +296,19 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   PoseGridHashMap free_space(PoseGridConfig{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
   for (double y = -2.0; y <= 2.0; y += 0.05) {
     occupancy.insert(0, 5.01, y, kPi);
-    free_space.mark(0, 5.01, y, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
+    free_space.mark(0, 5.01, y, 0.0, cell_flags::kOccupied | cell_flags::kReturn | cell_flags::kNormal);
     free_space.mark(0, 5.26, y, 0.0, cell_flags::kOccupied);
     for (double x = 0.01; x < 4.0; x += 0.1) free_space.mark(0, x, y, 0.0, cell_flags::kFree);
   }
   // A cell both free and occupied (a person walked there): neither evidence.
   free_space.mark(0, 2.01, 0.01, 0.0, cell_flags::kOccupied);
+  // A return that map rays crossed too (a door): neither evidence either.
+  free_space.mark(0, 3.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
+  // A sparse return of a far wall: no normal, so not in `occupancy`.
+  free_space.mark(0, 7.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
+  free_space.mark(0, 7.26, 1.01, 0.0, cell_flags::kOccupied);
   const PoseGridScorerConfig config{.hit = 1.0f, .free = -1.0f, .unknown = 0.0f, .ray_through_wall = -2.0f,
-                                    .ray_through_free = 0.5f};
+                                    .ray_through_free = 0.5f, .surface_on_return = 0.75f};
   PoseGridScorer scorer(occupancy, free_space, config);
   // Hypotheses: identity in submap 0, identity in submap 1 (nothing mapped).
   const std::uint32_t submap[2] = {0, 1};
@@ -317,7 +322,10 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   };
   using K = LocalPoint::Kind;
   EXPECT_EQ(score({5.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 1.0f);    // on the wall, right normal
-  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kSurface}), 0.0f);                         // on the wall, wrong normal: unknown
+  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kSurface}), 0.0f);   // on the wall, wrong normal: unknown
+  EXPECT_EQ(score({7.01f, 1.01f, 0.0f, K::kSurface}), 0.75f);  // on a return without a normal: any heading
+  EXPECT_EQ(score({7.26f, 1.01f, 0.0f, K::kSurface}), 0.0f);   // beside it: unknown
+  EXPECT_EQ(score({3.01f, 1.01f, 0.0f, K::kSurface}), 0.0f);   // a return map rays crossed: unknown
   EXPECT_EQ(score({1.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), -1.0f);   // a surface in free space
   EXPECT_EQ(score({9.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 0.0f);    // beyond the map
   EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kFreeSpace}), -2.0f);                      // a ray through the wall

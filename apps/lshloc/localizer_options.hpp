@@ -107,6 +107,9 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
       ->capture_default_str()
       ->group(map_group);
   cmd.add_option("--free-cell", g.free_space.cell_size, "[m] free-space grid cell")->capture_default_str()->group(map_group);
+  cmd.add_option("--free-ray-range", g.free_ray_max_range, "[m] mapper rays are marked free up to this range")
+      ->capture_default_str()
+      ->group(map_group);
   cmd.add_option("--keypoints", g.features.max_keypoints, "|U_new| of keypoints: at most this many per scan")
       ->capture_default_str()
       ->group(map_group);
@@ -118,6 +121,11 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
       ->group(map_group);
   cmd.add_option("--free-penalty", l.free_space_penalty,
                  "score of a local point in space the map saw free, and of a local ray through a map wall (negated)")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--return-support", l.return_support,
+                 "score of a local wall point on a map return that has no matching surface normal (a wall seen only "
+                 "from far away)")
       ->capture_default_str()
       ->group(group);
 }

@@ -21,6 +21,9 @@ inline constexpr CellFlags kFree = 2;      ///< a map ray passed through the cel
 /// A scan return lies in this very cell, not only in a neighbour that
 /// dilation marked kOccupied (free-space grid only).
 inline constexpr CellFlags kReturn = 4;
+/// A map surface point (an endpoint with a normal, as the occupancy grid
+/// holds it) lies in this cell (free-space grid only).
+inline constexpr CellFlags kNormal = 8;
 }  // namespace cell_flags
 
 /// How a probe tolerates neighbouring cells.

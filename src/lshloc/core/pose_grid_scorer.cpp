@@ -16,6 +16,17 @@ namespace {
 /// score, 24 gave 19.6, 40 and 64 gave 18.
 constexpr std::size_t kAhead = 40;
 
+/// A cell of the free-space grid is a map wall when it holds a map return
+/// that map rays never crossed: people and doors leave cells marked both
+/// occupied and free, and a dilated neighbour of a wall is where the target's
+/// rays along that wall pass (aces, RESULTS.md: on a corridor the map saw
+/// only from far away, up to 8% of the true pose's newest data-points landed
+/// there).
+constexpr CellFlags kWallBits = cell_flags::kReturn | cell_flags::kFree;
+/// ... and free space when map rays crossed it and no return nor its
+/// dilation marked it occupied.
+constexpr CellFlags kFreeBits = cell_flags::kOccupied | cell_flags::kFree;
+
 /// floor() to int for |v| < 2^31, branch-free and inlined (std::floor on
 /// float is a library call without SSE4.1). Values beyond +-1e6 cells are
 /// clamped first; pack_xy() rejects them as outside the grid anyway.
@@ -98,25 +109,24 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
       return;
     }
     const float through_wall = config_.ray_through_wall, through_free = config_.ray_through_free;
-    // Only cells holding a map return that map rays never crossed count as
-    // walls: people and doors leave cells marked both occupied and free, and
-    // a dilated neighbour of a wall is where the target's rays along that
-    // wall pass (aces, RESULTS.md: on a corridor the map saw only from far
-    // away, up to 8% of the true pose's newest data-points landed there).
-    constexpr CellFlags kWallBits = cell_flags::kReturn | cell_flags::kFree;
     lookup_free_space(
         x, v, scores, [](std::size_t) { return true; },
         [through_wall, through_free](CellFlags f) {
-          return (f & kWallBits) == cell_flags::kReturn ? through_wall : f == cell_flags::kFree ? through_free : 0.0f;
+          return (f & kWallBits) == cell_flags::kReturn ? through_wall : (f & kFreeBits) == cell_flags::kFree ? through_free : 0.0f;
         });
     return;
   }
   score_surface(x, v, scores);
   if (free_space_ == nullptr) return;
-  const float hit = config_.hit, free = config_.free, unknown = config_.unknown;
+  const float hit = config_.hit, free = config_.free, unknown = config_.unknown, on_return = config_.surface_on_return;
   lookup_free_space(
       x, v, scores, [scores, hit](std::size_t j) { return scores[j] != hit; },
-      [free, unknown](CellFlags f) { return f == cell_flags::kFree ? free : unknown; });
+      [free, unknown, on_return](CellFlags f) {
+        constexpr CellFlags kBareReturnBits = kWallBits | cell_flags::kNormal;
+        return (f & kFreeBits) == cell_flags::kFree              ? free
+               : (f & kBareReturnBits) == cell_flags::kReturn ? on_return
+                                                               : unknown;
+      });
 }
 
 void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v, float* scores) {

@@ -22,6 +22,13 @@ struct PoseGridScorerConfig {
   /// Score of a kFreeSpace local point that lands where map rays saw free
   /// space (a cell holding only kFree): the map agrees.
   float ray_through_free = 0.0f;
+  /// Score of a kSurface local point that misses `grid` on a cell of the
+  /// free-space grid holding a map return that map rays never crossed and no
+  /// map surface normal (kNormal): a wall the map saw only as sparse returns
+  /// (far walls at grazing angles form no segments), which `grid` cannot
+  /// hold. Where the map has a normal, `grid` judges the heading. The
+  /// counterpart of ray_through_wall, on the same cells.
+  float surface_on_return = 0.0f;
 };
 
 /// A Scorer for IncrementalRansac (see there). Each call transforms one local
@@ -40,7 +47,8 @@ class PoseGridScorer {
   /// With negative evidence from a separate 2-D grid (theta_bins = 1, exact
   /// cells) of the space map rays saw free, where walls are marked occupied:
   /// a kSurface point that misses `grid` scores `free` when its cell there
-  /// holds only kFree, else `unknown`; a kFreeSpace point scores
+  /// holds kFree but not kOccupied, `surface_on_return` on a return without a
+  /// normal never crossed by map rays, else `unknown`; a kFreeSpace point scores
   /// `ray_through_wall` on a cell holding kReturn but not kFree, else 0.
   PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
 

@@ -81,13 +81,15 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
 void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
                            const ScanSurface& surface) {
   const Point2 sensor = laser_pose.translation();
-  // Occupancy: endpoints with their normal direction, thinned along the scan.
+  // Occupancy: endpoints with their normal direction, thinned along the scan;
+  // the free-space grid notes where the map has a normal (kNormal).
   Point2 last(1e18, 1e18);
   for (const SurfacePoint& p : surface.points) {
     if ((p.position - last).norm() < config_.endpoint_spacing) continue;
     last = p.position;
     occupancy_.mark(submap, p.position.x(), p.position.y(), normal_towards(p.position, p.tangent, sensor),
                     cell_flags::kOccupied);
+    free_space_.mark(submap, p.position.x(), p.position.y(), 0.0, cell_flags::kNormal);
   }
   // Free space: cells the beams crossed, stopping short of the endpoint; the
   // endpoints' cells and their neighbours are marked occupied in the same 2-D

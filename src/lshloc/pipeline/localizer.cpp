@@ -46,6 +46,7 @@ void LocalizerConfig::validate() const {
   ransac.validate();
   if (candidates_per_feature == 0) throw Error("LocalizerConfig: candidates_per_feature must be >= 1");
   if (!(free_space_penalty >= 0.0)) throw Error("LocalizerConfig: free_space_penalty must be >= 0");
+  if (!(return_support >= 0.0)) throw Error("LocalizerConfig: return_support must be >= 0");
   if (confidence.stable_scans == 0) throw Error("LocalizerConfig: confidence.stable_scans must be >= 1");
   if (refine_points > 0 && !(refine_step_m > 0.0 && refine_step_deg > 0.0)) {
     throw Error("LocalizerConfig: refine_step_m and refine_step_deg must be > 0 when refine_points > 0");
@@ -67,7 +68,8 @@ PoseGridScorerConfig Localizer::scorer_config() const {
           .free = -static_cast<float>(config_.free_space_penalty),
           .unknown = 0.0f,
           .ray_through_wall = -static_cast<float>(config_.free_space_penalty),
-          .ray_through_free = static_cast<float>(config_.free_space_agreement)};
+          .ray_through_free = static_cast<float>(config_.free_space_agreement),
+          .surface_on_return = static_cast<float>(config_.return_support)};
 }
 
 void Localizer::generate_hypotheses(const std::vector<Feature>& features) {

@@ -88,6 +88,12 @@ struct LocalizerConfig {
                                  .recent_window = 8000};
   std::size_t candidates_per_feature = 100;  ///< k of each database query
   double free_space_penalty = 1.0;  ///< c(p, x) for a local point in space the map saw free
+  /// c(p, x) for a local surface point on a map return that has no surface
+  /// normal and that map rays never crossed (PoseGridScorerConfig::
+  /// surface_on_return): walls the mappers saw only from far away, as sparse
+  /// returns, otherwise could only contradict the true place (through their
+  /// free space), never support it (RESULTS.md, aces).
+  double return_support = 1.0;
   double free_space_agreement = 0.0;  ///< c(p, x) for a free-space point in space the map saw free
   std::size_t context_scans = 8;    ///< recent local scans whose surface enters descriptors
   double context_spacing = 0.3;     ///< [m] a scan joins the context after this much travel
