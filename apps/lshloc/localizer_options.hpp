@@ -124,8 +124,8 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
       ->capture_default_str()
       ->group(group);
   cmd.add_option("--return-support", l.return_support,
-                 "score of a local wall point on a map return that has no matching surface normal (a wall seen only "
-                 "from far away)")
+                 "score of a local wall point on a map return without a surface normal (a wall the mappers saw "
+                 "only from far away)")
       ->capture_default_str()
       ->group(group);
 }

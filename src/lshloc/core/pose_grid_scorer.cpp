@@ -23,9 +23,11 @@ constexpr std::size_t kAhead = 40;
 /// only from far away, up to 8% of the true pose's newest data-points landed
 /// there).
 constexpr CellFlags kWallBits = cell_flags::kReturn | cell_flags::kFree;
-/// ... and free space when map rays crossed it and no return nor its
-/// dilation marked it occupied.
+/// ... free space when map rays crossed it and no return nor its dilation
+/// marked it occupied ...
 constexpr CellFlags kFreeBits = cell_flags::kOccupied | cell_flags::kFree;
+/// ... and a bare return when it is a wall without a map surface normal.
+constexpr CellFlags kBareReturnBits = kWallBits | cell_flags::kNormal;
 
 /// floor() to int for |v| < 2^31, branch-free and inlined (std::floor on
 /// float is a library call without SSE4.1). Values beyond +-1e6 cells are
@@ -112,7 +114,9 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
     lookup_free_space(
         x, v, scores, [](std::size_t) { return true; },
         [through_wall, through_free](CellFlags f) {
-          return (f & kWallBits) == cell_flags::kReturn ? through_wall : (f & kFreeBits) == cell_flags::kFree ? through_free : 0.0f;
+          return (f & kWallBits) == cell_flags::kReturn  ? through_wall
+                 : (f & kFreeBits) == cell_flags::kFree ? through_free
+                                                        : 0.0f;
         });
     return;
   }
@@ -122,7 +126,6 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
   lookup_free_space(
       x, v, scores, [scores, hit](std::size_t j) { return scores[j] != hit; },
       [free, unknown, on_return](CellFlags f) {
-        constexpr CellFlags kBareReturnBits = kWallBits | cell_flags::kNormal;
         return (f & kFreeBits) == cell_flags::kFree              ? free
                : (f & kBareReturnBits) == cell_flags::kReturn ? on_return
                                                                : unknown;
