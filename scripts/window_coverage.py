@@ -38,18 +38,23 @@ def raw_stamps(path):
     return stamps
 
 
+def data_lines(path):
+    """(line number, fields) of each line of a text file that is neither blank nor a # comment."""
+    with open(path) as f:
+        for n, line in enumerate(f, 1):
+            if line.strip() and not line.startswith("#"):
+                yield n, line.split()
+
+
 def truth_poses(path):
     """[(raw stamp, x, y, theta)] of a ground-truth poses file, in file order."""
     poses = []
-    with open(path) as f:
-        for n, line in enumerate(f, 1):
-            if not line.strip() or line.startswith("#"):
-                continue
-            try:
-                t, x, y, theta = map(float, line.split()[:4])
-            except ValueError:
-                sys.exit(f"{path}:{n}: expected 'timestamp x y theta'")
-            poses.append((t, x, y, theta))
+    for n, a in data_lines(path):
+        try:
+            t, x, y, theta = map(float, a[:4])
+        except ValueError:
+            sys.exit(f"{path}:{n}: expected 'timestamp x y theta'")
+        poses.append((t, x, y, theta))
     return poses
 
 

@@ -18,7 +18,7 @@ import subprocess
 import sys
 import tempfile
 
-from window_coverage import POSES, RAW, truth_poses
+from window_coverage import POSES, RAW, data_lines, truth_poses
 
 
 def wrap(a):
@@ -35,16 +35,12 @@ def relative(a, b):
 def read_tum(path):
     """[(stamp rounded to 10 ms, (x, y, theta))] of a TUM trajectory, in file order."""
     out = []
-    with open(path) as f:
-        for n, line in enumerate(f, 1):
-            if not line.strip() or line.startswith("#"):
-                continue
-            a = line.split()
-            try:
-                theta = 2.0 * math.atan2(float(a[6]), float(a[7]))
-                out.append((round(float(a[0]), 2), (float(a[1]), float(a[2]), theta)))
-            except (IndexError, ValueError):
-                sys.exit(f"{path}:{n}: expected 'timestamp x y z qx qy qz qw'")
+    for n, a in data_lines(path):
+        try:
+            theta = 2.0 * math.atan2(float(a[6]), float(a[7]))
+            out.append((round(float(a[0]), 2), (float(a[1]), float(a[2]), theta)))
+        except (IndexError, ValueError):
+            sys.exit(f"{path}:{n}: expected 'timestamp x y z qx qy qz qw'")
     return out
 
 
