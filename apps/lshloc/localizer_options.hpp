@@ -88,6 +88,11 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
                  "recent data-points (a place the map barely knows is not contradicted by them)")
       ->capture_default_str()
       ->group(group);
+  cmd.add_option("--challenger-needs-support", l.confidence.challenger_needs_support,
+                 "a once well-supported place is given up only for a challenger iRANSAC supports as well (N and C/N "
+                 "of the confidence test)")
+      ->capture_default_str()
+      ->group(group);
   cmd.add_option("--duel-z", l.confidence.duel_z, "... and that many standard errors of the paired difference")
       ->capture_default_str()
       ->group(group);

@@ -199,6 +199,11 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
   // Hysteresis: keep reporting the place of the last estimate while its best
   // hypothesis is within switch_margin of the overall best.
   const double z = config_.ransac.preference_z;
+  // The confidence test's absolute part: iRANSAC has scored the hypothesis
+  // on enough data-points, at a high enough mean.
+  const auto supported = [&cc](const ScoredHypothesis& h) {
+    return h.scored >= cc.min_scored && h.mean_score() >= cc.min_mean_score;
+  };
   if (best && reported_) {
     const ScoredHypothesis* incumbent = nullptr;
     for (const ScoredHypothesis& h : active) {
@@ -221,9 +226,10 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
         const double lead = duel_result.challenger_mean - duel_result.incumbent_mean;
         return lead > margin && lead > cc.duel_z * duel_result.lead_stderr;
       };
+      const bool may_win = !reported_supported_ || !cc.challenger_needs_support || supported(*best);
       const Duel d = duel(best->hypothesis, incumbents, 0);
-      bool won = wins(d, cc.duel_margin);
-      if (!won && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
+      bool won = may_win && wins(d, cc.duel_margin);
+      if (!won && may_win && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
         // iRANSAC dropped every hypothesis at the reported place: only the
         // duel holds it there, on old scans that the local map's drift may
         // have bent. A clear lead on the recent data-points then suffices,
@@ -256,8 +262,7 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
   } else {
     reported_ = best->hypothesis;
   }
-  const bool supported = best->scored >= cc.min_scored && best->mean_score() >= cc.min_mean_score;
-  reported_supported_ = (kept && reported_supported_) || supported;
+  reported_supported_ = (kept && reported_supported_) || supported(*best);
   e.has_estimate = true;
   e.submap = reported_->submap;
   e.T_submap_local = reported_->T_submap_local;
@@ -276,7 +281,7 @@ LocalizationEstimate Localizer::estimate(const Pose2& local_pose) {
 
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) stable = stable && h && same_place(*h, best->hypothesis, local_pose, cc.same_place_m, same_angle);
-  e.localized = stable && e.scored >= cc.min_scored && e.mean_score >= cc.min_mean_score && e.margin >= cc.min_margin;
+  e.localized = stable && supported(*best) && e.margin >= cc.min_margin;
   return e;
 }
 
