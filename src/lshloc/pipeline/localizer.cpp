@@ -355,27 +355,35 @@ Localizer::Duel Localizer::duel(const Hypothesis& challenger, std::span<const Hy
 Hypothesis Localizer::refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose) {
   sample_points(config_.refine_window, config_.refine_points);
   if (sample_.empty()) return h;
+  // h's sum over the sample carries from one step to the next: scores do
+  // not depend on which other hypotheses share a batch.
+  double h_sum = 0.0;
   if (alternative) {
     const std::array<Hypothesis, 2> starts{h, *alternative};
     score_on_sample(starts, sums_);
-    if (sums_[1] - sums_[0] > config_.refine_min_gain * static_cast<double>(sample_.size())) h = *alternative;
+    h_sum = sums_[0];
+    if (sums_[1] - sums_[0] > config_.refine_min_gain * static_cast<double>(sample_.size())) {
+      h = *alternative;
+      h_sum = sums_[1];
+    }
+  } else {
+    score_on_sample(std::span<const Hypothesis>(&h, 1), sums_);
+    h_sum = sums_[0];
   }
   double m = config_.refine_step_m, a = config_.refine_step_deg * M_PI / 180.0;
-  std::array<Hypothesis, 7> moves;
   for (std::size_t round = 0; round < config_.refine_rounds; ++round) {
-    moves[0] = h;
-    const auto around = moves_about_robot(h, local_pose, m, a);
-    std::copy(around.begin(), around.end(), moves.begin() + 1);
+    const auto moves = moves_about_robot(h, local_pose, m, a);
     score_on_sample(moves, sums_);
-    const auto winner = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
+    const auto best = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
     // Where the map knows little (most points score 0) every move looks
     // alike; a move must win by a clear share of the points, or the pose
     // would wander on noise.
-    const double gain = sums_[winner] - sums_[0];
-    if (winner == 0 || gain < config_.refine_min_gain * static_cast<double>(sample_.size())) {
+    const double gain = sums_[best] - h_sum;
+    if (gain <= 0.0 || gain < config_.refine_min_gain * static_cast<double>(sample_.size())) {
       m *= 0.5, a *= 0.5;
     } else {
-      h = moves[winner];
+      h = moves[best];
+      h_sum = sums_[best];
       ++stats_.refine_moves;
     }
   }
