@@ -302,13 +302,15 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   }
   // A cell both free and occupied (a person walked there): neither evidence.
   free_space.mark(0, 2.01, 0.01, 0.0, cell_flags::kOccupied);
-  // A return that map rays crossed too (a door): neither evidence either.
+  // A return that map rays crossed too (a door, or two passes of a SLAM map
+  // that disagree): no surface evidence, milder ray evidence.
   free_space.mark(0, 3.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
   // A sparse return of a far wall: no normal, so not in `occupancy`.
   free_space.mark(0, 7.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
   free_space.mark(0, 7.26, 1.01, 0.0, cell_flags::kOccupied);
   const PoseGridScorerConfig config{.hit = 1.0f, .free = -1.0f, .unknown = 0.0f, .ray_through_wall = -2.0f,
-                                    .ray_through_free = 0.5f, .surface_on_return = 0.75f};
+                                    .ray_through_free = 0.5f, .ray_through_contested = -0.25f,
+                                    .surface_on_return = 0.75f};
   PoseGridScorer scorer(occupancy, free_space, config);
   // Hypotheses: identity in submap 0, identity in submap 1 (nothing mapped).
   const std::uint32_t submap[2] = {0, 1};
@@ -332,6 +334,7 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   EXPECT_EQ(score({5.26f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);  // beside the wall's returns: no evidence
   EXPECT_EQ(score({1.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.5f);                       // a ray where map rays passed
   EXPECT_EQ(score({2.01f, 0.01f, 0.0f, K::kFreeSpace}), 0.0f);                       // free and occupied: no evidence
+  EXPECT_EQ(score({3.01f, 1.01f, 0.0f, K::kFreeSpace}), -0.25f);  // a return map rays crossed: contested
   EXPECT_EQ(score({9.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);                       // beyond the map
   EXPECT_THROW(PoseGridScorer(occupancy, occupancy, config), Error);  // the free-space grid must be 2-D
 }

@@ -93,6 +93,11 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o) {
                  "of the confidence test)")
       ->capture_default_str()
       ->group(group);
+  cmd.add_option("--contested-penalty", l.contested_penalty,
+                 "score (negated) of a local ray through a map return that map rays also crossed (the map contradicts "
+                 "itself there)")
+      ->capture_default_str()
+      ->group(group);
   cmd.add_option("--duel-z", l.confidence.duel_z, "... and that many standard errors of the paired difference")
       ->capture_default_str()
       ->group(group);

@@ -110,12 +110,14 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
       std::fill_n(scores, v.size, 0.0f);
       return;
     }
-    const float through_wall = config_.ray_through_wall, through_free = config_.ray_through_free;
+    const float through_wall = config_.ray_through_wall, through_free = config_.ray_through_free,
+                through_contested = config_.ray_through_contested;
     lookup_free_space(
         x, v, scores, [](std::size_t) { return true; },
-        [through_wall, through_free](CellFlags f) {
+        [through_wall, through_free, through_contested](CellFlags f) {
           return (f & kWallBits) == cell_flags::kReturn  ? through_wall
                  : (f & kFreeBits) == cell_flags::kFree ? through_free
+                 : (f & kWallBits) == kWallBits         ? through_contested
                                                         : 0.0f;
         });
     return;

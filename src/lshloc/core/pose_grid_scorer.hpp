@@ -22,6 +22,10 @@ struct PoseGridScorerConfig {
   /// Score of a kFreeSpace local point that lands where map rays saw free
   /// space (a cell holding only kFree): the map agrees.
   float ray_through_free = 0.0f;
+  /// Score of a kFreeSpace local point on a map return that map rays also
+  /// crossed (kReturn and kFree): the map contradicts itself there, so a
+  /// milder penalty than ray_through_wall.
+  float ray_through_contested = 0.0f;
   /// Score of a kSurface local point that misses `grid` on a cell of the
   /// free-space grid holding a map return that map rays never crossed and no
   /// map surface normal (kNormal): a wall the map saw only as sparse returns

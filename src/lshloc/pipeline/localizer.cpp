@@ -69,6 +69,7 @@ PoseGridScorerConfig Localizer::scorer_config() const {
           .unknown = 0.0f,
           .ray_through_wall = -static_cast<float>(config_.free_space_penalty),
           .ray_through_free = static_cast<float>(config_.free_space_agreement),
+          .ray_through_contested = -static_cast<float>(config_.contested_penalty),
           .surface_on_return = static_cast<float>(config_.return_support)};
 }
 

@@ -101,6 +101,14 @@ struct LocalizerConfig {
   /// returns, otherwise could only contradict the true place (through their
   /// free space), never support it (RESULTS.md, aces).
   double return_support = 1.0;
+  /// -c(p, x) for a local free-space point on a map return that map rays
+  /// also crossed (PoseGridScorerConfig::ray_through_contested): the map
+  /// holds a wall and free space in one cell. In a consistent map such cells
+  /// are doors and people; where a SLAM map's passes disagree (mit-killian,
+  /// lshloc's SLAM of 17,480 raw scans) whole corridors are, and a
+  /// look-alike whose local rays crossed them was never contradicted
+  /// (RESULTS.md, aces).
+  double contested_penalty = 0.5;
   double free_space_agreement = 0.0;  ///< c(p, x) for a free-space point in space the map saw free
   std::size_t context_scans = 8;    ///< recent local scans whose surface enters descriptors
   double context_spacing = 0.3;     ///< [m] a scan joins the context after this much travel
