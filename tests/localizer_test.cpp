@@ -131,20 +131,23 @@ TEST(Localizer, RecoversWhenCarriedToAnotherBuilding) {
   EXPECT_LT(back, recovered_at(without, second, n1, 2, 0.5)) << "the recent-window duel recovers sooner";
 }
 
+/// Whether `pose` lies within `radius_m` of the target's true path over
+/// scans [first, last).
+bool near_the_run(const TargetRun& target, std::size_t first, std::size_t last, const Pose2& pose, double radius_m) {
+  for (std::size_t i = first; i < last; ++i) {
+    if (target.truth[i] && translation_distance(*target.truth[i], pose) < radius_m) return true;
+  }
+  return false;
+}
+
 /// Removes from the target's own submap every scan taken within `radius_m`
 /// of the target's path from scan `from` on, and returns the removed scans.
 std::vector<LaserScan> unmap_the_end_of_the_run(Scenario& sc, std::size_t from, double radius_m) {
-  const TargetRun& target = sc.target;
-  std::vector<LaserScan>& mapped = sc.submaps[sc.target_submap].scans;
   std::vector<LaserScan> removed;
-  std::erase_if(mapped, [&](const LaserScan& s) {
-    for (std::size_t i = from; i < target.truth.size(); ++i) {
-      if (target.truth[i] && translation_distance(*target.truth[i], s.pose) < radius_m) {
-        removed.push_back(s);
-        return true;
-      }
-    }
-    return false;
+  std::erase_if(sc.submaps[sc.target_submap].scans, [&](const LaserScan& s) {
+    if (!near_the_run(sc.target, from, sc.target.truth.size(), s.pose, radius_m)) return false;
+    removed.push_back(s);
+    return true;
   });
   return removed;
 }
@@ -177,12 +180,7 @@ TEST(Localizer, GivesUpAWellSupportedPlaceOnlyForASupportedChallenger) {
   const TargetRun& target = sc.target;
   const std::size_t from = 2 * target.scans.size() / 3;
   std::vector<LaserScan> copy = unmap_the_end_of_the_run(sc, from, 4.0);
-  std::erase_if(copy, [&](const LaserScan& s) {
-    for (std::size_t i = 0; i < from; ++i) {
-      if (target.truth[i] && translation_distance(*target.truth[i], s.pose) < 3.0) return true;
-    }
-    return false;
-  });
+  std::erase_if(copy, [&](const LaserScan& s) { return near_the_run(target, 0, from, s.pose, 3.0); });
   ASSERT_GT(copy.size(), 100u);
   std::mt19937_64 rng(5);
   std::normal_distribution<double> jitter(0.0, 1.0);

@@ -53,7 +53,9 @@ class PoseGridScorer {
   /// a kSurface point that misses `grid` scores `free` when its cell there
   /// holds kFree but not kOccupied, `surface_on_return` on a return without a
   /// normal never crossed by map rays, else `unknown`; a kFreeSpace point scores
-  /// `ray_through_wall` on a cell holding kReturn but not kFree, else 0.
+  /// `ray_through_wall` on a cell holding kReturn but not kFree,
+  /// `ray_through_free` on kFree without kOccupied, `ray_through_contested`
+  /// on kReturn and kFree, else 0.
   PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
 
   void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);
