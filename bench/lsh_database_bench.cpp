@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "lshloc/core/lsh_database.hpp"
+#include "lshloc/appearance/lsh_database.hpp"
 
 namespace {
 

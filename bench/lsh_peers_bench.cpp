@@ -37,11 +37,11 @@
 #include <string>
 #include <vector>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/location_store.hpp"
-#include "lshloc/core/lsh_database.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
-#include "lshloc/pipeline/appearance.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/appearance/location_store.hpp"
+#include "lshloc/appearance/lsh_database.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/eval/appearance.hpp"
 
 #ifdef LSHLOC_HAVE_HNSWLIB
 #include <hnswlib/hnswlib.h>
@@ -280,7 +280,7 @@ int main(int argc, char** argv) try {
   };
 
   // 1. The descriptor stream and the queries.
-  const lshloc::io::DatasetCatalog catalog(lshloc::io::DatasetCatalog::resolve_data_dir(data_dir));
+  const lshloc::io::DatasetCatalog catalog(lshloc::io::DatasetCatalog::resolve_data_dir(data_dir, LSHLOC_SOURCE_DIR "/../shared/data"));
   lshloc::FeatureExtractor extractor;
   const lshloc::DescriptorContextConfig context;
   std::vector<Descriptor> stream;

@@ -8,9 +8,9 @@
 #include <numbers>
 
 #include "../tests/laser_sim.hpp"
-#include "lshloc/core/scan_matcher.hpp"
+#include "lshloc/slam/scan_matcher.hpp"
 #include "lshloc/io/carmen_reader.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
 
 namespace {
 
@@ -44,7 +44,7 @@ void BM_ScanMatcherRoom360(benchmark::State& state) {
 BENCHMARK(BM_ScanMatcherRoom360)->Unit(benchmark::kMillisecond);
 
 void BM_ScanMatcherFr079(benchmark::State& state) {
-  const std::string dir = lshloc::io::DatasetCatalog::resolve_data_dir();
+  const std::string dir = lshloc::io::DatasetCatalog::resolve_data_dir("", LSHLOC_SOURCE_DIR "/../shared/data");
   const std::string log = dir + "/fr079/fr079.recon-from-bag.log.gz";
   std::error_code ec;
   if (!std::filesystem::is_regular_file(log, ec)) {

@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# Installs dependencies, builds lshloc (Release) and runs the whole test suite.
+# Installs dependencies, builds lshloc (Release), runs the whole test suite
+# (the layer check included), then installs into a temporary prefix and builds
+# and runs examples/embed against it (find_package(lshloc)).
 # Tests that need the real logs skip when ../shared/data is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -7,3 +9,10 @@ cd "$(dirname "$0")/.."
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc)"
 ctest --test-dir build -j"$(nproc)" --output-on-failure
+prefix=$(mktemp -d)
+trap 'rm -rf "$prefix"' EXIT
+cmake --install build --prefix "$prefix/install" >/dev/null
+cmake -S examples/embed -B "$prefix/embed" -DCMAKE_PREFIX_PATH="$prefix/install" >/dev/null
+cmake --build "$prefix/embed" -j"$(nproc)" >/dev/null
+"$prefix/embed/embed"
+echo "embed: built against the installed package and ran"

@@ -6,9 +6,10 @@ building's raw log, then, for WINDOWS evenly spaced windows of LENGTH raw
 scans (the many-starts windows of RESULTS.md), compares the motion from the
 window's first to its last ground-truth scan with the ground truth's: the
 heading error [deg] and the end-point error [m]. Extra arguments go to
-`lshloc slam` (e.g. --set normal_min_points=4, the mapping default).
+`lshloc slam` (e.g. --config FILE.json with {"matcher": {"normal_min_points": 4}},
+the mapping default).
 
-    scripts/window_drift.py aces [--per-window] [--lshloc build/bin/lshloc] [--data ../shared/data] [-- --set scan_voxel=0.08]
+    scripts/window_drift.py aces [--per-window] [--lshloc build/bin/lshloc] [--data ../shared/data] [-- --config m.json]
 """
 import argparse
 import math

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <numbers>
 
-#include "lshloc/core/error.hpp"
+#include "lshloc/common/error.hpp"
 #include "test_support.hpp"
 
 namespace lshloc::io {

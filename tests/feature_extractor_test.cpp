@@ -5,8 +5,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/feature_extractor.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/appearance/feature_extractor.hpp"
 
 namespace lshloc {
 namespace {

@@ -1,4 +1,4 @@
-#include "lshloc/io/figures.hpp"
+#include "lshloc/figures/figures.hpp"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <limits>
 #include <sstream>
 
-#include "lshloc/core/error.hpp"
+#include "lshloc/common/error.hpp"
 #include "test_support.hpp"
 
 namespace lshloc::io {

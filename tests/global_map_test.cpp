@@ -1,14 +1,14 @@
 // GlobalMap's free-space grid: which cells a mapper scan marks free, checked
 // against the geometry of hand-made scans.
-#include "lshloc/pipeline/global_map.hpp"
+#include "lshloc/localization/global_map.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/pose_grid.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/matching/pose_grid.hpp"
 
 namespace lshloc {
 namespace {

@@ -2,8 +2,8 @@
 
 #include <gtest/gtest.h>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/time_join.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/geometry/time_join.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "test_support.hpp"
 

@@ -1,4 +1,4 @@
-#include "lshloc/core/incremental_ransac.hpp"
+#include "lshloc/matching/incremental_ransac.hpp"
 
 #include <gtest/gtest.h>
 
@@ -8,8 +8,8 @@
 #include <set>
 #include <vector>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/pose_grid_scorer.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/matching/pose_grid_scorer.hpp"
 
 namespace lshloc {
 namespace {

@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "lshloc/core/laser_scan.hpp"
+#include "lshloc/geometry/laser_scan.hpp"
 
 namespace lshloc::test {
 

@@ -1,4 +1,4 @@
-#include "lshloc/pipeline/localization_metrics.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
 
 #include <gtest/gtest.h>
 

@@ -6,10 +6,10 @@
 #include <cmath>
 #include <random>
 
-#include "lshloc/pipeline/global_map.hpp"
-#include "lshloc/pipeline/localization_metrics.hpp"
-#include "lshloc/pipeline/localizer.hpp"
-#include "lshloc/pipeline/scenario_runner.hpp"
+#include "lshloc/localization/global_map.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
+#include "lshloc/localization/localizer.hpp"
+#include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 
 namespace lshloc {

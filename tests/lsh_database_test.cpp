@@ -7,9 +7,9 @@
 #include <random>
 #include <set>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/location_store.hpp"
-#include "lshloc/core/lsh_database.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/appearance/location_store.hpp"
+#include "lshloc/appearance/lsh_database.hpp"
 
 namespace lshloc {
 namespace {

@@ -1,4 +1,4 @@
-#include "lshloc/core/oriented_endpoints.hpp"
+#include "lshloc/geometry/oriented_endpoints.hpp"
 
 #include <gtest/gtest.h>
 

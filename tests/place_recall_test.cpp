@@ -2,9 +2,9 @@
 // and the descriptor-context helper.
 #include <gtest/gtest.h>
 
-#include "lshloc/io/dataset_catalog.hpp"
-#include "lshloc/pipeline/appearance.hpp"
-#include "lshloc/pipeline/place_recall.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/eval/appearance.hpp"
+#include "lshloc/eval/place_recall.hpp"
 #include "test_support.hpp"
 
 namespace lshloc {

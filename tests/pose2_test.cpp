@@ -1,4 +1,4 @@
-#include "lshloc/core/pose2.hpp"
+#include "lshloc/geometry/pose2.hpp"
 
 #include <gtest/gtest.h>
 

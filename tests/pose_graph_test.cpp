@@ -1,6 +1,6 @@
 // Pose graph optimization, correlative scan matching and loop closing,
 // against known answers: simulated trajectories whose true poses are known.
-#include "lshloc/core/pose_graph.hpp"
+#include "lshloc/slam/pose_graph.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,9 +9,9 @@
 #include <random>
 
 #include "laser_sim.hpp"
-#include "lshloc/core/correlative_matcher.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/pose_graph_slam.hpp"
+#include "lshloc/slam/correlative_matcher.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/slam/pose_graph_slam.hpp"
 
 namespace lshloc {
 namespace {

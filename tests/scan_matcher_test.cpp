@@ -1,4 +1,4 @@
-#include "lshloc/core/scan_matcher.hpp"
+#include "lshloc/slam/scan_matcher.hpp"
 
 #include <gtest/gtest.h>
 
@@ -7,8 +7,8 @@
 #include <random>
 
 #include "laser_sim.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/relations_metric.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/slam/relations_metric.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/ground_truth.hpp"
 #include "test_support.hpp"

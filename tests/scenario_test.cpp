@@ -1,11 +1,11 @@
-#include "lshloc/pipeline/scenario.hpp"
+#include "lshloc/eval/scenario.hpp"
 
 #include <gtest/gtest.h>
 
 #include <set>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/sim/simulator.hpp"
 #include "test_support.hpp"
 

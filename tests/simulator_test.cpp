@@ -9,9 +9,9 @@
 #include <numbers>
 #include <random>
 
-#include "lshloc/core/error.hpp"
+#include "lshloc/common/error.hpp"
 #include "lshloc/io/carmen_writer.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
 #include "test_support.hpp"
 
 namespace lshloc::sim {

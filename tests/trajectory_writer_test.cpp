@@ -6,7 +6,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "lshloc/core/error.hpp"
+#include "lshloc/common/error.hpp"
 #include "test_support.hpp"
 
 namespace lshloc::io {

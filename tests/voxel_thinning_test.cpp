@@ -1,4 +1,4 @@
-#include "lshloc/core/voxel_thinning.hpp"
+#include "lshloc/geometry/voxel_thinning.hpp"
 
 #include <gtest/gtest.h>
 

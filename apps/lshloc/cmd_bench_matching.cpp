@@ -20,11 +20,11 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/incremental_ransac.hpp"
-#include "lshloc/core/oriented_endpoints.hpp"
-#include "lshloc/core/pose_grid.hpp"
-#include "lshloc/core/pose_grid_scorer.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/matching/incremental_ransac.hpp"
+#include "lshloc/geometry/oriented_endpoints.hpp"
+#include "lshloc/matching/pose_grid.hpp"
+#include "lshloc/matching/pose_grid_scorer.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 
 namespace lshloc::app {

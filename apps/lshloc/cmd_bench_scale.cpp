@@ -12,9 +12,9 @@
 
 #include "commands.hpp"
 #include "localizer_options.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/io/figures.hpp"
-#include "lshloc/pipeline/localization_metrics.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/figures/figures.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 
 namespace lshloc::app {
@@ -131,6 +131,7 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
   add_localizer_options(*cmd, opt->localizer);
   cmd->callback([opt, &global] {
     (void)global;
+    if (print_config_if_asked(opt->localizer)) return;
     if (opt->targets == 0) throw Error("bench scale: --targets must be at least 1");
     const bool tty = isatty(fileno(stderr));
     std::vector<io::CostSeries> series = {{"update [us/feature]", {}, {}}, {"retrieval [us/feature]", {}, {}},

@@ -8,8 +8,8 @@
 
 #include "commands.hpp"
 #include "localizer_options.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/pipeline/localization_metrics.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "scenario_report.hpp"
 
@@ -42,6 +42,7 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
   add_localizer_options(*cmd, opt->localizer);
   cmd->callback([opt, &global] {
     (void)global;
+    if (print_config_if_asked(opt->localizer)) return;
     const bool tty = isatty(fileno(stderr));
     const auto t0 = std::chrono::steady_clock::now();
     std::fprintf(stderr, "Generating %zu synthetic buildings (seed %llu) and their mapper robots' logs...\n",

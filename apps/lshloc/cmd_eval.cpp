@@ -10,11 +10,11 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
-#include "lshloc/io/figures.hpp"
-#include "lshloc/pipeline/localization_metrics.hpp"
-#include "lshloc/pipeline/scenario_runner.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/figures/figures.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
+#include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "localizer_options.hpp"
 #include "scenario_report.hpp"
@@ -126,8 +126,8 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   const LocalizationMetrics m =
       evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
   nlohmann::json j = scenario_json(sc, run, m);
-  j["order_rule"] = opt.localizer.order_rule;
-  j["hypotheses"] = opt.localizer.hypotheses;
+  j["order_rule"] = run_config.localizer.ransac.order_rule;
+  j["hypotheses"] = run_config.localizer.hypothesis_source;
   std::printf("%s\n", j.dump().c_str());
   std::fflush(stdout);
   if (!opt.plot_dir.empty()) {
@@ -186,10 +186,11 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_flag("--json", opt->json, "print only the JSON line on stdout (progress goes to stderr either way)");
   cmd->add_option("--plot", opt->plot_dir, "write figures (PNG and SVG) into this directory");
   cmd->add_option("--trace", opt->trace, "write a CSV row per target scan (estimate, truth, error, scores)");
-  add_localizer_options(*cmd, opt->localizer);
+  add_localizer_options(*cmd, opt->localizer, /*research_flags=*/true);
   cmd->callback([&global, opt, cmd] {
+    if (print_config_if_asked(opt->localizer)) return;
     if (cmd->count("--start") == 0) opt->scenario.start = default_start(opt->scenario.building);
-    const io::DatasetCatalog catalog(io::DatasetCatalog::resolve_data_dir(global.data_dir));
+    const io::DatasetCatalog catalog(global.resolved_data_dir());
     std::vector<io::ErrorSeries> curves;
     for (const std::size_t r : opt->submaps) {
       ScenarioConfig scenario = opt->scenario;

@@ -6,9 +6,9 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "lshloc/core/error.hpp"
+#include "lshloc/common/error.hpp"
 #include "lshloc/io/carmen_reader.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
 
 namespace lshloc::app {
 
@@ -55,7 +55,7 @@ void add_info_command(CLI::App& app, GlobalOptions& global) {
   cmd->callback([&global, logs] {
     std::vector<std::string> files = *logs;
     if (files.empty()) {
-      const io::DatasetCatalog catalog(io::DatasetCatalog::resolve_data_dir(global.data_dir));
+      const io::DatasetCatalog catalog(global.resolved_data_dir());
       files = catalog.existing_logs();
       if (files.empty()) throw Error("no logs found in data directory " + catalog.data_dir());
     }

@@ -11,8 +11,8 @@
 #include "commands.hpp"
 #include "localizer_options.hpp"
 #include "scenario_report.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/time_join.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/geometry/time_join.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/ground_truth.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
@@ -90,6 +90,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   add_localizer_options(*cmd, opt->localizer);
   cmd->callback([opt, &global] {
     (void)global;
+    if (print_config_if_asked(opt->localizer)) return;
     Scenario sc;
     for (const auto& m : opt->maps) sc.submaps.push_back(load_map_argument(m, opt->map_slam));
     io::CarmenLog target = io::read_carmen_log(opt->target);

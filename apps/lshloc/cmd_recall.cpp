@@ -16,8 +16,9 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
-#include "lshloc/pipeline/place_recall.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/eval/place_recall.hpp"
+#include "lshloc/io/config_json.hpp"
 
 namespace lshloc::app {
 
@@ -26,12 +27,43 @@ namespace {
 struct RecallOptions : PlaceRecallConfig {
   ScenarioConfig scenario;
   bool json = false;
+  std::string config_file;
+  bool print_config = false;
 };
 
+}  // namespace
+}  // namespace lshloc::app
+
+namespace lshloc {
+
+void to_json(nlohmann::json& j, const DescriptorContextConfig& c) {
+  j = {{"scans", c.scans}, {"min_step", c.min_step}, {"min_turn", c.min_turn}, {"max_distance", c.max_distance}};
+}
+void from_json(const nlohmann::json& j, DescriptorContextConfig& c) {
+  j.at("scans").get_to(c.scans), j.at("min_step").get_to(c.min_step), j.at("min_turn").get_to(c.min_turn),
+      j.at("max_distance").get_to(c.max_distance);
+}
+void to_json(nlohmann::json& j, const PlaceRecallConfig& c) {
+  j = {{"k", c.k}, {"exact", c.exact}, {"match_distance", c.match_distance}, {"match_angle_deg", c.match_angle_deg},
+       {"thin_cell", c.thin_cell}, {"thin_angle", c.thin_angle}, {"extractor", c.extractor}, {"context", c.context},
+       {"lsh", c.lsh}};
+}
+void from_json(const nlohmann::json& j, PlaceRecallConfig& c) {
+  j.at("k").get_to(c.k), j.at("exact").get_to(c.exact), j.at("match_distance").get_to(c.match_distance),
+      j.at("match_angle_deg").get_to(c.match_angle_deg), j.at("thin_cell").get_to(c.thin_cell),
+      j.at("thin_angle").get_to(c.thin_angle), j.at("extractor").get_to(c.extractor),
+      j.at("context").get_to(c.context), j.at("lsh").get_to(c.lsh);
+}
+
+}  // namespace lshloc
+
+namespace lshloc::app {
+namespace {
+
 nlohmann::json run_recall(const GlobalOptions& global, const RecallOptions& opt) {
-  const io::DatasetCatalog catalog(io::DatasetCatalog::resolve_data_dir(global.data_dir));
+  const io::DatasetCatalog catalog(global.resolved_data_dir());
   const Scenario scenario = io::load_scenario(catalog, opt.scenario);
-  const PlaceRecallResult r = evaluate_place_recall(scenario, opt);
+  const PlaceRecallResult r = evaluate_place_recall(scenario, static_cast<const PlaceRecallConfig&>(opt));
   nlohmann::json out = {
       {"building", opt.scenario.building},
       {"start", opt.scenario.start},
@@ -90,46 +122,25 @@ void add_recall_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_flag("!--no-exact", opt->exact, "skip the brute-force exact-L2 baseline");
   cmd->add_option("--thin", opt->thin_cell, "[m] insert one map feature per (x, y, theta) cell of this size (0: all)")
       ->capture_default_str();
-  auto* g = cmd->add_option_group("database", "LSH settings");
-  g->add_option("--lsh-k", opt->lsh.K, "projections per table")->capture_default_str();
-  g->add_option("--lsh-l", opt->lsh.L, "tables")->capture_default_str();
-  g->add_option("--lsh-w", opt->lsh.w, "bucket width (L2-normalized descriptor units)")->capture_default_str();
-  g->add_option("--lsh-seed", opt->lsh.seed, "seed of the projections")->capture_default_str();
-  g->add_option("--bucket-capacity", opt->lsh.bucket_capacity, "ids a query reads per bucket")->capture_default_str();
-  g->add_option("--max-candidates", opt->lsh.max_candidates, "bucket entries a query reads in all")->capture_default_str();
-  g->add_option("--sketch-weight", opt->lsh.sketch_collision_weight, "sketch bits per missed table in the ranking")
-      ->capture_default_str();
-  g->add_option("--sketch-bits", opt->lsh.sketch_bits, "sign-sketch bits per entry ranking candidates (0: off)")
-      ->capture_default_str();
-  auto* f = cmd->add_option_group("features", "keypoints and descriptor");
-  f->add_option("--keypoints", opt->extractor.max_keypoints, "|U_new|: keypoints per scan at most")->capture_default_str();
-  f->add_option("--spacing", opt->extractor.keypoint_spacing, "[m] arc length between keypoints")->capture_default_str();
-  f->add_option("--keypoint-range", opt->extractor.keypoint_max_range, "[m] keypoints this close to the sensor")
-      ->capture_default_str();
-  f->add_option("--radius", opt->extractor.descriptor_radius, "[m] descriptor radius")->capture_default_str();
-  f->add_option("--inner-radius", opt->extractor.descriptor_inner_radius, "[m] innermost ring")->capture_default_str();
-  f->add_option("--normal-window", opt->extractor.normal_half_window, "[m] half arc length of the normal fit")
-      ->capture_default_str();
-  f->add_option("--min-support", opt->extractor.min_descriptor_support, "[m] surface in the disc at least")
-      ->capture_default_str();
-  f->add_option("--edge-margin", opt->extractor.edge_margin, "[m] keypoints this far from segment ends")
-      ->capture_default_str();
-  f->add_option("--residual", opt->extractor.max_normal_residual, "[m] smoothness limit of a keypoint")
-      ->capture_default_str();
-  f->add_option("--bin-power", opt->extractor.bin_power, "per-bin magnitude compression")->capture_default_str();
-  f->add_option("--prefer-structure", opt->extractor.prefer_structure, "keep the most structured keypoints")
-      ->capture_default_str();
-  f->add_option("--rim-taper", opt->extractor.rim_taper, "share of the radius over which points fade out")
-      ->capture_default_str();
-  f->add_option("--log-rings", opt->extractor.log_rings, "log-spaced rings (else even)")->capture_default_str();
-  f->add_option("--rings", opt->extractor.rings, "radial bins")->capture_default_str();
-  f->add_option("--sectors", opt->extractor.sectors, "angular bins")->capture_default_str();
-  f->add_option("--occupancy", opt->extractor.occupancy_component, "a third component per bin: surface length")
-      ->capture_default_str();
-  f->add_option("--context", opt->context.scans, "earlier scans used as descriptor context")->capture_default_str();
-  f->add_option("--context-step", opt->context.min_step, "[m] sensor motion between context scans")
-      ->capture_default_str();
-  cmd->callback([&global, opt] {
+  cmd->add_option("--config", opt->config_file,
+                  "JSON file of settings (the shape --print-config writes; any subset): extractor, lsh, context, "
+                  "match radii");
+  cmd->add_flag("--print-config", opt->print_config, "print the effective settings as JSON and exit");
+  cmd->callback([&global, opt, cmd] {
+    PlaceRecallConfig& config = *opt;
+    const PlaceRecallConfig from_flags = config;
+    if (!opt->config_file.empty()) {
+      config = PlaceRecallConfig{};
+      io::apply_config_patch(io::read_json_file(opt->config_file), config, opt->config_file);
+      // Flags given on the command line win over the file.
+      if (cmd->count("--k") != 0) config.k = from_flags.k;
+      if (cmd->count("--no-exact") != 0) config.exact = from_flags.exact;
+      if (cmd->count("--thin") != 0) config.thin_cell = from_flags.thin_cell;
+    }
+    if (opt->print_config) {
+      std::printf("%s\n", nlohmann::json(config).dump(2).c_str());
+      return;
+    }
     const nlohmann::json out = run_recall(global, *opt);
     std::printf("%s\n", opt->json ? out.dump().c_str() : out.dump(2).c_str());
   });

@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "lshloc/core/error.hpp"
+#include "lshloc/common/error.hpp"
 #include "lshloc/io/carmen_writer.hpp"
 #include "lshloc/sim/render.hpp"
 #include "lshloc/sim/simulator.hpp"

@@ -16,15 +16,16 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/relations_metric.hpp"
-#include "lshloc/core/pose_graph_slam.hpp"
-#include "lshloc/core/scan_matcher.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/slam/relations_metric.hpp"
+#include "lshloc/slam/pose_graph_slam.hpp"
+#include "lshloc/slam/scan_matcher.hpp"
 #include "lshloc/io/carmen_reader.hpp"
-#include "lshloc/io/dataset_catalog.hpp"
+#include "lshloc/io/config_json.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/io/ground_truth.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
-#include "lshloc/pipeline/localizer.hpp"
+#include "lshloc/localization/localizer.hpp"
 
 namespace lshloc::app {
 
@@ -35,77 +36,9 @@ struct SlamOptions {
   bool no_loop_closure = false;
   bool localizer_matcher = false;
   bool json = false;
-  double max_range = ScanMatcherConfig{}.max_range;
-  std::size_t window = ScanMatcherConfig{}.window_keyframes;
-  std::vector<std::string> settings;  ///< --set NAME=VALUE
-  std::optional<double> laser_offset;  ///< --laser-offset [m], overrides the log's PARAM
+  std::string config_file;  ///< --config: PoseGraphSlamConfig as JSON (any subset)
+  bool print_config = false;
 };
-
-/// Applies `--set NAME=VALUE` to the matcher's or (NAME starting "graph.")
-/// the loop-closing graph's config (tuning experiments).
-void apply_setting(PoseGraphSlamConfig& slam, const std::string& setting) {
-  ScanMatcherConfig& c = slam.matcher;
-  const auto eq = setting.find('=');
-  if (eq == std::string::npos) throw Error("--set '" + setting + "': expected NAME=VALUE");
-  const std::string name = setting.substr(0, eq), text = setting.substr(eq + 1);
-  double value = 0.0;
-  try {
-    std::size_t used = 0;
-    value = std::stod(text, &used);
-    if (used != text.size()) throw std::invalid_argument(text);
-  } catch (const std::exception&) {
-    throw Error("--set " + name + ": '" + text + "' is not a number");
-  }
-  const auto count = [&] { return static_cast<std::size_t>(std::llround(std::max(0.0, value))); };
-  if (name == "min_range") c.min_range = value;
-  else if (name == "max_range") c.max_range = value;
-  else if (name == "scan_voxel") c.scan_voxel = value;
-  else if (name == "window_keyframes") c.window_keyframes = count();
-  else if (name == "keyframe_distance") c.keyframe_distance = value;
-  else if (name == "keyframe_angle") c.keyframe_angle = value;
-  else if (name == "map_voxel") c.map_voxel = value;
-  else if (name == "normal_radius") c.normal_radius = value;
-  else if (name == "normal_beam_gaps") c.normal_beam_gaps = value;
-  else if (name == "normal_max_neighbours") c.normal_max_neighbours = count();
-  else if (name == "normal_min_points") c.normal_min_points = count();
-  else if (name == "max_line_flatness") c.max_line_flatness = value;
-  else if (name == "coarse_correspondence") c.coarse_correspondence = value;
-  else if (name == "fine_correspondence") c.fine_correspondence = value;
-  else if (name == "coarse_iterations") c.coarse_iterations = count();
-  else if (name == "max_iterations") c.max_iterations = count();
-  else if (name == "robust_scale") c.robust_scale = value;
-  else if (name == "rotation_length") c.rotation_length = value;
-  else if (name == "degeneracy_threshold") c.degeneracy_threshold = value;
-  else if (name == "inlier_distance") c.inlier_distance = value;
-  else if (name == "min_quality") c.min_quality = value;
-  else if (name == "min_correspondences") c.min_correspondences = count();
-  else if (name == "max_correction_translation") c.max_correction_translation = value;
-  else if (name == "max_correction_rotation") c.max_correction_rotation = value;
-  else if (name == "velocity_guess_difference") c.velocity_guess_difference = value;
-  else if (name == "odometry_prior") c.odometry_prior = value != 0.0;
-  else if (name == "point_sigma") c.point_sigma = value;
-  else if (name == "odometry_sigma_translation") c.odometry_sigma_translation = value;
-  else if (name == "odometry_sigma_per_meter") c.odometry_sigma_per_meter = value;
-  else if (name == "odometry_sigma_rotation") c.odometry_sigma_rotation = value;
-  else if (name == "odometry_sigma_rotation_per_rad") c.odometry_sigma_rotation_per_rad = value;
-  else if (name == "odometry_sigma_rotation_per_meter") c.odometry_sigma_rotation_per_meter = value;
-  else if (name == "reject_unconverged") c.reject_unconverged = value != 0.0;
-  else if (name == "converged_translation") c.converged_translation = value;
-  else if (name == "converged_rotation") c.converged_rotation = value;
-  else if (name == "keep_oldest_map_points") c.keep_oldest_map_points = value != 0.0;
-  else if (name == "graph.node_distance") slam.node_distance = value;
-  else if (name == "graph.loop_min_travel") slam.loop_min_travel = value;
-  else if (name == "graph.loop_window_per_m") slam.loop_window_per_m = value;
-  else if (name == "graph.loop_max_window") slam.loop_max_window = value;
-  else if (name == "graph.loop_window_deg") slam.loop_window_deg = value;
-  else if (name == "graph.loop_min_score") slam.loop_min_score = value;
-  else if (name == "graph.loop_max_runner_up") slam.loop_max_runner_up = value;
-  else if (name == "graph.loop_sigma_xy") slam.loop_sigma_xy = value;
-  else if (name == "graph.robust_scale") slam.graph.robust_scale = value;
-  else if (name == "graph.edge_sigma_xy_per_m") slam.edge_sigma_xy_per_m = value;
-  else if (name == "graph.edge_sigma_theta_per_m_deg") slam.edge_sigma_theta_per_m_deg = value;
-  else throw Error("--set: unknown parameter '" + name + "' (see ScanMatcherConfig, or graph.* in PoseGraphSlamConfig)");
-}
 
 /// What the catalog knows about the building whose raw log is `log`.
 struct KnownLog {
@@ -121,16 +54,25 @@ KnownLog known_log(const std::string& log, const std::string& data_dir) {
   std::error_code ec;
   const fs::path log_path = fs::weakly_canonical(log, ec);
   try {
-    const io::DatasetCatalog catalog(io::DatasetCatalog::resolve_data_dir(data_dir));
+    const io::DatasetCatalog catalog(data_dir);
     for (const auto& b : catalog.buildings()) {
       if (b.raw_log.empty() || fs::weakly_canonical(b.raw_log, ec) != log_path) continue;
       if (!b.poses.empty() && fs::is_regular_file(b.poses, ec)) out.gmapping_poses = b.poses;
-      if (b.name == "fr079" || b.name == "fr101") out.documented_laser_offset = -0.04;
+      out.documented_laser_offset = b.laser_offset_x;
     }
   } catch (const Error&) {
     // No data directory: nothing known.
   }
   return out;
+}
+
+/// The defaults (or the localizer's matcher), then --config, then the flags.
+PoseGraphSlamConfig configured(const SlamOptions& opt) {
+  PoseGraphSlamConfig c;
+  if (opt.localizer_matcher) c.matcher = LocalizerConfig{}.scan_matcher;
+  if (!opt.config_file.empty()) io::apply_config_patch(io::read_json_file(opt.config_file), c, opt.config_file);
+  if (opt.no_loop_closure) c.loop_closure = false;
+  return c;
 }
 
 nlohmann::json metric_or_null(const std::optional<RelationsError>& e, bool rotation) {
@@ -150,22 +92,16 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   std::vector<Relation> relations;
   if (!opt.relations.empty()) relations = io::read_relations(opt.relations);
 
-  ScanMatcherConfig config = opt.localizer_matcher ? LocalizerConfig{}.scan_matcher : ScanMatcherConfig{};
-  const KnownLog known = known_log(opt.log, global.data_dir);
-  if (opt.laser_offset) {
-    config.laser_offset = Pose2(*opt.laser_offset, 0.0, 0.0);
-  } else if (log.params.count("robot_frontlaser_offset") != 0 || !known.documented_laser_offset) {
-    config.laser_offset = log.front_laser_offset();
-  } else {
-    config.laser_offset = Pose2(*known.documented_laser_offset, 0.0, 0.0);
+  PoseGraphSlamConfig slam_config = configured(opt);
+  // The laser offset: the log's PARAM, else the catalog's documented value
+  // for the building, else the config's.
+  const KnownLog known = known_log(opt.log, global.resolved_data_dir());
+  if (log.params.count("robot_frontlaser_offset") != 0) {
+    slam_config.matcher.laser_offset = log.front_laser_offset();
+  } else if (known.documented_laser_offset) {
+    slam_config.matcher.laser_offset = Pose2(*known.documented_laser_offset, 0.0, 0.0);
   }
-  config.max_range = opt.max_range;
-  config.window_keyframes = opt.window;
-  PoseGraphSlamConfig slam_config;
-  slam_config.matcher = config;
-  slam_config.loop_closure = !opt.no_loop_closure;
-  for (const auto& setting : opt.settings) apply_setting(slam_config, setting);
-  config = slam_config.matcher;
+  const ScanMatcherConfig& config = slam_config.matcher;
   PoseGraphSlam slam(slam_config);
 
   std::vector<StampedPose> trajectory, matched, odometry;
@@ -313,20 +249,24 @@ void add_slam_command(CLI::App& app, GlobalOptions& global) {
                   "write one line per scan: timestamp, robot pose, how it was found (matched, odometry,\n"
                   "stationary), match quality, ICP iterations, correspondences, degenerate, keyframe");
   cmd->add_flag("--json", opt->json, "print one JSON line instead of the readable summary");
-  cmd->add_option("--max-range", opt->max_range, "[m] readings at or beyond are ignored by the matcher")
-      ->capture_default_str();
-  cmd->add_option("--window", opt->window, "keyframes in the rolling local map")->capture_default_str();
-  cmd->add_option("--laser-offset", opt->laser_offset,
-                  "[m] the front laser's mounting offset ahead of the robot's centre (default: the log's\n"
-                  "PARAM robot_frontlaser_offset, else the data README's value for fr079/fr101 (-0.04), else 0); also applied to the GMapping poses, which are laser poses");
   cmd->add_flag("--no-loop-closure", opt->no_loop_closure,
                "scan matching only (the localizer's local map); by default a pose graph closes loops by correlative "
                "matching");
   cmd->add_flag("--localizer-matcher", opt->localizer_matcher,
                 "start from the localizer's matcher settings (LocalizerConfig::scan_matcher: denser points, normals "
                 "from 3 points) instead of the mapping defaults");
-  cmd->add_option("--set", opt->settings, "NAME=VALUE: override a ScanMatcherConfig field (repeatable)");
-  cmd->callback([opt, &global] { run_slam(*opt, global); });
+  cmd->add_option("--config", opt->config_file,
+                  "JSON file of PoseGraphSlamConfig settings (the shape --print-config writes; any subset). The laser "
+                  "offset (matcher.laser_offset) is the log's PARAM robot_frontlaser_offset where it has one, else the "
+                  "dataset catalog's documented value, else this file's");
+  cmd->add_flag("--print-config", opt->print_config, "print the effective settings as JSON and exit");
+  cmd->callback([opt, &global] {
+    if (opt->print_config) {
+      std::printf("%s\n", nlohmann::json(configured(*opt)).dump(2).c_str());
+      return;
+    }
+    run_slam(*opt, global);
+  });
 }
 
 }  // namespace lshloc::app

@@ -3,6 +3,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "lshloc/eval/dataset_catalog.hpp"
+
 namespace lshloc::app {
 
 /// Options shared by every subcommand, and the process exit code the chosen
@@ -10,6 +12,11 @@ namespace lshloc::app {
 struct GlobalOptions {
   std::string data_dir;  ///< --data; empty: LSHLOC_DATA, else ../shared/data
   int exit_code = 0;
+  /// The data directory: --data, else $LSHLOC_DATA, else ../shared/data
+  /// beside the source tree this tool was built from.
+  std::string resolved_data_dir() const {
+    return io::DatasetCatalog::resolve_data_dir(data_dir, LSHLOC_SOURCE_DIR "/../shared/data");
+  }
 };
 
 // Each adds its subcommand to `app`; the subcommand's callback does the work

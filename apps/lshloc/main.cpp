@@ -4,7 +4,7 @@
 #include <exception>
 
 #include "commands.hpp"
-#include "lshloc/core/error.hpp"
+#include "lshloc/common/error.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{

@@ -4,9 +4,9 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "lshloc/core/error.hpp"
-#include "lshloc/core/voxel_thinning.hpp"
-#include "lshloc/io/figures.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/geometry/voxel_thinning.hpp"
+#include "lshloc/figures/figures.hpp"
 
 namespace lshloc::app {
 

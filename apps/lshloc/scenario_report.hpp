@@ -5,8 +5,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "lshloc/pipeline/localization_metrics.hpp"
-#include "lshloc/pipeline/scenario_runner.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
+#include "lshloc/eval/scenario_runner.hpp"
 
 namespace lshloc::app {
 

@@ -1,0 +1,160 @@
+#pragma once
+#include <cmath>
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "lshloc/appearance/feature.hpp"
+#include "lshloc/geometry/laser_scan.hpp"
+#include "lshloc/geometry/pose2.hpp"
+
+namespace lshloc {
+
+/// Settings of the laser keypoint extractor and its generalized shape
+/// context (GSC) descriptor (DESIGN.md sections 2 and 8).
+struct FeatureExtractorConfig {
+  // --- which scan points are used
+  double min_range = 0.05;  ///< [m] nearer returns are ignored (robot body, noise)
+  double max_range = 20.0;  ///< [m] usable range cap: farther returns are ignored
+
+  // --- smooth segments of the scan
+  double segment_gap = 0.25;          ///< [m] consecutive endpoints farther apart start a new segment ...
+  double segment_gap_per_meter = 0.05;  ///< [m/m] ... plus this much per metre of range (beams spread)
+  std::size_t min_segment_points = 5;   ///< segments with fewer endpoints are clutter and dropped
+  double tangent_half_window = 0.15;  ///< [m] arc length each side used for a point's tangent
+
+  // --- keypoints: fixed arc-length spacing along smooth segments (DESIGN.md section 8:
+  // they repeat better from another viewpoint than corner points)
+  std::size_t max_keypoints = 10;  ///< |U_new|: at most this many keypoints per scan
+  double keypoint_spacing = 0.7;   ///< [m] arc length between keypoints along a segment
+  double keypoint_max_range = 10.0;  ///< [m] keypoints only where the sensor saw the wall this close
+  double normal_half_window = 0.4;   ///< [m] arc length each side fitted by the keypoint's normal
+  double max_normal_residual = 0.02;  ///< [m] RMS off-line distance above which a spot is not smooth
+  double edge_margin = 0.2;  ///< [m] keypoints keep this arc length from a segment's ends
+
+  // --- descriptor: rings x sectors bins x components must make 120 (kDescriptorSize).
+  // Bin (ring, sector) holds its components at index components * (ring * sectors + sector).
+  std::size_t rings = 4;     ///< radial bins
+  std::size_t sectors = 10;  ///< angular bins, sector 0 starting opposite the normal
+  /// false: 2 components per bin, the summed (cos 2a, sin 2a) of the surface
+  /// tangent angle a; true: 3, the surface length in the bin first (a bin
+  /// holding walls of crossed directions is then not mistaken for an empty
+  /// one), e.g. 4 rings x 10 sectors x 3.
+  bool occupancy_component = true;
+  double descriptor_radius = 2.0;      ///< [m] outer radius (2 m beat 4 m, DESIGN.md section 8)
+  double descriptor_inner_radius = 0.35;  ///< [m] outer edge of the innermost radial bin; log spacing beyond
+  /// Points fade out linearly over this outer share of the radius, so that a
+  /// wall just at the rim does not flip in or out with a small shift.
+  double rim_taper = 0.5;
+  bool log_rings = true;  ///< log-spaced rings beyond the inner radius (false: evenly spaced)
+  /// Each bin's (cos, sin) vector is scaled to length |v|^bin_power before the
+  /// L2 normalization: < 1 keeps a long wall in one bin from drowning the rest.
+  double bin_power = 0.5;
+  double min_descriptor_support = 1.0;  ///< [m] of surface inside the disc below which a keypoint is dropped
+  /// With more candidates than max_keypoints: true keeps those with the most
+  /// surface across the keypoint's own wall inside the disc (corners, doors,
+  /// openings: distinctive), false an evenly spread subset.
+  bool prefer_structure = true;
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
+};
+
+
+/// A scan endpoint with the local surface direction there, in a map frame.
+struct SurfacePoint {
+  Point2 position;       ///< [m] in the map frame
+  double tangent = 0.0;  ///< [rad] direction of the surface (sign-free: only 2*tangent matters)
+  double weight = 0.0;   ///< [m] arc length of surface this point stands for (density-free histograms)
+  /// cos and sin of 2 * tangent, which describe() needs for every keypoint
+  /// near the point: computed once here (set_tangent keeps them in step).
+  double cos2t = 1.0, sin2t = 0.0;
+  void set_tangent(double t) {
+    tangent = t;
+    cos2t = std::cos(2.0 * t), sin2t = std::sin(2.0 * t);
+  }
+};
+
+/// One scan's endpoints in a map frame, split into smooth segments and
+/// annotated with tangents: the extractor's input, and the form in which a
+/// caller keeps recent scans as descriptor context.
+struct ScanSurface {
+  Pose2 sensor_pose;  ///< laser pose in the map frame
+  std::vector<SurfacePoint> points;  ///< segment after segment, each in beam order
+  std::vector<std::size_t> segment_begin;  ///< index of each segment's first point; ends at the next (or size())
+  std::vector<double> range;  ///< [m] range of each point from the sensor
+};
+
+/// `surface` moved by the rigid motion `T_new_old` (points, tangents and the
+/// sensor pose): how a caller re-places a kept scan when its frame changes.
+ScanSurface transformed(const ScanSurface& surface, const Pose2& T_new_old);
+
+/// Statistics of the extractor's last call (counts add up over calls until reset).
+struct FeatureExtractorStats {
+  std::size_t scans = 0;
+  std::size_t segments = 0;
+  std::size_t candidates = 0;        ///< arc-length positions tried
+  std::size_t rejected_rough = 0;    ///< not smooth enough for a normal
+  std::size_t rejected_support = 0;  ///< too little surface in the descriptor disc
+  std::size_t features = 0;
+};
+
+/// Chooses keypoints on a laser scan placed in a map frame and describes
+/// each with a 120-d generalized shape context.
+///
+/// Keypoints sit at fixed arc-length spacing along smooth scan segments,
+/// centred on each segment; their orientation is the surface normal pointing
+/// towards the sensor. The descriptor is a log-polar histogram (4 rings x 10
+/// sectors x 3 components by default, aligned with the normal) of the
+/// surface around the keypoint: each bin sums, weighted by arc length, faded
+/// towards the rim and softly split between neighbouring bins, the surface
+/// length and (cos 2a, sin 2a) of the surface tangent angle a relative to
+/// the normal (doubled: a surface has no sign). Each bin's vector is then
+/// compressed (|v|^bin_power) and the whole L2-normalized, so L2 distance in
+/// [0, 2] measures dissimilarity.
+///
+/// Everything is computed from distances and relative angles, so a rigid
+/// motion of the input moves the keypoints with it and leaves the
+/// descriptors unchanged (up to float rounding). Deterministic; no state but
+/// the statistics, so one instance per thread.
+class FeatureExtractor {
+ public:
+  explicit FeatureExtractor(FeatureExtractorConfig config = {});
+
+  const FeatureExtractorConfig& config() const { return config_; }
+  const FeatureExtractorStats& stats() const { return stats_; }
+  void reset_stats() { stats_ = {}; }
+
+  /// Segments and annotates one scan. `points_map` are the scan's valid
+  /// endpoints in beam order, already placed in the map frame; `sensor_pose`
+  /// is the laser pose in that frame (for ranges and the normals' sign).
+  ScanSurface surface(std::span<const Point2> points_map, const Pose2& sensor_pose) const;
+
+  /// The same from a LaserScan placed at `laser_pose_map` (its own `pose`
+  /// field is ignored): valid beams within [min_range, max_range).
+  ScanSurface surface(const LaserScan& scan, const Pose2& laser_pose_map) const;
+
+  /// The features of `scan`. `context` holds other scans of the same map
+  /// (e.g. the localizer's recent local-map scans) whose surface enters the
+  /// descriptors too, which makes them depend less on one viewpoint;
+  /// keypoints come from `scan` only.
+  std::vector<Feature> extract(const ScanSurface& scan, std::span<const ScanSurface> context = {});
+
+  /// How much surface a descriptor was made of.
+  struct Support {
+    double surface = 0.0;  ///< [m] arc length inside the disc
+    double across = 0.0;   ///< [m] the same weighted by sin^2 of its angle to the keypoint's wall
+  };
+
+  /// Descriptor of an oriented point `keypoint` over the given surfaces
+  /// (exposed for tests and tools); `out` is L2-normalized when any surface
+  /// lies inside the disc.
+  Support describe(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
+                   Descriptor& out) const;
+
+ private:
+  FeatureExtractorConfig config_;
+  FeatureExtractorStats stats_;
+};
+
+}  // namespace lshloc

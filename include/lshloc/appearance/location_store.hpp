@@ -1,0 +1,49 @@
+#pragma once
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/appearance/feature.hpp"
+
+namespace lshloc {
+
+/// Where every map feature lies: an append-only list of MapLocation whose
+/// index is the location id the appearance database stores (DESIGN.md
+/// section 3, step 2). 16 bytes per feature. Not thread-safe for concurrent
+/// append; concurrent reads of existing ids are safe while nobody appends.
+class LocationStore {
+ public:
+  /// Appends a location; returns its id (= the number of locations before).
+  std::uint32_t append(const MapLocation& location) {
+    if (locations_.size() >= std::numeric_limits<std::uint32_t>::max())
+      throw Error("LocationStore: full (at most 2^32 - 1 locations)");
+    locations_.push_back(location);
+    return static_cast<std::uint32_t>(locations_.size() - 1);
+  }
+  std::uint32_t append(std::uint32_t submap, const Pose2& pose) {
+    return append(MapLocation{submap, static_cast<float>(pose.x), static_cast<float>(pose.y),
+                              static_cast<float>(pose.theta)});
+  }
+
+  /// The location of `id`; throws lshloc::Error for an unknown id.
+  const MapLocation& at(std::uint32_t id) const {
+    if (id >= locations_.size())
+      throw Error("LocationStore: unknown location id " + std::to_string(id) + " (store holds " +
+                  std::to_string(locations_.size()) + ")");
+    return locations_[id];
+  }
+  const MapLocation& operator[](std::uint32_t id) const { return locations_[id]; }
+
+  std::size_t size() const { return locations_.size(); }
+  bool empty() const { return locations_.empty(); }
+  void reserve(std::size_t n) { locations_.reserve(n); }
+  std::size_t bytes() const { return locations_.capacity() * sizeof(MapLocation); }
+  const std::vector<MapLocation>& locations() const { return locations_; }
+
+ private:
+  std::vector<MapLocation> locations_;
+};
+
+}  // namespace lshloc

@@ -1,0 +1,200 @@
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lshloc/appearance/feature.hpp"
+
+namespace lshloc {
+
+/// What a bucket already holding bucket_capacity ids does with one more.
+enum class FullBucket {
+  kReservoir,   ///< keeps a uniform random sample of every id it was given (old places stay findable)
+  kKeepNewest,  ///< overwrites its oldest id (favours recently mapped places)
+};
+
+/// Settings of the E2LSH appearance database (DESIGN.md section 4, paper
+/// section IV-A). Descriptors are L2-normalized, so distances lie in [0, 2];
+/// w is in those units.
+struct LshConfig {
+  std::size_t K = 12;  ///< projections concatenated per table (paper: 30; with w fit to the data 8..30 recall alike)
+  std::size_t L = 24;  ///< hash tables (paper: 20)
+  double w = 2.0;      ///< bucket width of h(v) = floor((a.v + b) / w), descriptor units
+  std::uint64_t seed = 0x5eed5eedULL;  ///< seeds the Gaussian a and uniform b
+  /// A bucket keeps (and a query reads) at most this many ids (rounded up to
+  /// a power of two): a hot bucket cannot slow queries or grow.
+  std::size_t bucket_capacity = 64;
+  FullBucket full_bucket = FullBucket::kReservoir;  ///< seeded from `seed`: deterministic per insertion order
+  /// A query counts at most this many bucket entries over all tables.
+  std::size_t max_candidates = 600;
+  /// 0: candidates are ranked by collision count alone (buckets hold ids
+  /// only). Else each entry also keeps a sign sketch of this many bits
+  /// (multiple of 64; random Gaussian hyperplanes, seeded) under its id, and
+  /// candidates are ranked by the sketches' Hamming distance to the query's
+  /// (an angle estimate), ties by collision count. Costs sketch_bits / 8
+  /// bytes per id (ids should be dense, e.g. LocationStore indices).
+  std::size_t sketch_bits = 128;
+  /// With sketches, the ranking key is the Hamming distance plus this many
+  /// bits for every table the candidate did not collide in (0: sketch only).
+  std::size_t sketch_collision_weight = 1;
+  std::size_t initial_slots = 1024;  ///< slots per table at start (rounded up to a power of two)
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
+};
+
+/// Sizes and work counters of the database.
+struct LshStats {
+  std::size_t entries = 0;    ///< inserted descriptors
+  std::size_t buckets = 0;    ///< non-empty buckets over all tables
+  std::size_t bytes = 0;      ///< heap bytes held (tables, bucket lists, projections)
+  /// Query counters of the database's own scratch (queries made with a
+  /// caller's LshQuery are counted in that LshQuery).
+  std::size_t queries = 0;
+  std::size_t candidates_touched = 0;   ///< bucket entries read by those queries
+  std::size_t distinct_candidates = 0;  ///< distinct ids those queries found
+  double mean_candidates_touched() const {
+    return queries ? static_cast<double>(candidates_touched) / static_cast<double>(queries) : 0.0;
+  }
+  double bytes_per_entry() const { return entries ? static_cast<double>(bytes) / static_cast<double>(entries) : 0.0; }
+};
+
+class LshDatabase;
+
+/// Scratch space and statistics of queries: reusing one makes a query
+/// allocation-free. One per thread.
+class LshQuery {
+ public:
+  explicit LshQuery(const LshDatabase& db);
+  std::size_t queries = 0;
+  std::size_t candidates_touched = 0;
+  std::size_t distinct_candidates = 0;
+
+ private:
+  friend class LshDatabase;
+  Eigen::VectorXf projections_;
+  std::vector<std::uint32_t> tags_;                 ///< per table
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> blocks_;  ///< per table: (table, slot index) hit
+  std::vector<std::uint32_t> slot_id_;     ///< counting hash: id per slot
+  std::vector<std::uint16_t> slot_count_;  ///< collisions per slot
+  std::vector<std::uint32_t> slot_stamp_;  ///< slot valid when equal to stamp_
+  std::vector<std::uint32_t> found_;       ///< slots in first-seen order
+  std::vector<std::uint32_t> ranked_;      ///< slots by collision count
+  std::vector<std::uint32_t> histogram_;   ///< ids per collision count, then rank offsets
+  std::vector<std::uint64_t> sketch_;            ///< the query's sign sketch
+  std::vector<std::uint32_t> hamming_;           ///< per ranked candidate
+  std::vector<std::uint32_t> sketch_histogram_;  ///< counting sort by Hamming distance
+  std::vector<std::uint32_t> reranked_;
+  std::uint32_t stamp_ = 0;
+  std::uint32_t mask_ = 0;
+  int shift_ = 0;
+};
+
+/// The incremental E2LSH appearance database: L tables, each keyed by K
+/// concatenated p-stable hashes h(v) = floor((a.v + b) / w) with Gaussian a
+/// and b uniform in [0, w). Buckets hold location ids only; the descriptor
+/// is not stored (only an optional 128-bit sign sketch per id).
+///
+/// Buckets: each bucket keeps its ids in one contiguous block of a per-table
+/// pool, doubling from 1 id up to bucket_capacity (rounded up to a power of
+/// two); a full bucket then keeps a uniform random sample of all the ids it
+/// was given (reservoir sampling) or its newest ones (LshConfig::full_bucket),
+/// so a hot bucket (a long corridor seen a thousand times) holds and returns
+/// at most bucket_capacity ids and neither memory nor query time grows
+/// without bound.
+///
+/// Cost: insert = one (K L x 120) float matrix-vector product plus L bucket
+/// pushes (O(1); a block doubling copies at most bucket_capacity ids, and a
+/// table's slot array doubles at 70% load: amortized O(1)). Query = the same
+/// product plus at most min(L * bucket_capacity, max_candidates) ids read
+/// from L contiguous blocks, whatever the database size.
+///
+/// Memory per entry: 4 bytes per table for the id (up to 2x while a block is
+/// half full), plus 16 bytes per slot for each bucket it opens (slots at most
+/// 70% full): about 4L..(8L + 23L) bytes, so roughly 100..750 bytes at L = 24
+/// depending on how many buckets hold a single id (measured: 250 bytes at
+/// 1e4 real entries, 50..130 at 1e6 where buckets fill up), plus
+/// sketch_bits / 8 bytes per id for the sign sketch (16 at the default);
+/// LshStats::bytes measures it all. The descriptor itself is never stored.
+///
+/// Ranking: candidates are the ids of the L buckets the query falls in; they
+/// are ranked by the Hamming distance of their sign sketch to the query's
+/// (sketch_bits > 0), else by how many tables they collided in.
+///
+/// Thread-safety: insert() must not run concurrently with anything else.
+/// Concurrent queries are safe when each thread passes its own LshQuery;
+/// the query overload without one uses the database's own scratch and is
+/// not thread-safe.
+class LshDatabase {
+ public:
+  explicit LshDatabase(LshConfig config = {});
+
+  const LshConfig& config() const { return config_; }
+
+  /// Adds `descriptor` under location id `id`.
+  void insert(const Descriptor& descriptor, std::uint32_t id);
+
+  /// Up to k ids, most colliding tables first (ties: the first seen, which is
+  /// the newest entry of the first tables), into `out` (cleared first).
+  void query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out, LshQuery& scratch) const;
+  void query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out);
+
+  /// Like query(), with the collision count of each id returned (same order).
+  void query_counts(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
+                    std::vector<std::uint16_t>& counts, LshQuery& scratch) const;
+
+  std::size_t size() const { return entries_; }
+  LshStats stats() const;
+
+ private:
+  friend class LshQuery;
+  static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+  struct Slot {
+    std::uint32_t tag = 0;       ///< 32-bit hash of the K-tuple
+    std::uint32_t offset = 0;    ///< first id of the bucket's block in the table's pool
+    std::uint32_t inserted = 0;  ///< ids ever pushed (0: empty slot); kept in [cap, 2 cap) once full
+    std::uint32_t size_class = 0;  ///< the block holds 2^size_class ids
+  };
+  struct Table {
+    std::vector<Slot> slots;  ///< open addressing, linear probing, power-of-two size
+    std::vector<std::uint32_t> pool;  ///< the buckets' id blocks
+    std::vector<std::vector<std::uint32_t>> free_blocks;  ///< per size class: offsets of released blocks
+    std::size_t used = 0;     ///< non-empty slots
+    int bits = 0;
+  };
+
+  void project(const Descriptor& descriptor, Eigen::VectorXf& out) const;
+  /// The L table tags of a descriptor (32-bit hashes of each table's K-tuple).
+  void hash(const Descriptor& descriptor, Eigen::VectorXf& projections, std::vector<std::uint32_t>& tags) const;
+  static std::size_t home(std::uint32_t tag, int bits) {
+    return static_cast<std::size_t>((tag * 0x9E3779B97F4A7C15ULL) >> (64 - bits));
+  }
+  static void grow(Table& t);
+  std::uint32_t allocate(Table& t, std::uint32_t size_class) const;
+  void push(Table& t, Slot& slot, std::uint32_t id);
+  void sketch(const Descriptor& descriptor, std::uint64_t* words) const;
+  void rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) const;
+
+  LshConfig config_;
+  /// (K L x 120) Gaussian projections, already divided by w.
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> a_;
+  Eigen::VectorXf b_;  ///< offsets / w, uniform in [0, 1)
+  std::vector<std::uint64_t> table_seed_;
+  std::vector<std::uint64_t> tuple_multipliers_;  ///< K L random odd multipliers hashing a K-tuple
+  std::vector<Table> tables_;
+  std::size_t entries_ = 0;
+  std::uint32_t capacity_class_ = 0;
+  std::uint64_t rng_state_ = 0;  ///< reservoir sampling
+  std::size_t sketch_words_ = 0;
+  std::size_t sketch_ids_ = 0;  ///< ids 0..sketch_ids_-1 have a sketch slot
+  std::vector<std::uint64_t> sketches_;  ///< sketch_words_ per id
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> sketch_a_;  ///< bucket capacity = 2^capacity_class_
+  Eigen::VectorXf insert_projections_;
+  std::vector<std::uint32_t> insert_tags_;
+  std::vector<std::size_t> insert_slots_;
+  LshQuery own_query_;
+};
+
+}  // namespace lshloc

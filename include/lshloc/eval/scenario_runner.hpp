@@ -1,0 +1,81 @@
+#pragma once
+#include <functional>
+#include <vector>
+
+#include "lshloc/common/cpu_time.hpp"
+#include "lshloc/localization/global_map.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
+#include "lshloc/localization/localizer.hpp"
+#include "lshloc/eval/scenario.hpp"
+
+namespace lshloc {
+
+struct ScenarioRunConfig {
+  GlobalMapConfig map;
+  LocalizerConfig localizer;
+  /// Share (0..1] of each submap's scans fed before the target starts (one
+  /// scan of each submap in turn, as robots mapping in parallel would); the
+  /// rest arrives between target scans.
+  double map_share_before_target = 1.0;
+};
+
+/// What one scenario run produced, scan by scan, with its costs.
+struct ScenarioRun {
+  std::vector<LocalizationEstimate> estimates;  ///< per target scan
+  std::vector<double> cpu_s;       ///< [s] process CPU time spent on the target up to and including each scan
+  double map_build_s = 0.0;        ///< [s] wall time to feed every mapper scan
+  double localize_s = 0.0;         ///< [s] wall time of all target scans
+  double localize_cpu_s = 0.0;     ///< [s] process CPU time of all target scans
+  double log_duration_s = 0.0;     ///< [s] time the target's scans span in the log
+  GlobalMapStats map;
+  LocalizerStats localizer;
+  /// The newest surface data-points of iRANSAC placed by the final estimate,
+  /// split by whether they hit the map (for the paper's Fig. 6 style figure).
+  std::vector<Point2> final_inliers, final_outliers;
+
+  /// The estimates in the form evaluate_localization() takes.
+  std::vector<ScanEstimate> scan_estimates() const;
+};
+
+/// Progress callback: (target scans done, total); may be empty.
+using Progress = std::function<void(std::size_t, std::size_t)>;
+/// Called after each target scan with its index, the localizer and its
+/// estimate (for diagnostics that look inside it; its CPU time is not
+/// counted as the localizer's); may be empty.
+using LocalizerObserver = std::function<void(std::size_t, const Localizer&, const LocalizationEstimate&)>;
+
+/// Feeds submaps' scans (with their map poses) to a global map as mapper
+/// robots working in parallel would: one scan of each submap in turn.
+class MapFeeder {
+ public:
+  /// Opens one submap of `map` per entry of `submaps` (which must outlive it).
+  MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps);
+  /// Feeds scans until this share (0..1) of every submap is in the map.
+  void feed_until(double share);
+  /// The map's id of submaps[i].
+  std::uint32_t submap_id(std::size_t i) const { return ids_.at(i); }
+
+ private:
+  GlobalMap& map_;
+  const std::vector<Submap>& submaps_;
+  std::vector<std::uint32_t> ids_;
+  std::vector<std::size_t> fed_;
+};
+
+/// Called before target scan i; its CPU time is not counted as the target's.
+using BeforeScan = std::function<void(std::size_t)>;
+
+/// Runs a target's scans through a new Localizer over `map` (its scan
+/// matcher takes the target's laser offset). map_build_s stays 0.
+ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
+                            const Progress& progress = {}, const LocalizerObserver& observer = {},
+                            const BeforeScan& before_scan = {});
+
+/// Builds the global map from the scenario's submaps and runs the target's
+/// scans through a Localizer. Map scans are fed with their map poses.
+/// The localizer's scan matcher takes the target's laser offset.
+ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress = {},
+                         const LocalizerObserver& observer = {});
+
+
+}  // namespace lshloc

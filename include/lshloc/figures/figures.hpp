@@ -1,0 +1,44 @@
+#pragma once
+#include <string>
+#include <vector>
+
+#include "lshloc/geometry/pose2.hpp"
+
+namespace lshloc::io {
+
+/// One curve of an error-per-viewpoint plot. NaN values are gaps; +inf (wrong
+/// submap or no estimate) is drawn at the top of the axis.
+struct ErrorSeries {
+  std::string label;
+  std::vector<double> viewpoint;  ///< x: target scan index
+  std::vector<double> error_m;    ///< y: position error [m]
+};
+
+/// The paper's Fig. 8: error against viewpoint, log-scaled error axis. The
+/// format follows the extension of `path` (.png or .svg). Throws lshloc::Error
+/// if the file cannot be written.
+void plot_error_curves(const std::string& path, const std::string& title, const std::vector<ErrorSeries>& series,
+                       double max_error_m = 100.0);
+
+/// Points, polylines and markers over a map (the paper's Figs. 5 and 6).
+struct MapFigure {
+  std::string title;
+  std::vector<Point2> map_points;          ///< grey: the map (e.g. the target's submap)
+  std::vector<Point2> true_trajectory;     ///< green
+  std::vector<Point2> estimated_trajectory;  ///< blue; estimates in a wrong submap are left out
+  std::vector<Point2> inlier_points;       ///< blue dots: local features that agree with the map
+  std::vector<Point2> outlier_points;      ///< red dots
+};
+
+void plot_map_figure(const std::string& path, const MapFigure& figure);
+
+/// Per-feature cost against map size (the paper's Fig. 4): one series per cost.
+struct CostSeries {
+  std::string label;
+  std::vector<double> map_features;  ///< x
+  std::vector<double> cost;          ///< y
+};
+void plot_cost_curves(const std::string& path, const std::string& title, const std::string& y_label,
+                      const std::vector<CostSeries>& series);
+
+}  // namespace lshloc::io

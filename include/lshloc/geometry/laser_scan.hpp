@@ -1,0 +1,48 @@
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "lshloc/geometry/pose2.hpp"
+
+namespace lshloc {
+
+enum class BeamStatus : std::uint8_t {
+  kValid,     ///< a return inside (0, max_range)
+  kNoReturn,  ///< at or beyond max_range: the beam saw nothing
+  kInvalid,   ///< NaN, inf or negative in the log
+};
+
+/// One planar laser scan with the poses the log gives for it.
+/// Beams are evenly spaced: bearing(i) = angle_min + i * angle_increment in the
+/// laser frame (x forward, y left), so the first beam is the rightmost one.
+struct LaserScan {
+  double timestamp = 0.0;        ///< [s] the scan's time stamp in the log
+  double angle_min = 0.0;        ///< [rad] bearing of beam 0
+  double angle_increment = 0.0;  ///< [rad] between consecutive beams
+  double max_range = 81.0;       ///< [m] readings at or beyond are no return
+  std::vector<float> ranges;     ///< [m]; NaN marks an invalid reading
+  Pose2 pose;                    ///< laser pose given by the message (x y theta)
+  Pose2 odometry;                ///< odometry pose at scan time
+  std::size_t source_line = 0;   ///< line in the log it came from (0: none)
+
+  std::size_t size() const { return ranges.size(); }
+  double bearing(std::size_t i) const { return angle_min + static_cast<double>(i) * angle_increment; }
+
+  BeamStatus status(std::size_t i) const {
+    const float r = ranges[i];
+    if (std::isnan(r)) return BeamStatus::kInvalid;
+    if (r >= max_range) return BeamStatus::kNoReturn;
+    return BeamStatus::kValid;
+  }
+
+  /// Valid endpoints in the laser frame whose range lies in [min_range, max_use_range).
+  std::vector<Point2> endpoints(double min_range = 0.0, double max_use_range = 1e9) const;
+};
+
+/// Field of view [rad] and beam layout of a FLASER message of n beams over 180
+/// degrees: n odd (181, 361) spans exactly -90..+90 degrees; n even (180, 360)
+/// puts n beams of pi/n each centred on the axis.
+void set_flaser_geometry(LaserScan& scan);
+
+}  // namespace lshloc

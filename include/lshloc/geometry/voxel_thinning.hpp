@@ -1,0 +1,52 @@
+#pragma once
+// Voxel thinning of 2-D points: one point per square cell. The scan
+// matcher's local map, the SLAM nodes and the map figures all thin this way.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "lshloc/geometry/pose2.hpp"
+
+namespace lshloc {
+
+/// The key of the square cell holding p, for cells of side 1 / inv_voxel.
+inline std::uint64_t voxel_key(const Point2& p, double inv_voxel) {
+  const auto ix = static_cast<std::int32_t>(std::floor(p.x() * inv_voxel));
+  const auto iy = static_cast<std::int32_t>(std::floor(p.y() * inv_voxel));
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(ix)) << 32) | static_cast<std::uint32_t>(iy);
+}
+
+/// Keeps, in each cell of side `voxel` [m], the first of `points` in their
+/// order, and keeps the survivors in that order (so callers choose which
+/// point a cell keeps by ordering the input). `position_of(point)` gives a
+/// point's Point2. Deterministic; O(n log n). voxel <= 0 keeps everything.
+template <typename T, typename PositionOf>
+void thin_to_voxels(std::vector<T>& points, double voxel, PositionOf position_of) {
+  if (points.size() < 2 || !(voxel > 0.0)) return;
+  const double inv = 1.0 / voxel;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    keys[i] = {voxel_key(position_of(points[i]), inv), static_cast<std::uint32_t>(i)};
+  }
+  std::sort(keys.begin(), keys.end());  // within a cell, by index: the first point leads
+  std::vector<std::uint8_t> keep(points.size(), 0);
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    if (k == 0 || keys[k].first != keys[k - 1].first) keep[keys[k].second] = 1;
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!keep[i]) continue;
+    if (kept != i) points[kept] = std::move(points[i]);
+    ++kept;
+  }
+  points.resize(kept);
+}
+
+/// thin_to_voxels() of plain points.
+inline void thin_to_voxels(std::vector<Point2>& points, double voxel) {
+  thin_to_voxels(points, voxel, [](const Point2& p) -> const Point2& { return p; });
+}
+
+}  // namespace lshloc

@@ -1,0 +1,77 @@
+#pragma once
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lshloc/geometry/laser_scan.hpp"
+#include "lshloc/io/line_reader.hpp"
+
+namespace lshloc::io {
+
+struct OdometryReading {
+  double timestamp = 0.0;  ///< [s]
+  Pose2 pose;              ///< odometry pose
+  double tv = 0.0;         ///< [m/s] translational velocity
+  double rv = 0.0;         ///< [rad/s] rotational velocity
+  std::size_t source_line = 0;
+};
+
+struct CarmenReaderConfig {
+  /// [m] readings at or beyond this are "no return" when the log gives no
+  /// maximum of its own (FLASER; PARAM robot_front_laser_max overrides it,
+  /// ROBOTLASER1 carries its own). The Freiburg and Intel logs print 81.91.
+  double default_max_range = 81.0;
+};
+
+/// One message of a CARMEN log.
+struct CarmenRecord {
+  enum class Type { kLaser, kOdometry, kParam };
+  Type type = Type::kLaser;
+  std::string message;  ///< FLASER, ROBOTLASER1, ODOM or PARAM
+  LaserScan scan;       ///< when type == kLaser
+  OdometryReading odometry;  ///< when type == kOdometry
+  std::string param_name, param_value;  ///< when type == kParam
+};
+
+/// Streams a CARMEN text log (plain or .gz) message by message. Reads FLASER,
+/// ROBOTLASER1, ODOM and PARAM; skips NEFF, comments, blank lines and other
+/// message types. A malformed line throws lshloc::Error naming file:line and
+/// what was expected. Not thread-safe.
+class CarmenReader {
+ public:
+  explicit CarmenReader(std::string path, CarmenReaderConfig config = {});
+
+  /// Next FLASER/ROBOTLASER1/ODOM/PARAM message; false at the end of the file.
+  bool next(CarmenRecord& record);
+
+  const std::string& path() const { return lines_.path(); }
+
+ private:
+  void parse_flaser(const std::string& where, CarmenRecord& record);
+  void parse_robotlaser1(const std::string& where, CarmenRecord& record);
+  void parse_odom(const std::string& where, CarmenRecord& record);
+  float parse_range(std::string_view field, const std::string& where, std::size_t index) const;
+
+  LineReader lines_;
+  CarmenReaderConfig config_;
+  double flaser_max_range_;
+  std::string line_;
+  std::vector<std::string_view> fields_;
+};
+
+/// A whole log in memory (the scans, odometry and parameters).
+struct CarmenLog {
+  std::string path;
+  std::vector<LaserScan> scans;
+  std::vector<OdometryReading> odometry;
+  std::map<std::string, std::string> params;
+
+  /// The front laser's mounting pose on the robot (PARAM
+  /// robot_frontlaser_offset, metres forward), identity when absent.
+  Pose2 front_laser_offset() const;
+};
+
+CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config = {});
+
+}  // namespace lshloc::io

@@ -1,0 +1,100 @@
+#pragma once
+// Every component's config struct as JSON, field by field under its C++
+// name, and a reader that applies a JSON document onto a config: keys it
+// leaves out keep their values, unknown keys and values of the wrong type
+// are errors naming the file and the key's path. Enums are written by name.
+// Lengths [m], angles [rad] except fields ending in _deg; see each struct.
+// Stateless; safe from any thread.
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "lshloc/appearance/feature_extractor.hpp"
+#include "lshloc/appearance/lsh_database.hpp"
+#include "lshloc/localization/global_map.hpp"
+#include "lshloc/localization/localizer.hpp"
+#include "lshloc/matching/incremental_ransac.hpp"
+#include "lshloc/matching/pose_grid.hpp"
+#include "lshloc/slam/correlative_matcher.hpp"
+#include "lshloc/slam/pose_graph.hpp"
+#include "lshloc/slam/pose_graph_slam.hpp"
+#include "lshloc/slam/scan_matcher.hpp"
+
+namespace lshloc {
+
+void to_json(nlohmann::json& j, const Pose2& p);
+void from_json(const nlohmann::json& j, Pose2& p);
+void to_json(nlohmann::json& j, FullBucket v);
+void from_json(const nlohmann::json& j, FullBucket& v);
+void to_json(nlohmann::json& j, ToleranceMode v);
+void from_json(const nlohmann::json& j, ToleranceMode& v);
+void to_json(nlohmann::json& j, FeatureOrderRule v);
+void from_json(const nlohmann::json& j, FeatureOrderRule& v);
+void to_json(nlohmann::json& j, PreemptionRank v);
+void from_json(const nlohmann::json& j, PreemptionRank& v);
+void to_json(nlohmann::json& j, HypothesisSource v);
+void from_json(const nlohmann::json& j, HypothesisSource& v);
+void to_json(nlohmann::json& j, const FeatureExtractorConfig& c);
+void from_json(const nlohmann::json& j, FeatureExtractorConfig& c);
+void to_json(nlohmann::json& j, const LshConfig& c);
+void from_json(const nlohmann::json& j, LshConfig& c);
+void to_json(nlohmann::json& j, const PoseGridConfig& c);
+void from_json(const nlohmann::json& j, PoseGridConfig& c);
+void to_json(nlohmann::json& j, const IncrementalRansacConfig& c);
+void from_json(const nlohmann::json& j, IncrementalRansacConfig& c);
+void to_json(nlohmann::json& j, const ScanMatcherConfig& c);
+void from_json(const nlohmann::json& j, ScanMatcherConfig& c);
+void to_json(nlohmann::json& j, const PoseGraphConfig& c);
+void from_json(const nlohmann::json& j, PoseGraphConfig& c);
+void to_json(nlohmann::json& j, const CorrelativeMatcherConfig& c);
+void from_json(const nlohmann::json& j, CorrelativeMatcherConfig& c);
+void to_json(nlohmann::json& j, const PoseGraphSlamConfig& c);
+void from_json(const nlohmann::json& j, PoseGraphSlamConfig& c);
+void to_json(nlohmann::json& j, const GlobalMapConfig& c);
+void from_json(const nlohmann::json& j, GlobalMapConfig& c);
+void to_json(nlohmann::json& j, const ConfidenceConfig& c);
+void from_json(const nlohmann::json& j, ConfidenceConfig& c);
+void to_json(nlohmann::json& j, const LocalizerConfig& c);
+void from_json(const nlohmann::json& j, LocalizerConfig& c);
+
+}  // namespace lshloc
+
+namespace lshloc::io {
+
+[[noreturn]] void throw_config_error(const std::string& source, const std::string& what);
+
+/// Checks `patch` against `current` (the JSON of the config it will be
+/// applied to): every key must exist there and every value must have its
+/// type (objects recursively; any number where a float is expected, a
+/// non-negative integer where an unsigned one is). Throws lshloc::Error
+/// "SOURCE: PATH.KEY: expected ..., got ..." on the first mismatch.
+void check_config_patch(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
+                        const std::string& path = "");
+
+/// `j` as a Config; errors (an enum's unknown name) name `source`.
+template <class Config>
+Config config_from_json(const nlohmann::json& j, const std::string& source) {
+  try {
+    return j.get<Config>();
+  } catch (const nlohmann::json::exception& e) {
+    throw_config_error(source, e.what());
+  } catch (const std::exception& e) {
+    throw_config_error(source, e.what());
+  }
+}
+
+/// Applies the JSON object `patch` onto `config` (RFC 7386 merge: what the
+/// patch leaves out keeps its value). `source` names the patch in errors.
+template <class Config>
+void apply_config_patch(const nlohmann::json& patch, Config& config, const std::string& source) {
+  nlohmann::json merged = config;
+  check_config_patch(patch, merged, source);
+  merged.merge_patch(patch);
+  config = config_from_json<Config>(merged, source);
+}
+
+/// Reads a JSON file (throws lshloc::Error naming the file, and the line and
+/// column of a syntax error).
+nlohmann::json read_json_file(const std::string& path);
+
+}  // namespace lshloc::io

@@ -1,0 +1,21 @@
+#pragma once
+#include <string>
+#include <vector>
+
+#include "lshloc/geometry/laser_scan.hpp"
+#include "lshloc/slam/relations_metric.hpp"
+
+namespace lshloc::io {
+
+/// A Kümmerle et al. (2009) benchmark relation (defined in core, where the
+/// relations metric uses it).
+using Relation = ::lshloc::Relation;
+
+/// Reads `timestamp x y theta` lines (`*.gfs-poses-at-*-stamps.txt`); `#` lines
+/// and blank lines are skipped. Errors name file:line.
+std::vector<StampedPose> read_pose_file(const std::string& path);
+
+/// Reads `t1 t2 dx dy dz roll pitch yaw` lines (`*.relations`).
+std::vector<Relation> read_relations(const std::string& path);
+
+}  // namespace lshloc::io

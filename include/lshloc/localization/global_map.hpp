@@ -1,0 +1,113 @@
+#pragma once
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "lshloc/appearance/feature_extractor.hpp"
+#include "lshloc/geometry/laser_scan.hpp"
+#include "lshloc/appearance/location_store.hpp"
+#include "lshloc/appearance/lsh_database.hpp"
+#include "lshloc/matching/pose_grid.hpp"
+
+namespace lshloc {
+
+/// Settings of the global map that mapper robots feed.
+struct GlobalMapConfig {
+  FeatureExtractorConfig features;  ///< keypoints and descriptors (the localizer must use the same)
+  LshConfig database;               ///< the appearance database
+  /// Occupancy of the (x, y, normal direction) grid: every scan endpoint is
+  /// marked with the direction of its surface normal (towards the sensor),
+  /// so a hypothesis can be checked against many points, not only keypoints.
+  PoseGridConfig occupancy{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 1};
+  /// Negative evidence: a 2-D grid of cells that mapper rays saw free.
+  PoseGridConfig free_space{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0};
+  double endpoint_spacing = 0.1;     ///< [m] endpoints closer than this along a scan are marked once
+  std::size_t free_ray_stride = 3;   ///< every this many beams marks its ray as free space
+  double free_ray_margin = 0.3;      ///< [m] at least this last part of a ray is not marked free (more at shallow angles)
+  double free_ray_max_range = 12.0;  ///< [m] rays are marked free up to this range
+  /// [m] how far a beam without a return is marked free. 0: not at all, as
+  /// glass and dark surfaces return nothing too, and a free run through them
+  /// turns rooms the mappers never saw into "seen free" (fr079: a target
+  /// in such a room had its true pose contradicted by most of its points).
+  double free_ray_no_return_range = 0.0;
+  std::size_t context_scans = 8;     ///< recent scans of a submap whose surface enters descriptors
+  double context_spacing = 0.3;      ///< [m] a scan joins the context after this much travel
+
+  void validate() const;
+};
+
+/// Counts, sizes and costs of the global map; times are the feeding thread's
+/// CPU seconds (cpu_time.hpp).
+struct GlobalMapStats {
+  std::size_t submaps = 0;
+  std::size_t scans = 0;
+  std::size_t features = 0;           ///< map features (locations = database entries)
+  double extract_s = 0.0;             ///< [s] keypoints and descriptors
+  double database_insert_s = 0.0;     ///< [s] LSH inserts only
+  double grid_s = 0.0;                ///< [s] occupancy and free-space marking
+  LshStats database;
+  PoseGridStats occupancy;
+  PoseGridStats free_space;
+  std::size_t location_bytes = 0;
+  /// [bytes] everything the global map holds per map feature.
+  double bytes_per_feature() const;
+  double us_insert_per_feature() const { return features ? 1e6 * database_insert_s / static_cast<double>(features) : 0.0; }
+  double us_update_per_feature() const {
+    return features ? 1e6 * (extract_s + database_insert_s + grid_s) / static_cast<double>(features) : 0.0;
+  }
+};
+
+/// The global map G = {G_1..G_R}: submaps in their own frames, the appearance
+/// database, the location store and the pose grids. Mapper robots feed it one
+/// scan at a time (in any interleaving across submaps); nothing is rebuilt.
+/// Not thread-safe: feed it from one thread and do not query it concurrently.
+class GlobalMap {
+ public:
+  explicit GlobalMap(GlobalMapConfig config = {});
+
+  const GlobalMapConfig& config() const { return config_; }
+
+  /// Opens a new, empty submap and returns its id (0, 1, ...).
+  std::uint32_t add_submap(std::string name);
+
+  /// Adds one mapper scan to `submap`; `laser_pose` is the scan's laser pose
+  /// in the submap's frame. Returns the number of features it added.
+  std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose);
+
+  std::size_t submap_count() const { return submaps_.size(); }
+  const std::string& submap_name(std::uint32_t submap) const { return submaps_.at(submap).name; }
+
+  const LshDatabase& database() const { return database_; }
+  const LocationStore& locations() const { return locations_; }
+  const PoseGridHashMap& occupancy() const { return occupancy_; }
+  const PoseGridHashMap& free_space() const { return free_space_; }
+
+  GlobalMapStats stats() const;
+
+ private:
+  struct SubmapState {
+    std::string name;
+    std::vector<ScanSurface> context;  // a few scans: erasing the front is cheap
+    Pose2 last_context_pose;
+    std::size_t scans = 0;
+  };
+
+  void mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
+
+  GlobalMapConfig config_;
+  FeatureExtractor extractor_;
+  LshDatabase database_;
+  LocationStore locations_;
+  PoseGridHashMap occupancy_;
+  PoseGridHashMap free_space_;
+  std::vector<SubmapState> submaps_;
+  GlobalMapStats stats_;
+  std::vector<Point2> beam_endpoints_;  // scratch of mark_grids
+};
+
+/// The direction [rad] of the normal of a surface with direction `tangent`
+/// at `point`, chosen to point towards `sensor`.
+double normal_towards(const Point2& point, double tangent, const Point2& sensor);
+
+}  // namespace lshloc

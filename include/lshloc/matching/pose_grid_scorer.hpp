@@ -1,0 +1,89 @@
+#pragma once
+// The iRANSAC score c(p, x) against the universal-hash pose grid (DESIGN.md
+// §4): the local point x, moved by hypothesis p into submap r, scores `hit`
+// when its cell (with the grid's tolerance) holds a map feature of r, `free`
+// when the cell is only known free (negative evidence), else `unknown`.
+#include <cstdint>
+#include <vector>
+
+#include "lshloc/matching/incremental_ransac.hpp"
+#include "lshloc/matching/pose_grid.hpp"
+
+namespace lshloc {
+
+struct PoseGridScorerConfig {
+  float hit = 1.0f;      ///< score of a point whose cell holds kOccupied
+  float free = 0.0f;     ///< score of a point whose cell holds only kFree (e.g. -0.5: a penalty)
+  float unknown = 0.0f;  ///< score of a point in a cell the map knows nothing about
+  /// Score of a kFreeSpace local point that lands on a map wall (a cell of the
+  /// free-space grid holding a return, kReturn, and never free: a local ray
+  /// through a map wall); such points score 0 elsewhere. Needs a free-space grid.
+  float ray_through_wall = -1.0f;
+  /// Score of a kFreeSpace local point that lands where map rays saw free
+  /// space (a cell holding only kFree): the map agrees.
+  float ray_through_free = 0.0f;
+  /// Score of a kFreeSpace local point on a map return that map rays also
+  /// crossed (kReturn and kFree): the map contradicts itself there, so a
+  /// milder penalty than ray_through_wall.
+  float ray_through_contested = 0.0f;
+  /// Score of a kSurface local point that misses `grid` on a cell of the
+  /// free-space grid holding a map return that map rays never crossed and no
+  /// map surface normal (kNormal): a wall the map saw only as sparse returns
+  /// (far walls at grazing angles form no segments), which `grid` cannot
+  /// hold. Where the map has a normal, `grid` judges the heading. The
+  /// counterpart of ray_through_wall, on the same cells.
+  float surface_on_return = 0.0f;
+};
+
+/// A Scorer for IncrementalRansac (see there). Each call transforms one local
+/// point by every hypothesis of the batch (floats, precomputed cos/sin, four
+/// at a time), packs and hashes all cell keys, then looks them up with
+/// prefetching a few keys ahead, so the table's cache misses overlap instead
+/// of queueing. The tolerance window comes from the grid's config: with
+/// kProbeNeighbours, one heading run per (x, y) offset (one or two cache
+/// lines, see PoseGridHashMap::TableView).
+///
+/// Holds a reference to the grid (which must outlive it) and its own scratch
+/// space: one scorer per thread. The grid must not change during a call.
+class PoseGridScorer {
+ public:
+  explicit PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config = {});
+  /// With negative evidence from a separate 2-D grid (theta_bins = 1, exact
+  /// cells) of the space map rays saw free, where walls are marked occupied:
+  /// a kSurface point that misses `grid` scores `free` when its cell there
+  /// holds kFree but not kOccupied, `surface_on_return` on a return without a
+  /// normal never crossed by map rays, else `unknown`; a kFreeSpace point scores
+  /// `ray_through_wall` on a cell holding kReturn but not kFree,
+  /// `ray_through_free` on kFree without kOccupied, `ray_through_contested`
+  /// on kReturn and kFree, else 0.
+  PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
+
+  void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);
+
+  /// The cell of local point x under hypothesis j of v, computed exactly as
+  /// operator() does (float transform): for tests and diagnostics.
+  PoseCell cell_of(const LocalPoint& x, const HypothesisBatch& v, std::size_t j) const;
+
+  std::uint64_t lookups() const { return lookups_; }
+
+ private:
+  void score_surface(const LocalPoint& x, const HypothesisBatch& v, float* scores);
+  /// Looks up x under every hypothesis j with `select(j)` in the free-space
+  /// grid and sets scores[j] = value(flags).
+  template <class Select, class Value>
+  void lookup_free_space(const LocalPoint& x, const HypothesisBatch& v, float* scores, Select select, Value value);
+
+
+  const PoseGridHashMap& grid_;
+  const PoseGridHashMap* free_space_ = nullptr;
+  PoseGridScorerConfig config_;
+  float value_[4];  ///< score by (flags & 3)
+  std::vector<std::uint64_t> xy_;     ///< (submap, ix, iy) key of each hypothesis' cell
+  std::vector<std::uint32_t> home_;  ///< its home slot (tables stay below 2^32 slots)
+  std::vector<std::int32_t> ix_, iy_, it_;
+  std::vector<CellFlags> flags_;
+  std::vector<std::uint32_t> selected_;  ///< hypotheses looked up in the free-space grid
+  std::uint64_t lookups_ = 0;
+};
+
+}  // namespace lshloc

@@ -1,0 +1,284 @@
+#include "lshloc/appearance/feature_extractor.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc {
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+void require(bool ok, const char* field, const std::string& expected) {
+  if (!ok) throw Error(std::string("FeatureExtractorConfig.") + field + ": expected " + expected);
+}
+
+/// Index of the last point of segment `seg` plus one.
+std::size_t segment_end(const ScanSurface& s, std::size_t seg) {
+  return seg + 1 < s.segment_begin.size() ? s.segment_begin[seg + 1] : s.points.size();
+}
+
+}  // namespace
+
+ScanSurface transformed(const ScanSurface& surface, const Pose2& T_new_old) {
+  ScanSurface out = surface;
+  out.sensor_pose = T_new_old * surface.sensor_pose;
+  for (SurfacePoint& p : out.points) {
+    p.position = T_new_old.transform(p.position);
+    p.set_tangent(T_new_old.transform_angle(p.tangent));
+  }
+  return out;
+}
+
+void FeatureExtractorConfig::validate() const {
+  require(min_range >= 0.0 && max_range > min_range, "min_range/max_range", "0 <= min_range < max_range");
+  require(segment_gap > 0.0 && segment_gap_per_meter >= 0.0, "segment_gap", "> 0 (per metre >= 0)");
+  require(min_segment_points >= 2, "min_segment_points", ">= 2");
+  require(tangent_half_window > 0.0, "tangent_half_window", "> 0 m");
+  require(max_keypoints >= 1, "max_keypoints", ">= 1");
+  require(keypoint_spacing > 0.0, "keypoint_spacing", "> 0 m");
+  require(keypoint_max_range > 0.0, "keypoint_max_range", "> 0 m");
+  require(normal_half_window > 0.0, "normal_half_window", "> 0 m");
+  require(max_normal_residual > 0.0, "max_normal_residual", "> 0 m");
+  require(edge_margin >= 0.0, "edge_margin", ">= 0 m");
+  require(descriptor_radius > 0.0, "descriptor_radius", "> 0 m");
+  require(descriptor_inner_radius > 0.0 && descriptor_inner_radius < descriptor_radius, "descriptor_inner_radius",
+          "in (0, descriptor_radius)");
+  require(rings >= 2 && sectors >= 2 && rings * sectors * (occupancy_component ? 3 : 2) == kDescriptorSize,
+          "rings/sectors", "rings x sectors x components (2, or 3 with occupancy_component) = 120, at least 2 each");
+  require(rim_taper >= 0.0 && rim_taper <= 1.0, "rim_taper", "in [0, 1]");
+  require(bin_power > 0.0 && bin_power <= 1.0, "bin_power", "in (0, 1]");
+  require(min_descriptor_support >= 0.0, "min_descriptor_support", ">= 0 m");
+}
+
+FeatureExtractor::FeatureExtractor(FeatureExtractorConfig config) : config_(config) { config_.validate(); }
+
+ScanSurface FeatureExtractor::surface(const LaserScan& scan, const Pose2& laser_pose_map) const {
+  std::vector<Point2> pts = scan.endpoints(config_.min_range, config_.max_range);
+  laser_pose_map.transform(pts, pts);
+  return surface(pts, laser_pose_map);
+}
+
+ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const Pose2& sensor_pose) const {
+  ScanSurface out;
+  out.sensor_pose = sensor_pose;
+  out.points.reserve(points_map.size());
+  out.range.reserve(points_map.size());
+  const Point2 sensor = sensor_pose.translation();
+
+  // 1. Keep usable points and cut the beam-ordered sequence where consecutive
+  // endpoints jump (occlusion edges, gaps); the allowed step grows with range.
+  std::vector<std::size_t> raw_begin;
+  std::vector<Point2> kept;
+  std::vector<double> kept_range;
+  for (const Point2& p : points_map) {
+    if (!p.allFinite()) continue;
+    const double r = (p - sensor).norm();
+    if (r < config_.min_range || r >= config_.max_range) continue;
+    const bool new_segment =
+        kept.empty() || (p - kept.back()).norm() >
+                            config_.segment_gap + config_.segment_gap_per_meter * std::max(r, kept_range.back());
+    if (new_segment) raw_begin.push_back(kept.size());
+    kept.push_back(p);
+    kept_range.push_back(r);
+  }
+
+  // 2. Per segment long enough: arc-length weights and tangents.
+  std::vector<double> arc;
+  for (std::size_t k = 0; k < raw_begin.size(); ++k) {
+    const std::size_t b = raw_begin[k], e = k + 1 < raw_begin.size() ? raw_begin[k + 1] : kept.size();
+    if (e - b < config_.min_segment_points) continue;
+    const std::size_t n = e - b;
+    arc.assign(n, 0.0);
+    for (std::size_t j = 1; j < n; ++j) arc[j] = arc[j - 1] + (kept[b + j] - kept[b + j - 1]).norm();
+    out.segment_begin.push_back(out.points.size());
+    // Tangent from the points about tangent_half_window away on each side
+    // (the 1 cm range quantization makes neighbouring beams useless for it).
+    std::size_t lo = 0, hi = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      while (arc[j] - arc[lo] > config_.tangent_half_window) ++lo;
+      while (hi + 1 < n && arc[hi + 1] - arc[j] <= config_.tangent_half_window) ++hi;
+      std::size_t a = lo, c = hi;
+      if (a == c) a = j > 0 ? j - 1 : j, c = j + 1 < n ? j + 1 : j;
+      const Point2 d = kept[b + c] - kept[b + a];
+      const double before = j > 0 ? arc[j] - arc[j - 1] : 0.0;
+      const double after = j + 1 < n ? arc[j + 1] - arc[j] : 0.0;
+      SurfacePoint sp;
+      sp.position = kept[b + j];
+      sp.set_tangent(std::atan2(d.y(), d.x()));
+      sp.weight = 0.5 * (before + after);
+      out.points.push_back(sp);
+      out.range.push_back(kept_range[b + j]);
+    }
+  }
+  return out;
+}
+
+FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan,
+                                                    std::span<const ScanSurface> context, Descriptor& out) const {
+  const double radius = config_.descriptor_radius, radius2 = radius * radius;
+  const double inner = config_.descriptor_inner_radius;
+  const double log_span = std::log(radius / inner);
+  const double taper_width = std::max(config_.rim_taper * radius, 1e-9);
+  const double c = std::cos(keypoint.theta), s = std::sin(keypoint.theta);
+  const double c2 = std::cos(2.0 * keypoint.theta), s2 = std::sin(2.0 * keypoint.theta);
+  const int kRings = static_cast<int>(config_.rings), kSectors = static_cast<int>(config_.sectors);
+  const bool occupancy = config_.occupancy_component;
+  const std::size_t comps = occupancy ? 3 : 2;
+  std::array<double, kDescriptorSize> hist{};
+  Support support;
+
+  auto accumulate = [&](const ScanSurface& surf) {
+    for (const SurfacePoint& sp : surf.points) {
+      const double dx = sp.position.x() - keypoint.x, dy = sp.position.y() - keypoint.y;
+      const double d2 = dx * dx + dy * dy;
+      if (d2 >= radius2) continue;
+      const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
+      const double r = std::sqrt(d2);
+      // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
+      const double u = r < inner          ? r / inner
+                       : config_.log_rings ? 1.0 + (kRings - 1) * std::log(r / inner) / log_span
+                                           : 1.0 + (kRings - 1) * (r - inner) / (radius - inner);
+      const double taper = std::min(1.0, (radius - r) / taper_width);
+      const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
+      // Soft binning between the two nearest bin centres in each dimension, so
+      // a point near a bin edge does not flip the descriptor.
+      const double uc = std::clamp(u - 0.5, 0.0, kRings - 1.0);
+      const int r0 = std::min(static_cast<int>(uc), kRings - 2);
+      const double fr = uc - r0;
+      const double vc = v - 0.5;
+      const double vf = std::floor(vc);
+      const double fa = vc - vf;
+      const int a0 = ((static_cast<int>(vf) % kSectors) + kSectors) % kSectors, a1 = (a0 + 1) % kSectors;
+      // Tangent relative to the keypoint normal, doubled: cos/sin(2(t - theta)).
+      const double ct = sp.cos2t, st = sp.sin2t;
+      const double weight = sp.weight * taper;
+      const double comp_c = (ct * c2 + st * s2) * weight, comp_s = (st * c2 - ct * s2) * weight;
+      const std::array<std::pair<int, double>, 4> bins{{{r0 * kSectors + a0, (1 - fr) * (1 - fa)},
+                                                        {r0 * kSectors + a1, (1 - fr) * fa},
+                                                        {(r0 + 1) * kSectors + a0, fr * (1 - fa)},
+                                                        {(r0 + 1) * kSectors + a1, fr * fa}}};
+      for (const auto& [bin, w] : bins) {
+        double* h = &hist[comps * static_cast<std::size_t>(bin)];
+        if (occupancy) *h++ += w * weight;
+        h[0] += w * comp_c;
+        h[1] += w * comp_s;
+      }
+      support.surface += weight;
+      // comp_c / weight = cos 2(t - theta): -1 along the keypoint's wall, +1 across it.
+      support.across += 0.5 * (weight + comp_c);
+    }
+  };
+  accumulate(scan);
+  for (const ScanSurface& ctx : context) accumulate(ctx);
+
+  if (config_.bin_power != 1.0)
+    for (std::size_t i = 0; i < kDescriptorSize; i += comps) {
+      double len2 = 0.0;
+      for (std::size_t j = i; j < i + comps; ++j) len2 += hist[j] * hist[j];
+      if (len2 <= 0.0) continue;
+      const double scale = std::pow(len2, 0.5 * (config_.bin_power - 1.0));
+      for (std::size_t j = i; j < i + comps; ++j) hist[j] *= scale;
+    }
+  double norm2 = 0.0;
+  for (double h : hist) norm2 += h * h;
+  const double inv = norm2 > 0.0 ? 1.0 / std::sqrt(norm2) : 0.0;
+  for (std::size_t i = 0; i < kDescriptorSize; ++i) out[i] = static_cast<float>(hist[i] * inv);
+  return support;
+}
+
+std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::span<const ScanSurface> context) {
+  ++stats_.scans;
+  stats_.segments += scan.segment_begin.size();
+  const Point2 sensor = scan.sensor_pose.translation();
+  std::vector<Feature> candidates;
+  std::vector<double> structure;  // Support::across per candidate
+  std::vector<double> arc;
+  for (std::size_t seg = 0; seg < scan.segment_begin.size(); ++seg) {
+    const std::size_t b = scan.segment_begin[seg], e = segment_end(scan, seg), n = e - b;
+    arc.assign(n, 0.0);
+    for (std::size_t j = 1; j < n; ++j)
+      arc[j] = arc[j - 1] + (scan.points[b + j].position - scan.points[b + j - 1].position).norm();
+    const double usable = arc[n - 1] - 2.0 * config_.edge_margin;
+    if (usable < 0.0) continue;
+    // Keypoints at fixed spacing, centred on the segment.
+    const auto count = static_cast<std::size_t>(std::floor(usable / config_.keypoint_spacing)) + 1;
+    const double first = config_.edge_margin + 0.5 * (usable - static_cast<double>(count - 1) * config_.keypoint_spacing);
+    std::size_t lo = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+      ++stats_.candidates;
+      const double at = first + static_cast<double>(k) * config_.keypoint_spacing;
+      // Fit a line to the points within normal_half_window of arc length.
+      while (lo < n && arc[lo] < at - config_.normal_half_window) ++lo;
+      Point2 mean = Point2::Zero();
+      std::size_t m = 0;
+      for (std::size_t j = lo; j < n && arc[j] <= at + config_.normal_half_window; ++j, ++m)
+        mean += scan.points[b + j].position;
+      if (m < 3) {
+        ++stats_.rejected_rough;
+        continue;
+      }
+      mean /= static_cast<double>(m);
+      Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+      for (std::size_t j = lo; j < lo + m; ++j) {
+        const Point2 d = scan.points[b + j].position - mean;
+        cov += d * d.transpose();
+      }
+      cov /= static_cast<double>(m);
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+      if (std::sqrt(std::max(eig.eigenvalues()(0), 0.0)) > config_.max_normal_residual) {
+        ++stats_.rejected_rough;
+        continue;
+      }
+      Point2 normal = eig.eigenvectors().col(0);
+      const Point2 tangent = eig.eigenvectors().col(1);
+      // The keypoint: the point at arc length `at`, projected onto the fitted line.
+      std::size_t j1 = lo;
+      while (j1 + 1 < n && arc[j1 + 1] < at) ++j1;
+      const std::size_t j2 = std::min(j1 + 1, n - 1);
+      const double t = arc[j2] > arc[j1] ? std::clamp((at - arc[j1]) / (arc[j2] - arc[j1]), 0.0, 1.0) : 0.0;
+      const Point2 on_scan = (1.0 - t) * scan.points[b + j1].position + t * scan.points[b + j2].position;
+      const Point2 position = mean + tangent * tangent.dot(on_scan - mean);
+      if ((position - sensor).norm() > config_.keypoint_max_range) continue;
+      if (normal.dot(sensor - position) < 0.0) normal = -normal;  // the side the sensor saw
+      Feature f;
+      f.pose = Pose2(position.x(), position.y(), std::atan2(normal.y(), normal.x()));
+      const Support support = describe(f.pose, scan, context, f.descriptor);
+      if (support.surface < config_.min_descriptor_support) {
+        ++stats_.rejected_support;
+        continue;
+      }
+      candidates.push_back(f);
+      structure.push_back(support.across);
+    }
+  }
+  // Too many: keep the most structured ones, or an evenly spread subset; in
+  // scan order either way (deterministic and independent of the frame).
+  std::vector<Feature> out;
+  if (candidates.size() <= config_.max_keypoints) {
+    out = std::move(candidates);
+  } else if (config_.prefer_structure) {
+    std::vector<std::size_t> order(candidates.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return structure[a] > structure[b]; });
+    order.resize(config_.max_keypoints);
+    std::sort(order.begin(), order.end());
+    for (std::size_t i : order) out.push_back(candidates[i]);
+  } else {
+    out.reserve(config_.max_keypoints);
+    const double step = static_cast<double>(candidates.size()) / static_cast<double>(config_.max_keypoints);
+    for (std::size_t i = 0; i < config_.max_keypoints; ++i)
+      out.push_back(candidates[static_cast<std::size_t>((static_cast<double>(i) + 0.5) * step)]);
+  }
+  stats_.features += out.size();
+  return out;
+}
+
+}  // namespace lshloc

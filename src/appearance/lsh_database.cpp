@@ -1,0 +1,368 @@
+#include "lshloc/appearance/lsh_database.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <string>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc {
+
+namespace {
+
+void require(bool ok, const char* field, const std::string& expected) {
+  if (!ok) throw Error(std::string("LshConfig.") + field + ": expected " + expected);
+}
+
+std::uint64_t mix64(std::uint64_t x) {
+  x ^= x >> 30;
+  x *= 0xBF58476D1CE4E5B9ULL;
+  x ^= x >> 27;
+  x *= 0x94D049BB133111EBULL;
+  x ^= x >> 31;
+  return x;
+}
+
+}  // namespace
+
+void LshConfig::validate() const {
+  require(K >= 1 && K <= 64, "K", "1..64 projections per table");
+  require(L >= 1 && L <= 256, "L", "1..256 tables");
+  require(std::isfinite(w) && w > 0.0, "w", "a bucket width > 0");
+  require(bucket_capacity >= 1 && bucket_capacity <= (1u << 16), "bucket_capacity", "1..65536");
+  require(max_candidates >= 1 && max_candidates <= (1u << 24), "max_candidates", "1..2^24");
+  require(sketch_bits % 64 == 0 && sketch_bits <= 1024, "sketch_bits", "0 or a multiple of 64 up to 1024");
+  require(sketch_collision_weight <= 64, "sketch_collision_weight", "0..64 bits per table");
+  require(initial_slots >= 1 && initial_slots <= (std::size_t{1} << 30), "initial_slots", "1..2^30");
+}
+
+LshQuery::LshQuery(const LshDatabase& db) {
+  const LshConfig& c = db.config_;
+  projections_.resize(static_cast<Eigen::Index>(c.K * c.L));
+  tags_.resize(c.L);
+  blocks_.reserve(c.L);
+  const std::size_t slots = std::bit_ceil(2 * std::min(c.max_candidates, c.L * c.bucket_capacity));
+  slot_id_.assign(slots, 0);
+  slot_count_.assign(slots, 0);
+  slot_stamp_.assign(slots, 0);
+  found_.reserve(slots);
+  mask_ = static_cast<std::uint32_t>(slots - 1);
+  shift_ = 32 - std::countr_zero(slots);
+  ranked_.reserve(slots);
+  histogram_.assign(c.L + 1, 0);
+}
+
+namespace {
+LshConfig validated(LshConfig c) {
+  c.validate();
+  return c;
+}
+}  // namespace
+
+LshDatabase::LshDatabase(LshConfig config) : config_(validated(config)), own_query_(*this) {
+  const auto rows = static_cast<Eigen::Index>(config_.K * config_.L);
+  a_.resize(rows, static_cast<Eigen::Index>(kDescriptorSize));
+  b_.resize(rows);
+  std::mt19937_64 rng(config_.seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  // a / w and b / w, so that h = floor(a'.v + b').
+  for (Eigen::Index r = 0; r < rows; ++r) {
+    for (Eigen::Index c = 0; c < a_.cols(); ++c) a_(r, c) = static_cast<float>(gauss(rng) / config_.w);
+    b_(r) = static_cast<float>(uniform(rng));
+  }
+  table_seed_.resize(config_.L);
+  for (auto& s : table_seed_) s = rng();
+  tuple_multipliers_.resize(config_.K * config_.L);
+  for (auto& m : tuple_multipliers_) m = rng() | 1u;
+  rng_state_ = rng();
+  sketch_words_ = config_.sketch_bits / 64;
+  sketch_a_.resize(static_cast<Eigen::Index>(config_.sketch_bits), static_cast<Eigen::Index>(kDescriptorSize));
+  for (Eigen::Index r = 0; r < sketch_a_.rows(); ++r)
+    for (Eigen::Index c = 0; c < sketch_a_.cols(); ++c) sketch_a_(r, c) = static_cast<float>(gauss(rng));
+  tables_.resize(config_.L);
+  const std::size_t slots = std::bit_ceil(std::max<std::size_t>(config_.initial_slots, 2));
+  for (Table& t : tables_) {
+    t.slots.assign(slots, Slot{});
+    t.bits = std::countr_zero(slots);
+  }
+  insert_projections_.resize(rows);
+  insert_tags_.resize(config_.L);
+  insert_slots_.resize(config_.L);
+  capacity_class_ = static_cast<std::uint32_t>(std::countr_zero(std::bit_ceil(config_.bucket_capacity)));
+  for (Table& t : tables_) t.free_blocks.resize(capacity_class_ + 1);
+}
+
+void LshDatabase::project(const Descriptor& descriptor, Eigen::VectorXf& out) const {
+  const Eigen::Map<const Eigen::Matrix<float, static_cast<int>(kDescriptorSize), 1>> v(descriptor.data());
+  out.noalias() = a_ * v;
+  out += b_;
+}
+
+void LshDatabase::hash(const Descriptor& descriptor, Eigen::VectorXf& projections,
+                       std::vector<std::uint32_t>& tags) const {
+  project(descriptor, projections);
+  const std::size_t k = config_.K;
+  for (std::size_t t = 0; t < tables_.size(); ++t) {
+    // Universal hash of the K-tuple of cells: a dot product with random odd
+    // 64-bit multipliers (independent terms, so it pipelines), then one mix.
+    const float* p = projections.data() + t * k;
+    const std::uint64_t* m = tuple_multipliers_.data() + t * k;
+    std::uint64_t h = table_seed_[t];
+    for (std::size_t i = 0; i < k; ++i)
+      h += static_cast<std::uint64_t>(static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(p[i])))) * m[i];
+    tags[t] = static_cast<std::uint32_t>(mix64(h) >> 32);
+  }
+}
+
+void LshDatabase::grow(Table& t) {
+  std::vector<Slot> old = std::move(t.slots);
+  t.bits += 1;
+  t.slots.assign(std::size_t{1} << t.bits, Slot{});
+  const std::size_t mask = t.slots.size() - 1;
+  for (const Slot& s : old) {
+    if (s.inserted == 0) continue;
+    std::size_t i = home(s.tag, t.bits);
+    while (t.slots[i].inserted != 0) i = (i + 1) & mask;
+    t.slots[i] = s;
+  }
+}
+
+std::uint32_t LshDatabase::allocate(Table& t, std::uint32_t size_class) const {
+  std::vector<std::uint32_t>& free = t.free_blocks[size_class];
+  if (!free.empty()) {
+    const std::uint32_t offset = free.back();
+    free.pop_back();
+    return offset;
+  }
+  const std::size_t offset = t.pool.size();
+  if (offset + (std::size_t{1} << size_class) > kNone) throw Error("LshDatabase: a table's id pool is full (2^32 ids)");
+  t.pool.resize(offset + (std::size_t{1} << size_class));
+  return static_cast<std::uint32_t>(offset);
+}
+
+void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) {
+  const std::uint32_t cap = 1u << capacity_class_;
+  if (slot.inserted == 0) {
+    slot.size_class = 0;
+    slot.offset = allocate(t, 0);
+  } else if (slot.inserted == (1u << slot.size_class) && slot.size_class < capacity_class_) {
+    // Block full but below the cap: move to a block twice as large.
+    const std::uint32_t bigger = allocate(t, slot.size_class + 1);
+    std::copy_n(t.pool.begin() + slot.offset, slot.inserted, t.pool.begin() + bigger);
+    t.free_blocks[slot.size_class].push_back(slot.offset);
+    slot.offset = bigger;
+    slot.size_class += 1;
+  }
+  if (slot.inserted < cap) {
+    t.pool[slot.offset + slot.inserted] = id;
+    slot.inserted += 1;
+  } else if (config_.full_bucket == FullBucket::kKeepNewest) {
+    t.pool[slot.offset + (slot.inserted & (cap - 1))] = id;  // overwrite the oldest
+    slot.inserted += 1;
+    if (slot.inserted == 2 * cap) slot.inserted = cap;  // same position modulo cap, never wraps
+  } else {
+    // Reservoir sampling: the bucket stays a uniform sample of all its ids.
+    rng_state_ = mix64(rng_state_ + 0x9E3779B97F4A7C15ULL);
+    const std::uint64_t j = rng_state_ % (static_cast<std::uint64_t>(slot.inserted) + 1);
+    if (j < cap) t.pool[slot.offset + j] = id;
+    if (slot.inserted < 0xFFFFFFFFu) slot.inserted += 1;
+  }
+}
+
+void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
+  hash(descriptor, insert_projections_, insert_tags_);
+  // Three passes over the tables so that their cache misses overlap: find
+  // the home slots (prefetching them), find the buckets (prefetching where
+  // the id goes), then write.
+  for (std::size_t t = 0; t < tables_.size(); ++t) {
+    Table& table = tables_[t];
+    if (10 * (table.used + 1) > 7 * table.slots.size()) grow(table);
+    insert_slots_[t] = home(insert_tags_[t], table.bits);
+    __builtin_prefetch(&table.slots[insert_slots_[t]]);
+  }
+  const std::uint32_t cap_mask = (1u << capacity_class_) - 1;
+  for (std::size_t t = 0; t < tables_.size(); ++t) {
+    Table& table = tables_[t];
+    const std::size_t mask = table.slots.size() - 1;
+    std::size_t i = insert_slots_[t];
+    while (table.slots[i].inserted != 0 && table.slots[i].tag != insert_tags_[t]) i = (i + 1) & mask;
+    insert_slots_[t] = i;
+    const Slot& slot = table.slots[i];
+    if (slot.inserted != 0) __builtin_prefetch(table.pool.data() + slot.offset + (slot.inserted & cap_mask), 1);
+  }
+  for (std::size_t t = 0; t < tables_.size(); ++t) {
+    Table& table = tables_[t];
+    Slot& slot = table.slots[insert_slots_[t]];
+    if (slot.inserted == 0) {
+      slot.tag = insert_tags_[t];
+      ++table.used;
+    }
+    push(table, slot, id);
+  }
+  if (sketch_words_ > 0) {
+    if (id >= sketch_ids_) {
+      sketch_ids_ = static_cast<std::size_t>(id) + 1;
+      sketches_.resize(sketch_ids_ * sketch_words_, 0);
+    }
+    sketch(descriptor, sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
+  }
+  ++entries_;
+}
+
+void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out) {
+  query(descriptor, k, out, own_query_);
+}
+
+void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
+                        LshQuery& scratch) const {
+  thread_local std::vector<std::uint16_t> counts;
+  query_counts(descriptor, k, out, counts, scratch);
+}
+
+void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
+                               std::vector<std::uint16_t>& counts, LshQuery& q) const {
+  out.clear();
+  counts.clear();
+  if (q.mask_ + 1 < 2 * std::min(config_.max_candidates, config_.L * config_.bucket_capacity))
+    throw Error("LshDatabase::query: the LshQuery was made for another database configuration");
+  hash(descriptor, q.projections_, q.tags_);
+  if (++q.stamp_ == 0) {  // stamps wrapped: clear once every 2^32 queries
+    std::fill(q.slot_stamp_.begin(), q.slot_stamp_.end(), 0u);
+    q.stamp_ = 1;
+  }
+  q.found_.clear();
+  // As in insert(): find all buckets first (prefetching), then read them.
+  for (std::size_t t = 0; t < tables_.size(); ++t)
+    __builtin_prefetch(&tables_[t].slots[home(q.tags_[t], tables_[t].bits)]);
+  q.blocks_.clear();
+  for (std::size_t t = 0; t < tables_.size(); ++t) {
+    const Table& table = tables_[t];
+    const std::uint32_t tag = q.tags_[t];
+    const std::size_t mask = table.slots.size() - 1;
+    std::size_t i = home(tag, table.bits);
+    while (table.slots[i].inserted != 0 && table.slots[i].tag != tag) i = (i + 1) & mask;
+    if (table.slots[i].inserted == 0) continue;
+    __builtin_prefetch(table.pool.data() + table.slots[i].offset);
+    q.blocks_.emplace_back(static_cast<std::uint32_t>(t), static_cast<std::uint32_t>(i));
+  }
+  std::size_t touched = 0;
+  for (const auto& [t, i] : q.blocks_) {
+    if (touched >= config_.max_candidates) break;
+    const Table& table = tables_[t];
+    const Slot& slot = table.slots[i];
+    const std::size_t count =
+        std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, config_.max_candidates - touched});
+    const std::uint32_t* ids = table.pool.data() + slot.offset;
+    touched += count;
+    for (std::size_t n = 0; n < count; ++n) {
+      const std::uint32_t id = ids[n];
+      // Count the id in the open-addressing counting hash.
+      std::uint32_t s = (id * 0x9E3779B1u) >> q.shift_;
+      while (q.slot_stamp_[s] == q.stamp_ && q.slot_id_[s] != id) s = (s + 1) & q.mask_;
+      if (q.slot_stamp_[s] != q.stamp_) {
+        q.slot_stamp_[s] = q.stamp_;
+        q.slot_id_[s] = id;
+        q.slot_count_[s] = 0;
+        q.found_.push_back(s);
+      }
+      ++q.slot_count_[s];
+    }
+  }
+  q.queries += 1;
+  q.candidates_touched += touched;
+  q.distinct_candidates += q.found_.size();
+  // Rank by collision count with a counting sort (counts <= L): O(found + L)
+  // and stable, so ties keep first-seen order.
+  std::fill(q.histogram_.begin(), q.histogram_.end(), 0u);
+  for (std::uint32_t s : q.found_) ++q.histogram_[q.slot_count_[s]];
+  std::uint32_t start = 0;  // highest count first
+  for (std::size_t c = q.histogram_.size(); c-- > 0;) {
+    const std::uint32_t here = q.histogram_[c];
+    q.histogram_[c] = start;
+    start += here;
+  }
+  q.ranked_.resize(q.found_.size());
+  for (std::uint32_t s : q.found_) q.ranked_[q.histogram_[q.slot_count_[s]]++] = s;
+  if (sketch_words_ > 0) rerank_by_sketch(descriptor, q);
+  const std::size_t n = std::min(k, q.ranked_.size());
+  out.reserve(n);
+  counts.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    out.push_back(q.slot_id_[q.ranked_[i]]);
+    counts.push_back(q.slot_count_[q.ranked_[i]]);
+  }
+}
+
+void LshDatabase::sketch(const Descriptor& descriptor, std::uint64_t* words) const {
+  const Eigen::Map<const Eigen::Matrix<float, static_cast<int>(kDescriptorSize), 1>> v(descriptor.data());
+  thread_local Eigen::VectorXf signs;
+  signs.noalias() = sketch_a_ * v;
+  for (std::size_t w = 0; w < sketch_words_; ++w) {
+    std::uint64_t bits = 0;
+    for (std::size_t b = 0; b < 64; ++b)
+      bits |= static_cast<std::uint64_t>(signs(static_cast<Eigen::Index>(64 * w + b)) > 0.0f) << b;
+    words[w] = bits;
+  }
+}
+
+void LshDatabase::rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) const {
+  // The Hamming distance between sign sketches estimates the angle between
+  // descriptors (unit vectors: monotone in L2). A stable counting sort by it
+  // keeps the collision-count order among equal distances.
+  q.sketch_.resize(sketch_words_);
+  sketch(descriptor, q.sketch_.data());
+  const std::size_t n = q.ranked_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t id = q.slot_id_[q.ranked_[i]];
+    if (id < sketch_ids_) __builtin_prefetch(sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
+  }
+  q.hamming_.resize(n);
+  const std::size_t weight = config_.sketch_collision_weight;
+  const std::size_t max_distance = 64 * sketch_words_ + weight * config_.L;
+  q.sketch_histogram_.assign(max_distance + 2, 0u);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t id = q.slot_id_[q.ranked_[i]];
+    std::uint32_t d = static_cast<std::uint32_t>(max_distance + 1);  // no sketch: last
+    if (id < sketch_ids_) {
+      const std::uint64_t* e = sketches_.data() + static_cast<std::size_t>(id) * sketch_words_;
+      d = 0;
+      for (std::size_t w = 0; w < sketch_words_; ++w) d += static_cast<std::uint32_t>(std::popcount(e[w] ^ q.sketch_[w]));
+      // Each table the candidate missed costs `weight` bits.
+      d += static_cast<std::uint32_t>(weight * (config_.L - std::min<std::size_t>(q.slot_count_[q.ranked_[i]], config_.L)));
+    }
+    q.hamming_[i] = d;
+    ++q.sketch_histogram_[d];
+  }
+  std::uint32_t start = 0;
+  for (auto& h : q.sketch_histogram_) {
+    const std::uint32_t here = h;
+    h = start;
+    start += here;
+  }
+  q.reranked_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) q.reranked_[q.sketch_histogram_[q.hamming_[i]]++] = q.ranked_[i];
+  q.ranked_.swap(q.reranked_);
+}
+
+LshStats LshDatabase::stats() const {
+  LshStats s;
+  s.entries = entries_;
+  for (const Table& t : tables_) {
+    s.buckets += t.used;
+    s.bytes += t.slots.capacity() * sizeof(Slot) + t.pool.capacity() * sizeof(std::uint32_t);
+    for (const auto& f : t.free_blocks) s.bytes += f.capacity() * sizeof(std::uint32_t);
+  }
+  s.bytes += sketches_.capacity() * sizeof(std::uint64_t) + static_cast<std::size_t>(sketch_a_.size()) * sizeof(float);
+  s.bytes += static_cast<std::size_t>(a_.size() + b_.size()) * sizeof(float) +
+             (table_seed_.size() + tuple_multipliers_.size()) * sizeof(std::uint64_t);
+  s.queries = own_query_.queries;
+  s.candidates_touched = own_query_.candidates_touched;
+  s.distinct_candidates = own_query_.distinct_candidates;
+  return s;
+}
+
+}  // namespace lshloc

@@ -1,0 +1,118 @@
+#include "lshloc/eval/scenario.hpp"
+
+#include <algorithm>
+#include <random>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/slam/pose_graph_slam.hpp"
+#include "lshloc/geometry/time_join.hpp"
+
+namespace lshloc {
+
+const std::vector<std::string>& canonical_building_order() {
+  static const std::vector<std::string> order = {
+      "fr079",     "intel",           "aces",   "fr101",          "mit-csail",         "acapulco", "belgioioso",
+      "edmonton",  "fhw",             "freiburg-campus", "infinite-corridor", "orebro",   "seattle",
+      "fr-clinic", "mit-killian"};
+  return order;
+}
+
+std::vector<std::string> other_buildings(const ScenarioConfig& config) {
+  const auto& all = canonical_building_order();
+  if (std::find(all.begin(), all.end(), config.building) == all.end()) {
+    throw Error("unknown building '" + config.building + "'");
+  }
+  std::vector<std::string> others;
+  for (const auto& b : all) {
+    if (b != config.building) others.push_back(b);
+  }
+  if (config.submaps == 0 || config.submaps > all.size()) {
+    throw Error("--submaps " + std::to_string(config.submaps) + " is out of range: there are " +
+                std::to_string(all.size()) + " real buildings (1.." + std::to_string(all.size()) + ")");
+  }
+  if (config.seed != 0) {
+    std::mt19937_64 rng(config.seed);
+    std::shuffle(others.begin(), others.end(), rng);
+  }
+  others.resize(config.submaps - 1);
+  return others;
+}
+
+std::vector<LaserScan> slam_mapped_scans(const std::vector<LaserScan>& raw, const Pose2& laser_offset) {
+  PoseGraphSlamConfig config;
+  config.matcher.laser_offset = laser_offset;
+  PoseGraphSlam slam(config);
+  for (const LaserScan& s : raw) slam.add_scan(s);
+  slam.finish();
+  const std::vector<Pose2> poses = slam.laser_poses();
+  std::vector<LaserScan> out = raw;
+  for (std::size_t i = 0; i < out.size(); ++i) out[i].pose = poses[i];
+  return out;
+}
+
+void split_target_building(const BuildingRecording& rec, const ScenarioConfig& config, Submap& map_side,
+                           TargetRun& target) {
+  const auto& raw = rec.raw_scans;
+  if (config.length == 0) throw Error("the target window is empty: give a length of at least 1 scan");
+  if (config.start >= raw.size() || config.length > raw.size() - config.start) {
+    throw Error(rec.name + ": the window of " + std::to_string(config.length) + " scans from scan " +
+                std::to_string(config.start) + " does not fit its raw log of " + std::to_string(raw.size()) +
+                " scans");
+  }
+  const double t_begin = raw[config.start].timestamp - config.guard_s;
+  const double t_end = raw[config.start + config.length - 1].timestamp + config.guard_s;
+  const auto outside = [&](double t) { return t < t_begin || t > t_end; };
+
+  map_side = {};
+  map_side.name = rec.name;
+  if (!rec.corrected_scans.empty()) {
+    if (rec.truth.size() != rec.corrected_scans.size()) {
+      throw Error(rec.name + ": the poses file has " + std::to_string(rec.truth.size()) +
+                  " lines but the corrected log has " + std::to_string(rec.corrected_scans.size()) +
+                  " scans; they must correspond line by line");
+    }
+    for (std::size_t k = 0; k < rec.corrected_scans.size(); ++k) {
+      if (outside(rec.truth[k].timestamp)) map_side.scans.push_back(rec.corrected_scans[k]);
+    }
+  } else {
+    // No corrected log: the mapper robot's own SLAM gives the map poses,
+    // from the raw scans outside the window only.
+    map_side.poses_from_slam = true;
+    std::vector<LaserScan> kept;
+    for (const auto& s : raw) {
+      if (outside(s.timestamp)) kept.push_back(s);
+    }
+    map_side.scans = slam_mapped_scans(kept, rec.laser_offset);
+  }
+
+  target = {};
+  target.building = rec.name;
+  target.start = config.start;
+  target.laser_offset = rec.laser_offset;
+  target.scans.assign(raw.begin() + static_cast<std::ptrdiff_t>(config.start),
+                      raw.begin() + static_cast<std::ptrdiff_t>(config.start + config.length));
+  target.truth.assign(target.scans.size(), std::nullopt);
+  if (!rec.truth.empty()) {
+    std::vector<double> query(target.scans.size()), reference(rec.truth.size());
+    for (std::size_t i = 0; i < query.size(); ++i) query[i] = target.scans[i].timestamp;
+    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] = rec.truth[k].timestamp;
+    const auto match = join_by_timestamp(query, reference, config.truth_tolerance_s);
+    for (std::size_t i = 0; i < match.size(); ++i) {
+      if (match[i]) target.truth[i] = rec.truth[*match[i]].pose;
+    }
+  }
+}
+
+Submap whole_building_submap(const BuildingRecording& rec) {
+  Submap s;
+  s.name = rec.name;
+  if (!rec.corrected_scans.empty()) {
+    s.scans = rec.corrected_scans;
+  } else {
+    s.scans = slam_mapped_scans(rec.raw_scans, rec.laser_offset);
+    s.poses_from_slam = true;
+  }
+  return s;
+}
+
+}  // namespace lshloc

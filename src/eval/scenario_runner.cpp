@@ -1,0 +1,109 @@
+#include "lshloc/eval/scenario_runner.hpp"
+
+#include "lshloc/common/cpu_time.hpp"
+
+#include <chrono>
+
+namespace lshloc {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+}  // namespace
+
+std::vector<ScanEstimate> ScenarioRun::scan_estimates() const {
+  std::vector<ScanEstimate> out;
+  out.reserve(estimates.size());
+  for (const auto& e : estimates) out.push_back({e.has_estimate, e.submap, e.pose, e.localized, e.mean_score});
+  return out;
+}
+
+MapFeeder::MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps)
+    : map_(map), submaps_(submaps), fed_(submaps.size(), 0) {
+  for (const Submap& s : submaps) ids_.push_back(map.add_submap(s.name));
+}
+
+void MapFeeder::feed_until(double share) {
+  bool any = true;
+  while (any) {
+    any = false;
+    for (std::size_t r = 0; r < submaps_.size(); ++r) {
+      const auto& scans = submaps_[r].scans;
+      const auto limit = std::min(scans.size(), static_cast<std::size_t>(share * static_cast<double>(scans.size()) + 0.5));
+      if (fed_[r] < limit) {
+        map_.add_scan(ids_[r], scans[fed_[r]], scans[fed_[r]].pose);
+        ++fed_[r];
+        any = true;
+      }
+    }
+  }
+}
+
+ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
+                            const Progress& progress, const LocalizerObserver& observer, const BeforeScan& before_scan) {
+  ScenarioRun run;
+  config.scan_matcher.laser_offset = target.laser_offset;
+  Localizer localizer(map, config);
+  const auto& scans = target.scans;
+  run.estimates.reserve(scans.size());
+  run.cpu_s.reserve(scans.size());
+  const double cpu0 = process_cpu_seconds();
+  double excluded_cpu = 0.0;
+  // Mapper scans and diagnostics run between target scans: not the localizer's cost.
+  const auto excluded = [&](const auto& work) {
+    const double c0 = process_cpu_seconds();
+    work();
+    excluded_cpu += process_cpu_seconds() - c0;
+  };
+  const auto t0 = Clock::now();
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    if (before_scan) excluded([&] { before_scan(i); });
+    run.estimates.push_back(localizer.add_scan(scans[i]));
+    run.cpu_s.push_back(process_cpu_seconds() - cpu0 - excluded_cpu);
+    if (observer) excluded([&] { observer(i, localizer, run.estimates.back()); });
+    if (progress) progress(i + 1, scans.size());
+  }
+  run.localize_s = seconds_since(t0);
+  run.localize_cpu_s = run.cpu_s.empty() ? 0.0 : run.cpu_s.back();
+  if (scans.size() > 1) run.log_duration_s = scans.back().timestamp - scans.front().timestamp;
+  if (!run.estimates.empty() && run.estimates.back().has_estimate) {
+    // The newest surface data-points placed by the final estimate.
+    const LocalizationEstimate& last = run.estimates.back();
+    const auto points = localizer.ransac().features();
+    const std::size_t window = std::min(points.size(), config.ransac.recent_window);
+    for (const LocalPoint& x : points.last(window)) {
+      if (x.kind != LocalPoint::Kind::kSurface) continue;
+      const Point2 g = last.T_submap_local.transform(Point2(x.x, x.y));
+      const double th = last.T_submap_local.transform_angle(x.theta);
+      (map.occupancy().probe(last.submap, g.x(), g.y(), th) & cell_flags::kOccupied ? run.final_inliers
+                                                                                     : run.final_outliers)
+          .push_back(g);
+    }
+  }
+  run.map = map.stats();
+  run.localizer = localizer.stats();
+  return run;
+}
+
+ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress,
+                         const LocalizerObserver& observer) {
+  GlobalMap map(config.map);
+  MapFeeder feeder(map, scenario.submaps);
+  const auto t0 = Clock::now();
+  feeder.feed_until(config.map_share_before_target);
+  const double map_build_s = seconds_since(t0);
+  BeforeScan rest_of_map;
+  if (config.map_share_before_target < 1.0) {
+    // The rest of the map arrives while the target moves.
+    const double n = static_cast<double>(scenario.target.scans.size());
+    rest_of_map = [&](std::size_t i) {
+      feeder.feed_until(config.map_share_before_target +
+                        (1.0 - config.map_share_before_target) * static_cast<double>(i + 1) / n);
+    };
+  }
+  ScenarioRun run = localize_target(map, scenario.target, config.localizer, progress, observer, rest_of_map);
+  run.map_build_s = map_build_s;
+  return run;
+}
+
+}  // namespace lshloc

@@ -1,0 +1,187 @@
+#include "lshloc/io/carmen_reader.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <limits>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc::io {
+
+CarmenReader::CarmenReader(std::string path, CarmenReaderConfig config)
+    : lines_(std::move(path)), config_(config), flaser_max_range_(config.default_max_range) {
+  fields_.reserve(1024);
+}
+
+float CarmenReader::parse_range(std::string_view field, const std::string& where, std::size_t index) const {
+  const double r = parse_double(field, where, index, "a range reading in metres");
+  // NaN, inf and negative readings are kept as invalid beams, not errors: some
+  // drivers write them for dropouts.
+  if (!std::isfinite(r) || r < 0.0) return std::numeric_limits<float>::quiet_NaN();
+  return static_cast<float>(r);
+}
+
+namespace {
+
+std::string count_error(const std::string& where, const char* message, std::size_t got, const std::string& expected) {
+  return where + ": " + message + " line has " + std::to_string(got) + " fields, expected " + expected;
+}
+
+Pose2 read_pose(const std::vector<std::string_view>& f, std::size_t at, const std::string& where, const char* what) {
+  const double x = parse_double(f[at], where, at, what);
+  const double y = parse_double(f[at + 1], where, at + 1, what);
+  const double t = parse_double(f[at + 2], where, at + 2, what);
+  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(t)) {
+    throw Error(where + ": fields " + std::to_string(at + 1) + "-" + std::to_string(at + 3) + " must be a finite " +
+                what);
+  }
+  return {x, y, t};
+}
+
+long read_count(const std::vector<std::string_view>& f, std::size_t at, const std::string& where, const char* what) {
+  const long n = parse_int(f[at], where, at, what);
+  if (n < 0 || n > 100000) {
+    throw Error(where + ": field " + std::to_string(at + 1) + " is " + std::to_string(n) + ", expected " + what +
+                " between 0 and 100000");
+  }
+  return n;
+}
+
+}  // namespace
+
+void CarmenReader::parse_flaser(const std::string& where, CarmenRecord& record) {
+  // FLASER n r_1..r_n x y theta odom_x odom_y odom_theta ipc_timestamp [hostname logger_timestamp]
+  const auto& f = fields_;
+  if (f.size() < 2) throw Error(count_error(where, "FLASER", f.size(), "at least 2 (FLASER n ...)"));
+  const auto n = static_cast<std::size_t>(read_count(f, 1, where, "the beam count"));
+  if (f.size() != n + 9 && f.size() != n + 11) {
+    throw Error(count_error(where, "FLASER", f.size(),
+                            std::to_string(n + 11) + " for " + std::to_string(n) +
+                                " beams (FLASER n, n ranges, laser pose, odometry pose, "
+                                "ipc_timestamp hostname logger_timestamp)"));
+  }
+  LaserScan& s = record.scan;
+  s.ranges.resize(n);
+  for (std::size_t i = 0; i < n; ++i) s.ranges[i] = parse_range(f[2 + i], where, 2 + i);
+  s.pose = read_pose(f, 2 + n, where, "laser pose (x y theta)");
+  s.odometry = read_pose(f, 5 + n, where, "odometry pose (x y theta)");
+  s.timestamp = parse_double(f[8 + n], where, 8 + n, "the ipc timestamp");
+  if (!std::isfinite(s.timestamp)) throw Error(where + ": the timestamp is not finite");
+  s.max_range = flaser_max_range_;
+  set_flaser_geometry(s);
+}
+
+void CarmenReader::parse_robotlaser1(const std::string& where, CarmenRecord& record) {
+  // ROBOTLASER1 type start_angle fov resolution max_range accuracy remission_mode
+  //   n r_1..r_n m rem_1..rem_m laser_x laser_y laser_theta robot_x robot_y robot_theta
+  //   tv rv forward_safety side_safety turn_axis timestamp hostname logger_timestamp
+  const auto& f = fields_;
+  if (f.size() < 9) throw Error(count_error(where, "ROBOTLASER1", f.size(), "at least 9 before the ranges"));
+  const auto n = static_cast<std::size_t>(read_count(f, 8, where, "the beam count"));
+  if (f.size() < 10 + n) {
+    throw Error(count_error(where, "ROBOTLASER1", f.size(), "more than " + std::to_string(9 + n) + " for " +
+                                                              std::to_string(n) + " beams"));
+  }
+  const auto m = static_cast<std::size_t>(read_count(f, 9 + n, where, "the remission count"));
+  const std::size_t expected = n + m + 24;
+  if (f.size() != expected && f.size() != expected - 2) {
+    throw Error(count_error(where, "ROBOTLASER1", f.size(),
+                            std::to_string(expected) + " for " + std::to_string(n) + " beams and " +
+                                std::to_string(m) + " remissions"));
+  }
+  LaserScan& s = record.scan;
+  const double start = parse_double(f[2], where, 2, "the start angle [rad]");
+  const double fov = parse_double(f[3], where, 3, "the field of view [rad]");
+  const double max_range = parse_double(f[5], where, 5, "the maximum range [m]");
+  if (!std::isfinite(start) || !std::isfinite(fov) || !(fov > 0.0) || !(max_range > 0.0)) {
+    throw Error(where + ": ROBOTLASER1 start angle, field of view and maximum range must be finite, fov and range > 0");
+  }
+  s.ranges.resize(n);
+  for (std::size_t i = 0; i < n; ++i) s.ranges[i] = parse_range(f[9 + i], where, 9 + i);
+  const std::size_t after = 10 + n + m;
+  s.pose = read_pose(f, after, where, "laser pose (x y theta)");
+  s.odometry = read_pose(f, after + 3, where, "robot pose (x y theta)");
+  s.timestamp = parse_double(f[after + 11], where, after + 11, "the timestamp");
+  if (!std::isfinite(s.timestamp)) throw Error(where + ": the timestamp is not finite");
+  s.angle_min = start;
+  s.angle_increment = n > 1 ? fov / static_cast<double>(n - 1) : 0.0;
+  s.max_range = max_range;
+}
+
+void CarmenReader::parse_odom(const std::string& where, CarmenRecord& record) {
+  // ODOM x y theta tv rv accel ipc_timestamp [hostname logger_timestamp]
+  const auto& f = fields_;
+  if (f.size() != 8 && f.size() != 10) {
+    throw Error(count_error(where, "ODOM", f.size(), "10 (ODOM x y theta tv rv accel ipc_timestamp hostname logger_timestamp)"));
+  }
+  OdometryReading& o = record.odometry;
+  o.pose = read_pose(f, 1, where, "odometry pose (x y theta)");
+  o.tv = parse_double(f[4], where, 4, "the translational velocity");
+  o.rv = parse_double(f[5], where, 5, "the rotational velocity");
+  o.timestamp = parse_double(f[7], where, 7, "the ipc timestamp");
+  if (!std::isfinite(o.timestamp)) throw Error(where + ": the timestamp is not finite");
+}
+
+bool CarmenReader::next(CarmenRecord& record) {
+  while (lines_.next(line_)) {
+    split_fields(line_, fields_);
+    if (fields_.empty() || fields_[0].front() == '#') continue;
+    const std::string_view type = fields_[0];
+    const std::string where = lines_.where();
+    if (type == "FLASER") {
+      record.type = CarmenRecord::Type::kLaser;
+      parse_flaser(where, record);
+    } else if (type == "ROBOTLASER1") {
+      record.type = CarmenRecord::Type::kLaser;
+      parse_robotlaser1(where, record);
+    } else if (type == "ODOM") {
+      record.type = CarmenRecord::Type::kOdometry;
+      parse_odom(where, record);
+      record.odometry.source_line = lines_.line_number();
+    } else if (type == "PARAM") {
+      if (fields_.size() < 3) throw Error(count_error(where, "PARAM", fields_.size(), "at least 3 (PARAM name value)"));
+      record.type = CarmenRecord::Type::kParam;
+      record.param_name = fields_[1];
+      record.param_value = fields_[2];
+      if (record.param_name == "robot_front_laser_max") {
+        const double v = parse_double(fields_[2], where, 2, "the laser's maximum range [m]");
+        if (v > 0.0 && std::isfinite(v)) flaser_max_range_ = v;
+      }
+    } else {
+      continue;  // NEFF, SYNC, RAWLASER*, ...: not ours
+    }
+    record.message = type;
+    if (record.type == CarmenRecord::Type::kLaser) record.scan.source_line = lines_.line_number();
+    return true;
+  }
+  return false;
+}
+
+Pose2 CarmenLog::front_laser_offset() const {
+  const auto it = params.find("robot_frontlaser_offset");
+  if (it == params.end()) return {};
+  double v = 0.0;
+  const auto [p, ec] = std::from_chars(it->second.data(), it->second.data() + it->second.size(), v);
+  if (ec != std::errc() || !std::isfinite(v)) {
+    throw Error(path + ": PARAM robot_frontlaser_offset is '" + it->second + "', expected a number of metres");
+  }
+  return {v, 0.0, 0.0};
+}
+
+CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config) {
+  CarmenReader reader(path, config);
+  CarmenLog log;
+  log.path = path;
+  CarmenRecord rec;
+  while (reader.next(rec)) {
+    switch (rec.type) {
+      case CarmenRecord::Type::kLaser: log.scans.push_back(std::move(rec.scan)); rec.scan = {}; break;
+      case CarmenRecord::Type::kOdometry: log.odometry.push_back(rec.odometry); break;
+      case CarmenRecord::Type::kParam: log.params[rec.param_name] = rec.param_value; break;
+    }
+  }
+  return log;
+}
+
+}  // namespace lshloc::io

@@ -1,0 +1,166 @@
+#include "lshloc/localization/global_map.hpp"
+
+#include <cmath>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/common/cpu_time.hpp"
+
+namespace lshloc {
+
+void GlobalMapConfig::validate() const {
+  features.validate();
+  database.validate();
+  occupancy.validate();
+  free_space.validate();
+  if (free_space.theta_bins != 1) throw Error("GlobalMapConfig: free_space must be a 2-D grid (theta_bins = 1)");
+  if (!(endpoint_spacing >= 0.0)) throw Error("GlobalMapConfig: endpoint_spacing must be >= 0 m");
+  if (free_ray_stride == 0) throw Error("GlobalMapConfig: free_ray_stride must be >= 1 (beams)");
+  if (!(free_ray_margin >= 0.0) || !(free_ray_max_range > 0.0) || !(free_ray_no_return_range >= 0.0)) {
+    throw Error("GlobalMapConfig: free_ray_margin and free_ray_no_return_range must be >= 0 m and free_ray_max_range > 0 m");
+  }
+}
+
+double GlobalMapStats::bytes_per_feature() const {
+  if (features == 0) return 0.0;
+  const double bytes = static_cast<double>(database.bytes + occupancy.memory_bytes + free_space.memory_bytes +
+                                           location_bytes);
+  return bytes / static_cast<double>(features);
+}
+
+double normal_towards(const Point2& point, double tangent, const Point2& sensor) {
+  const double n = tangent + M_PI / 2;
+  const Point2 to_sensor = sensor - point;
+  return wrap_angle(std::cos(n) * to_sensor.x() + std::sin(n) * to_sensor.y() >= 0.0 ? n : n + M_PI);
+}
+
+GlobalMap::GlobalMap(GlobalMapConfig config)
+    : config_((config.validate(), config)),
+      extractor_(config_.features),
+      database_(config_.database),
+      occupancy_(config_.occupancy),
+      free_space_(config_.free_space) {}
+
+std::uint32_t GlobalMap::add_submap(std::string name) {
+  submaps_.push_back({std::move(name), {}, {}, 0});
+  return static_cast<std::uint32_t>(submaps_.size() - 1);
+}
+
+std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose) {
+  if (submap >= submaps_.size()) {
+    throw Error("GlobalMap::add_scan: unknown submap " + std::to_string(submap) + " (there are " +
+                std::to_string(submaps_.size()) + ")");
+  }
+  SubmapState& state = submaps_[submap];
+  ++state.scans;
+  ++stats_.scans;
+
+  CpuStopwatch watch;
+  const ScanSurface surface = extractor_.surface(scan, laser_pose);
+  const std::vector<Feature> features = extractor_.extract(surface, state.context);
+  stats_.extract_s += watch.seconds();
+
+  watch = CpuStopwatch();
+  for (const Feature& f : features) database_.insert(f.descriptor, locations_.append(submap, f.pose));
+  stats_.database_insert_s += watch.seconds();
+  stats_.features += features.size();
+
+  watch = CpuStopwatch();
+  mark_grids(submap, scan, laser_pose, surface);
+  stats_.grid_s += watch.seconds();
+
+  // Keep the recent surface as descriptor context for the next scans.
+  if (state.context.empty() ||
+      translation_distance(state.last_context_pose, laser_pose) >= config_.context_spacing) {
+    state.context.push_back(surface);
+    state.last_context_pose = laser_pose;
+    if (state.context.size() > config_.context_scans) state.context.erase(state.context.begin());
+  }
+  return features.size();
+}
+
+void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
+                           const ScanSurface& surface) {
+  const Point2 sensor = laser_pose.translation();
+  // Occupancy: endpoints with their normal direction, thinned along the scan;
+  // the free-space grid notes where the map has a normal (kNormal).
+  Point2 last(1e18, 1e18);
+  for (const SurfacePoint& p : surface.points) {
+    if ((p.position - last).norm() < config_.endpoint_spacing) continue;
+    last = p.position;
+    occupancy_.mark(submap, p.position.x(), p.position.y(), normal_towards(p.position, p.tangent, sensor),
+                    cell_flags::kOccupied);
+    free_space_.mark(submap, p.position.x(), p.position.y(), 0.0, cell_flags::kNormal);
+  }
+  // Free space: cells the beams crossed, stopping short of the endpoint; the
+  // endpoints' cells and their neighbours are marked occupied in the same 2-D
+  // grid so that walls never read as free.
+  const double step = config_.free_space.cell_size;
+  const double c = std::cos(laser_pose.theta), s = std::sin(laser_pose.theta);
+  // Every beam's endpoint in the laser frame, computed once for both passes.
+  beam_endpoints_.resize(scan.size());
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    const double a = scan.bearing(i);
+    beam_endpoints_[i] = Point2(scan.ranges[i] * std::cos(a), scan.ranges[i] * std::sin(a));
+  }
+  const auto valid = [&](std::size_t i) { return i < scan.size() && scan.status(i) == BeamStatus::kValid; };
+  for (std::size_t i = 0; i < scan.size(); i += config_.free_ray_stride) {
+    const BeamStatus status = scan.status(i);
+    if (status == BeamStatus::kInvalid) continue;
+    const double r = scan.ranges[i];
+    double reach = config_.free_ray_no_return_range;
+    if (status == BeamStatus::kValid) {
+      // A ray that meets its wall at a shallow angle runs beside it, within
+      // a cell, for cell / sin(angle) before the endpoint: walls seen only
+      // from far down a corridor would read as free between the sparse
+      // endpoints. The angle comes from the neighbouring beams' endpoints
+      // (the shallower side, as the wall may end at either).
+      const Point2& p = beam_endpoints_[i];
+      const Point2 ray = p / r;
+      double sin_incidence = 1.0;
+      for (const std::size_t j : {i - 1, i + 1}) {
+        if (!valid(j)) continue;  // also i - 1 wrapped below 0
+        const Point2 along = beam_endpoints_[j] - p;
+        const double length = along.norm();
+        if (length > 0.0) {
+          sin_incidence = std::min(sin_incidence, std::abs(ray.x() * along.y() - ray.y() * along.x()) / length);
+        }
+      }
+      const double margin = std::max(config_.free_ray_margin, step / std::max(sin_incidence, 1e-3));
+      reach = r - margin;
+    }
+    reach = std::min(reach, config_.free_ray_max_range);
+    const double a = scan.bearing(i);
+    const double dx = c * std::cos(a) - s * std::sin(a), dy = s * std::cos(a) + c * std::sin(a);
+    for (double d = 0.0; d < reach; d += step) {
+      free_space_.mark(submap, sensor.x() + d * dx, sensor.y() + d * dy, 0.0, cell_flags::kFree);
+    }
+  }
+  // Every return (not only the smooth segments' points: sparse returns from
+  // far walls are no segments) marks its cell and neighbours occupied, and
+  // its own cell as holding a return: a local ray through the map's wall is
+  // judged on those alone, as the neighbours of a wall seen only from far
+  // away (never crossed by map rays) are often free space.
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range) continue;
+    const Point2 p = laser_pose.transform(beam_endpoints_[i]);
+    for (int ix = -1; ix <= 1; ++ix) {
+      for (int iy = -1; iy <= 1; ++iy) {
+        const bool own = ix == 0 && iy == 0;
+        free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0,
+                         own ? cell_flags::kOccupied | cell_flags::kReturn : cell_flags::kOccupied);
+      }
+    }
+  }
+}
+
+GlobalMapStats GlobalMap::stats() const {
+  GlobalMapStats s = stats_;
+  s.submaps = submaps_.size();
+  s.database = database_.stats();
+  s.occupancy = occupancy_.stats();
+  s.free_space = free_space_.stats();
+  s.location_bytes = locations_.bytes();
+  return s;
+}
+
+}  // namespace lshloc

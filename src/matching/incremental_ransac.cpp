@@ -1,0 +1,178 @@
+#include "lshloc/matching/incremental_ransac.hpp"
+
+#include <cmath>
+#include <string>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc {
+
+void IncrementalRansacConfig::validate() const {
+  auto fail = [](const std::string& what) { throw Error("iRANSAC config: " + what); };
+  if (block_size < 1) fail("block_size (B) must be at least 1");
+  if (new_features_per_scan < 1) fail("new_features_per_scan (|U_new|) must be at least 1");
+  if (new_hypotheses_per_scan < 1) fail("new_hypotheses_per_scan (|V_new|) must be at least 1");
+  if (!std::isfinite(min_score)) fail("min_score (C_o) must be finite");
+  if (recent_window < 1) fail("recent_window must be at least 1 feature");
+}
+
+IncrementalRansac::IncrementalRansac(IncrementalRansacConfig config) : config_(config), rng_(config.seed) {
+  config_.validate();
+}
+
+void IncrementalRansac::add_scan(std::span<const LocalPoint> features, std::span<const Hypothesis> hypotheses) {
+  const std::size_t nu = config_.new_features_per_scan;
+  if (features.size() <= nu) {
+    add_features(features);
+  } else {
+    // A uniform subset of |U_new| features (partial Fisher-Yates on indices).
+    std::vector<LocalPoint> pick(features.begin(), features.end());
+    for (std::size_t k = 0; k < nu; ++k) std::swap(pick[k], pick[k + random_below(pick.size() - k)]);
+    add_features(std::span<const LocalPoint>(pick.data(), nu));
+    stats_.features_over_budget += features.size() - nu;
+  }
+  const std::size_t nv = std::min(hypotheses.size(), config_.new_hypotheses_per_scan);
+  add_hypotheses(hypotheses.first(nv));
+  stats_.hypotheses_over_budget += hypotheses.size() - nv;
+}
+
+void IncrementalRansac::add_features(std::span<const LocalPoint> features) {
+  for (const LocalPoint& f : features) {
+    if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.theta))
+      throw Error("iRANSAC: a local feature has a non-finite pose");
+    const auto index = static_cast<std::uint32_t>(features_.size());
+    features_.push_back({f.x, f.y, static_cast<float>(wrap_angle(f.theta)), f.kind});
+    // Inside-out Fisher-Yates: put the new index at a uniform position j of the
+    // permutation and move the element that was there to the end. The
+    // permutation stays uniformly random at O(1) per insertion.
+    const std::size_t j = random_below(permutation_.size() + 1);
+    if (j == permutation_.size()) {
+      permutation_.push_back(index);
+    } else {
+      permutation_.push_back(permutation_[j]);
+      permutation_[j] = index;
+    }
+  }
+}
+
+void IncrementalRansac::move_hypothesis(std::size_t from, std::size_t to) {
+  submap_[to] = submap_[from];
+  tx_[to] = tx_[from], ty_[to] = ty_[from];
+  cos_[to] = cos_[from], sin_[to] = sin_[from], theta_[to] = theta_[from];
+  score_[to] = score_[from], scored_[to] = scored_[from];
+  serial_[to] = serial_[from], pose_[to] = pose_[from];
+}
+
+void IncrementalRansac::add_hypotheses(std::span<const Hypothesis> hypotheses) {
+  for (const Hypothesis& h : hypotheses) {
+    const Pose2& T = h.T_submap_local;
+    if (!std::isfinite(T.x) || !std::isfinite(T.y) || !std::isfinite(T.theta))
+      throw Error("iRANSAC: a hypothesis of submap " + std::to_string(h.submap) + " has a non-finite pose");
+    const std::size_t m = tx_.size();
+    const std::size_t j = random_below(m + 1);
+    // Grow every column by one, move the element at j to the end (inside-out
+    // Fisher-Yates, as for U), then write the new hypothesis at j.
+    submap_.emplace_back(), tx_.emplace_back(), ty_.emplace_back(), cos_.emplace_back(), sin_.emplace_back();
+    theta_.emplace_back(), score_.emplace_back(), scored_.emplace_back(), serial_.emplace_back(), pose_.emplace_back();
+    if (j != m) move_hypothesis(j, m);
+    submap_[j] = h.submap;
+    tx_[j] = static_cast<float>(T.x), ty_[j] = static_cast<float>(T.y);
+    cos_[j] = static_cast<float>(std::cos(T.theta)), sin_[j] = static_cast<float>(std::sin(T.theta));
+    theta_[j] = static_cast<float>(wrap_angle(T.theta));
+    score_[j] = 0.0f, scored_[j] = 0;
+    serial_[j] = next_serial_++;
+    pose_[j] = T;
+  }
+  stats_.hypotheses_added += hypotheses.size();
+  stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
+}
+
+std::size_t IncrementalRansac::next_feature() {
+  const std::size_t n = features_.size();
+  const std::size_t window = std::min(n, config_.recent_window);
+  switch (config_.order_rule) {
+    case FeatureOrderRule::kUniform: {
+      if (cursor_ >= n) cursor_ = 0;
+      return permutation_[cursor_++];
+    }
+    case FeatureOrderRule::kFreshFirst:
+      // A backlog (more new features than iterations) never reaches back
+      // past the recent window: stale "fresh" features are skipped.
+      fresh_next_ = std::max(fresh_next_, n - window);
+      if (fresh_next_ < n) return fresh_next_++;
+      [[fallthrough]];
+    case FeatureOrderRule::kRecentWindow: break;
+  }
+  return n - window + random_below(window);
+}
+
+void IncrementalRansac::preempt(std::size_t keep) {
+  const std::size_t m = tx_.size();
+  if (keep >= m) return;
+  // The rank of each hypothesis, computed once; ties go to the older one, so
+  // the order is total and the survivors are the same whatever V's order.
+  rank_.resize(m);
+  for (std::size_t j = 0; j < m; ++j) {
+    if (config_.preemption_rank == PreemptionRank::kTotalScore) {
+      rank_[j] = score_[j];
+    } else {
+      rank_[j] = scored_[j] > 0 ? static_cast<double>(score_[j]) / scored_[j] : 0.0;
+    }
+  }
+  auto better = [&](std::uint32_t a, std::uint32_t b) {
+    return rank_[a] != rank_[b] ? rank_[a] > rank_[b] : serial_[a] < serial_[b];
+  };
+  order_.resize(m);
+  for (std::size_t j = 0; j < m; ++j) order_[j] = static_cast<std::uint32_t>(j);
+  if (keep > 0) std::nth_element(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(keep - 1), order_.end(), better);
+  keep_.assign(m, 0);
+  for (std::size_t k = 0; k < keep; ++k) keep_[order_[k]] = 1;
+  // Compact in place, keeping the survivors' relative (random) order.
+  std::size_t w = 0;
+  for (std::size_t j = 0; j < m; ++j) {
+    if (!keep_[j]) continue;
+    if (w != j) move_hypothesis(j, w);
+    ++w;
+  }
+  submap_.resize(w), tx_.resize(w), ty_.resize(w), cos_.resize(w), sin_.resize(w), theta_.resize(w);
+  score_.resize(w), scored_.resize(w), serial_.resize(w), pose_.resize(w);
+  stats_.hypotheses_preempted += m - w;
+}
+
+std::optional<ScoredHypothesis> IncrementalRansac::best() const {
+  std::optional<std::size_t> best;
+  double best_mean = 0.0;
+  for (std::size_t j = 0; j < tx_.size(); ++j) {
+    if (scored_[j] == 0 || score_[j] < config_.min_score) continue;
+    const double mean = static_cast<double>(score_[j]) / scored_[j] -
+                        config_.preference_z / std::sqrt(static_cast<double>(scored_[j]));
+    if (best) {
+      const std::size_t b = *best;
+      if (mean < best_mean) continue;
+      if (mean == best_mean &&
+          (scored_[j] < scored_[b] || (scored_[j] == scored_[b] && serial_[j] > serial_[b])))
+        continue;
+    }
+    best = j, best_mean = mean;
+  }
+  if (!best) return std::nullopt;
+  const std::size_t j = *best;
+  return ScoredHypothesis{{submap_[j], pose_[j]}, score_[j], scored_[j]};
+}
+
+std::vector<ScoredHypothesis> IncrementalRansac::active() const {
+  std::vector<ScoredHypothesis> out;
+  out.reserve(tx_.size());
+  for (std::size_t j = 0; j < tx_.size(); ++j) out.push_back({{submap_[j], pose_[j]}, score_[j], scored_[j]});
+  return out;
+}
+
+IncrementalRansacStats IncrementalRansac::stats() const {
+  IncrementalRansacStats s = stats_;
+  s.active_hypotheses = tx_.size();
+  s.features = features_.size();
+  if (const auto b = best()) s.best_score = b->score, s.best_mean_score = b->mean_score(), s.best_scored = b->scored;
+  return s;
+}
+
+}  // namespace lshloc

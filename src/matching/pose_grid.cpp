@@ -1,0 +1,176 @@
+#include "lshloc/matching/pose_grid.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <random>
+#include <string>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc {
+
+namespace {
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+}  // namespace
+
+void PoseGridConfig::validate() const {
+  auto fail = [](const std::string& what) { throw Error("pose grid config: " + what); };
+  if (!(cell_size > 0.0) || !std::isfinite(cell_size)) fail("cell_size must be a positive number of metres");
+  if (theta_bins < 1 || theta_bins > 255) fail("theta_bins must lie in 1..255, got " + std::to_string(theta_bins));
+  if (xy_tolerance < 0 || xy_tolerance > 8) fail("xy_tolerance must lie in 0..8 cells");
+  if (theta_tolerance < 0 || theta_tolerance > 8)
+    fail("theta_tolerance must lie in 0..8 bins");
+  if (!(max_load_factor > 0.05 && max_load_factor <= 0.9))
+    fail("max_load_factor must lie in (0.05, 0.9] for linear probing");
+  if (initial_capacity < 2) fail("initial_capacity must be at least 2");
+}
+
+PoseGridHashMap::PoseGridHashMap(PoseGridConfig config) : config_(config) {
+  config_.validate();
+  inv_cell_ = 1.0 / config_.cell_size;
+  bins_per_rad_ = config_.theta_bins / kTwoPi;
+  probe_neighbours_ = config_.tolerance_mode == ToleranceMode::kProbeNeighbours &&
+                      (config_.xy_tolerance > 0 || (config_.theta_tolerance > 0 && config_.theta_bins > 1));
+  contiguous_theta_ = probe_neighbours_ && config_.theta_tolerance > 0 && config_.theta_bins > 1;
+  std::mt19937_64 rng(config_.seed);
+  hash_a_ = rng() | 1u;  // odd multiplier: multiply-shift is universal only for odd a
+  hash_b_ = rng();
+  set_capacity(std::bit_ceil(config_.initial_capacity));
+}
+
+void PoseGridHashMap::set_capacity(std::size_t capacity) {
+  slots_.assign(capacity, 0);
+  mask_ = capacity - 1;
+  shift_ = 64u - static_cast<unsigned>(std::countr_zero(capacity));
+}
+
+PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, double theta) const {
+  PoseCell c;
+  c.submap = submap;
+  // floor() in double: far-away or NaN coordinates are clamped so the cast is
+  // defined; pack_xy() then rejects them as outside the limits.
+  auto to_index = [](double v) {
+    if (!(v > -1e9 && v < 1e9)) return std::int32_t{-(1 << 30)};
+    return static_cast<std::int32_t>(std::floor(v));
+  };
+  c.ix = to_index(x * inv_cell_);
+  c.iy = to_index(y * inv_cell_);
+  double t = std::fmod(theta, kTwoPi);
+  if (!(t == t)) t = 0.0;
+  if (t < 0.0) t += kTwoPi;
+  c.itheta = std::min(static_cast<std::int32_t>(t * bins_per_rad_), config_.theta_bins - 1);
+  return c;
+}
+
+void PoseGridHashMap::mark(std::uint32_t submap, double x, double y, double theta, CellFlags flags) {
+  if (flags == 0) throw Error("pose grid: mark() needs non-zero flags");
+  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(theta))
+    throw Error("pose grid: mark() of a non-finite pose in submap " + std::to_string(submap));
+  const PoseCell c = cell_of(submap, x, y, theta);
+  const int t = config_.xy_tolerance;
+  if (pack_xy(submap, c.ix - t, c.iy - t) == kInvalidXy || pack_xy(submap, c.ix + t, c.iy + t) == kInvalidXy)
+    throw Error("pose grid: pose (" + std::to_string(x) + ", " + std::to_string(y) + ") of submap " +
+                std::to_string(submap) + " is outside the grid (submap < 16383, |x|, |y| < 65536 cells)");
+  ++marks_;
+  if (submap >= boxes_.size()) boxes_.resize(submap + 1);
+  Box& b = boxes_[submap];
+  if (b.x1 < b.x0) {
+    b = {c.ix, c.ix, c.iy, c.iy};
+  } else {
+    b.x0 = std::min(b.x0, c.ix), b.x1 = std::max(b.x1, c.ix);
+    b.y0 = std::min(b.y0, c.iy), b.y1 = std::max(b.y1, c.iy);
+  }
+  if (config_.tolerance_mode == ToleranceMode::kProbeNeighbours) {
+    mark_cell(pack_xy(submap, c.ix, c.iy), c.itheta, flags);
+    return;
+  }
+  const ThetaRuns w = theta_runs(c.itheta);
+  for (int dx = -t; dx <= t; ++dx)
+    for (int dy = -t; dy <= t; ++dy) {
+      const std::uint64_t xy = pack_xy(submap, c.ix + dx, c.iy + dy);
+      for (int r = 0; r < w.runs; ++r)
+        for (int k = 0; k < w.count[r]; ++k) mark_cell(xy, w.first[r] + k, flags);
+    }
+}
+
+void PoseGridHashMap::mark_cell(std::uint64_t xy, int itheta, CellFlags flags) {
+  if (static_cast<double>(used_ + 1) > config_.max_load_factor * static_cast<double>(slots_.size())) grow();
+  const std::uint64_t tagged = (xy << 16) | (static_cast<std::uint64_t>(itheta) << 8);
+  const TableView table = table_view();
+  std::size_t i = table.home(xy, itheta);
+  for (;;) {
+    std::uint64_t& s = slots_[i];
+    if ((s & 0xff) == 0) {
+      s = tagged | flags;
+      ++used_;
+      return;
+    }
+    if ((s & ~std::uint64_t{0xff}) == tagged) {
+      s |= flags;
+      return;
+    }
+    i = (i + 1) & mask_;
+  }
+}
+
+void PoseGridHashMap::grow() {
+  if (slots_.size() >= (std::size_t{1} << 32))
+    throw Error("pose grid: table would exceed 2^32 slots (32 GiB); use larger cells or fewer submaps");
+  std::vector<std::uint64_t> old;
+  old.swap(slots_);
+  set_capacity(old.size() * 2);
+  const TableView table = table_view();
+  for (const std::uint64_t s : old) {
+    if ((s & 0xff) == 0) continue;
+    std::size_t i = table.home(s >> 16, static_cast<int>((s >> 8) & 0xff));
+    while (slots_[i] != 0) i = (i + 1) & mask_;
+    slots_[i] = s;
+  }
+  ++rehashes_;
+}
+
+CellFlags PoseGridHashMap::lookup(const PoseCell& cell) const {
+  if (cell.itheta < 0 || cell.itheta >= config_.theta_bins) return 0;
+  const std::uint64_t xy = pack_xy(cell.submap, cell.ix, cell.iy);
+  const TableView table = table_view();
+  return table.lookup_run(xy, table.home(xy, cell.itheta), cell.itheta, 1);
+}
+
+CellFlags PoseGridHashMap::probe(std::uint32_t submap, double x, double y, double theta) const {
+  const PoseCell c = cell_of(submap, x, y, theta);
+  if (!probe_neighbours_) return lookup(c);
+  const int t = config_.xy_tolerance;
+  const ThetaRuns w = theta_runs(c.itheta);
+  const TableView table = table_view();
+  CellFlags out = 0;
+  for (int dx = -t; dx <= t; ++dx)
+    for (int dy = -t; dy <= t; ++dy) {
+      const std::uint64_t xy = pack_xy(submap, c.ix + dx, c.iy + dy);
+      for (int r = 0; r < w.runs; ++r)
+        out |= table.lookup_run(xy, table.home(xy, w.first[r]), w.first[r], w.count[r]);
+    }
+  return out;
+}
+
+PoseGridStats PoseGridHashMap::stats() const {
+  PoseGridStats s;
+  s.bins_used = used_;
+  s.capacity = slots_.size();
+  s.load = static_cast<double>(used_) / static_cast<double>(slots_.size());
+  s.rehashes = rehashes_;
+  s.memory_bytes = slots_.size() * sizeof(std::uint64_t);
+  s.marks = marks_;
+  for (const Box& b : boxes_) {
+    if (b.x1 < b.x0) continue;
+    ++s.submaps;
+    s.dense_cells += static_cast<double>(b.x1 - b.x0 + 1) * static_cast<double>(b.y1 - b.y0 + 1) *
+                     static_cast<double>(config_.theta_bins);
+  }
+  if (s.dense_cells > 0.0) {
+    s.grid_fraction = static_cast<double>(s.bins_used) / s.dense_cells;
+    s.table_fraction = static_cast<double>(s.capacity) / s.dense_cells;
+  }
+  return s;
+}
+
+}  // namespace lshloc

@@ -1,0 +1,258 @@
+#include "lshloc/matching/pose_grid_scorer.hpp"
+
+#include "lshloc/common/error.hpp"
+
+#include <algorithm>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace lshloc {
+
+namespace {
+/// Lookups are prefetched this many hypotheses ahead, far enough to cover a
+/// DRAM miss: on fr079 with 15 buildings (BENCHMARKS.md) 12 gave 22 ns per
+/// score, 24 gave 19.6, 40 and 64 gave 18.
+constexpr std::size_t kAhead = 40;
+
+/// A cell of the free-space grid is a map wall when it holds a map return
+/// that map rays never crossed: people and doors leave cells marked both
+/// occupied and free, and a dilated neighbour of a wall is where the target's
+/// rays along that wall pass (aces, RESULTS.md: on a corridor the map saw
+/// only from far away, up to 8% of the true pose's newest data-points landed
+/// there).
+constexpr CellFlags kWallBits = cell_flags::kReturn | cell_flags::kFree;
+/// ... free space when map rays crossed it and no return nor its dilation
+/// marked it occupied ...
+constexpr CellFlags kFreeBits = cell_flags::kOccupied | cell_flags::kFree;
+/// ... and a bare return when it is a wall without a map surface normal.
+constexpr CellFlags kBareReturnBits = kWallBits | cell_flags::kNormal;
+
+/// floor() to int for |v| < 2^31, branch-free and inlined (std::floor on
+/// float is a library call without SSE4.1). Values beyond +-1e6 cells are
+/// clamped first; pack_xy() rejects them as outside the grid anyway.
+inline std::int32_t floor_to_int(float v) {
+  v = v < -1e6f ? -1e6f : v;  // (not std::min/max: these compile to minss/maxss)
+  v = v > 1e6f ? 1e6f : v;
+  const auto i = static_cast<std::int32_t>(v);
+  return i - static_cast<std::int32_t>(v < static_cast<float>(i));
+}
+
+#if defined(__SSE2__)
+/// floor_to_int() of four floats (NaN, like +1e6, becomes 1e6: outside the grid).
+inline __m128i floor_to_int4(__m128 v) {
+  v = _mm_max_ps(_mm_min_ps(v, _mm_set1_ps(1e6f)), _mm_set1_ps(-1e6f));
+  const __m128i i = _mm_cvttps_epi32(v);
+  // v < float(i) only where truncation rounded up (negative non-integers): -1 there.
+  return _mm_add_epi32(i, _mm_castps_si128(_mm_cmplt_ps(v, _mm_cvtepi32_ps(i))));
+}
+#endif
+}  // namespace
+
+PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config)
+    : grid_(grid), config_(config) {
+  value_[0] = config_.unknown;
+  value_[cell_flags::kOccupied] = config_.hit;
+  value_[cell_flags::kFree] = config_.free;
+  value_[cell_flags::kOccupied | cell_flags::kFree] = config_.hit;  // a map point beats a ray through its cell
+}
+
+PoseCell PoseGridScorer::cell_of(const LocalPoint& x, const HypothesisBatch& v, std::size_t j) const {
+  const float inv = static_cast<float>(grid_.inv_cell_size());
+  const float bpr = static_cast<float>(grid_.bins_per_radian());
+  const std::int32_t bins = grid_.theta_bins();
+  const float gx = v.tx[j] + v.cos[j] * x.x - v.sin[j] * x.y;
+  const float gy = v.ty[j] + v.sin[j] * x.x + v.cos[j] * x.y;
+  std::int32_t it = floor_to_int((v.theta[j] + x.theta) * bpr);
+  it += it < 0 ? bins : 0;
+  it -= it >= bins ? bins : 0;
+  return {v.submap[j], floor_to_int(gx * inv), floor_to_int(gy * inv), it};
+}
+
+PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space,
+                               PoseGridScorerConfig config)
+    : PoseGridScorer(grid, config) {
+  if (free_space.theta_bins() != 1 || free_space.probes_neighbours()) {
+    throw Error("PoseGridScorer: the free-space grid must be 2-D (theta_bins = 1) without probing tolerance");
+  }
+  free_space_ = &free_space;
+}
+
+template <class Select, class Value>
+void PoseGridScorer::lookup_free_space(const LocalPoint& x, const HypothesisBatch& v, float* scores, Select select,
+                                       Value value) {
+  const std::size_t n = v.size;
+  if (selected_.size() < n) selected_.resize(n);
+  const PoseGridHashMap::TableView table = free_space_->table_view();
+  const float inv = static_cast<float>(free_space_->inv_cell_size());
+  std::size_t m = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (!select(j)) continue;
+    const float gx = v.tx[j] + v.cos[j] * x.x - v.sin[j] * x.y;
+    const float gy = v.ty[j] + v.sin[j] * x.x + v.cos[j] * x.y;
+    xy_[m] = PoseGridHashMap::pack_xy(v.submap[j], floor_to_int(gx * inv), floor_to_int(gy * inv));
+    home_[m] = static_cast<std::uint32_t>(table.home(xy_[m], 0));
+    selected_[m++] = static_cast<std::uint32_t>(j);
+  }
+  for (std::size_t k = 0; k < std::min(kAhead, m); ++k) table.prefetch(home_[k]);
+  for (std::size_t k = 0; k < m; ++k) {
+    if (k + kAhead < m) table.prefetch(home_[k + kAhead]);
+    scores[selected_[k]] = value(table.lookup_run(xy_[k], home_[k], 0, 1));
+  }
+  lookups_ += m;
+}
+
+void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores) {
+  if (xy_.size() < v.size) xy_.resize(v.size), home_.resize(v.size);
+  if (x.kind == LocalPoint::Kind::kFreeSpace) {
+    if (free_space_ == nullptr) {
+      std::fill_n(scores, v.size, 0.0f);
+      return;
+    }
+    const float through_wall = config_.ray_through_wall, through_free = config_.ray_through_free,
+                through_contested = config_.ray_through_contested;
+    lookup_free_space(
+        x, v, scores, [](std::size_t) { return true; },
+        [through_wall, through_free, through_contested](CellFlags f) {
+          return (f & kWallBits) == cell_flags::kReturn  ? through_wall
+                 : (f & kFreeBits) == cell_flags::kFree ? through_free
+                 : (f & kWallBits) == kWallBits         ? through_contested
+                                                        : 0.0f;
+        });
+    return;
+  }
+  score_surface(x, v, scores);
+  if (free_space_ == nullptr) return;
+  const float hit = config_.hit, free = config_.free, unknown = config_.unknown, on_return = config_.surface_on_return;
+  lookup_free_space(
+      x, v, scores, [scores, hit](std::size_t j) { return scores[j] != hit; },
+      [free, unknown, on_return](CellFlags f) {
+        return (f & kFreeBits) == cell_flags::kFree              ? free
+               : (f & kBareReturnBits) == cell_flags::kReturn ? on_return
+                                                               : unknown;
+      });
+}
+
+void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v, float* scores) {
+  const std::size_t n = v.size;
+  if (ix_.size() < n) xy_.resize(n), home_.resize(n), ix_.resize(n), iy_.resize(n), it_.resize(n), flags_.resize(n);
+  const PoseGridHashMap::TableView table = grid_.table_view();
+  // 1. Transform x by every hypothesis and find its cell: float arithmetic
+  //    only, which the compiler vectorizes.
+  {
+    const float inv = static_cast<float>(grid_.inv_cell_size());
+    const float bpr = static_cast<float>(grid_.bins_per_radian());
+    const std::int32_t bins = grid_.theta_bins();
+    const float px = x.x, py = x.y, pt = x.theta;
+    const float* __restrict tx = v.tx;
+    const float* __restrict ty = v.ty;
+    const float* __restrict co = v.cos;
+    const float* __restrict si = v.sin;
+    const float* __restrict th = v.theta;
+    std::int32_t* __restrict ix = ix_.data();
+    std::int32_t* __restrict iy = iy_.data();
+    std::int32_t* __restrict it = it_.data();
+    std::size_t j = 0;
+#if defined(__SSE2__)
+    // Four hypotheses at a time: the same float operations in the same order
+    // as the scalar loop below, so both give identical cells.
+    const __m128 vpx = _mm_set1_ps(px), vpy = _mm_set1_ps(py), vpt = _mm_set1_ps(pt);
+    const __m128 vinv = _mm_set1_ps(inv), vbpr = _mm_set1_ps(bpr);
+    const __m128i vbins = _mm_set1_epi32(bins), vbins1 = _mm_set1_epi32(bins - 1), zero = _mm_setzero_si128();
+    for (; j + 4 <= n; j += 4) {
+      const __m128 c = _mm_loadu_ps(co + j), sn = _mm_loadu_ps(si + j);
+      const __m128 gx = _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(tx + j), _mm_mul_ps(c, vpx)), _mm_mul_ps(sn, vpy));
+      const __m128 gy = _mm_add_ps(_mm_add_ps(_mm_loadu_ps(ty + j), _mm_mul_ps(sn, vpx)), _mm_mul_ps(c, vpy));
+      __m128i t = floor_to_int4(_mm_mul_ps(_mm_add_ps(_mm_loadu_ps(th + j), vpt), vbpr));
+      t = _mm_add_epi32(t, _mm_and_si128(_mm_cmplt_epi32(t, zero), vbins));
+      t = _mm_sub_epi32(t, _mm_and_si128(_mm_cmpgt_epi32(t, vbins1), vbins));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(ix + j), floor_to_int4(_mm_mul_ps(gx, vinv)));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(iy + j), floor_to_int4(_mm_mul_ps(gy, vinv)));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(it + j), t);
+    }
+#endif
+    for (; j < n; ++j) {
+      const float gx = tx[j] + co[j] * px - si[j] * py;
+      const float gy = ty[j] + si[j] * px + co[j] * py;
+      std::int32_t t = floor_to_int((th[j] + pt) * bpr);
+      t += t < 0 ? bins : 0;
+      t -= t >= bins ? bins : 0;
+      ix[j] = floor_to_int(gx * inv), iy[j] = floor_to_int(gy * inv), it[j] = t;
+    }
+  }
+  // 2. For each (x, y) offset of the tolerance window (only (0, 0) unless
+  //    the grid probes neighbours): pack and hash the (submap, ix, iy) keys,
+  //    then look up the heading run of each, prefetching kAhead hypotheses
+  //    ahead so that the cache misses of consecutive lookups overlap.
+  const bool probe = grid_.probes_neighbours();
+  const int xy_tol = probe ? grid_.config().xy_tolerance : 0;
+  const bool theta_window = probe && grid_.config().theta_tolerance > 0 && grid_.theta_bins() > 1;
+  const float lut[4] = {value_[0], value_[1], value_[2], value_[3]};  // local: no aliasing with scores
+  const std::int32_t* __restrict ix = ix_.data();
+  const std::int32_t* __restrict iy = iy_.data();
+  const std::int32_t* __restrict it = it_.data();
+  std::uint64_t* __restrict xy = xy_.data();
+  std::uint32_t* __restrict home = home_.data();
+  CellFlags* __restrict flags = flags_.data();
+  for (int dx = -xy_tol; dx <= xy_tol; ++dx)
+    for (int dy = -xy_tol; dy <= xy_tol; ++dy) {
+      // The home slot of each cell; with a heading window, of its bin 0
+      // (the window's runs start at home + first).
+      for (std::size_t j = 0; j < n; ++j) {
+        xy[j] = PoseGridHashMap::pack_xy(v.submap[j], ix[j] + dx, iy[j] + dy);
+        home[j] = static_cast<std::uint32_t>(table.home(xy[j], theta_window ? 0 : it[j]));
+      }
+      const bool first_pass = dx == -xy_tol && dy == -xy_tol;
+      const std::size_t mask = table.mask;
+      auto slot_of = [&](std::size_t j) { return theta_window ? (home[j] + it[j]) & mask : home[j]; };
+      for (std::size_t j = 0; j < std::min(kAhead, n); ++j) table.prefetch(slot_of(j));
+      if (!theta_window && xy_tol == 0) {
+        // The common case, one cell per hypothesis: straight to scores.
+        for (std::size_t j = 0; j < n; ++j) {
+          if (j + kAhead < n) table.prefetch(home[j + kAhead]);
+          scores[j] = lut[table.lookup_run(xy[j], home[j], it[j], 1) & 3];
+        }
+        lookups_ += n;
+        return;
+      }
+      if (theta_window && xy_tol == 0) {
+        // One heading window per hypothesis: straight to scores; a window
+        // that wraps at +-pi (2u+1 of theta_bins cases) takes two runs.
+        const int u = grid_.config().theta_tolerance, bins = grid_.theta_bins(), count = 2 * u + 1;
+        for (std::size_t j = 0; j < n; ++j) {
+          if (j + kAhead < n) table.prefetch(slot_of(j + kAhead));
+          const int first = it[j] - u;
+          CellFlags f = 0;
+          if (first >= 0 && first + count <= bins) {
+            f = table.lookup_run(xy[j], (home[j] + static_cast<std::size_t>(first)) & mask, first, count);
+          } else {
+            const PoseGridHashMap::ThetaRuns w = grid_.theta_runs(it[j]);
+            for (int r = 0; r < w.runs; ++r)
+              f |= table.lookup_run(xy[j], (home[j] + static_cast<std::size_t>(w.first[r])) & mask, w.first[r],
+                                    w.count[r]);
+          }
+          scores[j] = lut[f & 3];
+        }
+        lookups_ += n;
+        return;
+      }
+      for (std::size_t j = 0; j < n; ++j) {
+        if (j + kAhead < n) table.prefetch(slot_of(j + kAhead));
+        CellFlags f = 0;
+        if (theta_window) {
+          const PoseGridHashMap::ThetaRuns w = grid_.theta_runs(it[j]);
+          for (int r = 0; r < w.runs; ++r)
+            f |= table.lookup_run(xy[j], (home[j] + static_cast<std::size_t>(w.first[r])) & mask, w.first[r], w.count[r]);
+        } else {
+          f = table.lookup_run(xy[j], home[j], it[j], 1);
+        }
+        flags[j] = first_pass ? f : static_cast<CellFlags>(flags[j] | f);
+      }
+      lookups_ += n;
+    }
+  // 3. Flags to scores.
+  for (std::size_t j = 0; j < n; ++j) scores[j] = lut[flags[j] & 3];
+}
+
+}  // namespace lshloc

@@ -1,0 +1,421 @@
+#include "lshloc/slam/scan_matcher.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/geometry/voxel_thinning.hpp"
+
+namespace lshloc {
+
+namespace {
+
+void require(bool ok, const char* field, const char* expected) {
+  if (!ok) throw Error(std::string("ScanMatcherConfig.") + field + " must be " + expected);
+}
+
+bool finite_pose(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.theta); }
+
+/// Keeps points (in scan order) at least `spacing` apart from the last kept
+/// one: a cheap voxel-like thinning that preserves the beam order.
+template <typename T, typename PositionOf>
+void thin_in_order(std::vector<T>& points, double spacing, PositionOf position_of) {
+  if (points.empty() || spacing <= 0.0) return;
+  const double spacing2 = spacing * spacing;
+  std::size_t kept = 1;
+  for (std::size_t i = 1; i < points.size(); ++i) {
+    if ((position_of(points[i]) - position_of(points[kept - 1])).squaredNorm() >= spacing2) {
+      points[kept++] = points[i];
+    }
+  }
+  points.resize(kept);
+}
+
+}  // namespace
+
+void ScanMatcherConfig::validate() const {
+  require(finite_pose(laser_offset), "laser_offset", "finite");
+  require(min_range >= 0.0 && std::isfinite(min_range), "min_range", ">= 0 [m]");
+  require(max_range > min_range && std::isfinite(max_range), "max_range", "> min_range [m]");
+  require(scan_voxel >= 0.0, "scan_voxel", ">= 0 [m]");
+  require(window_keyframes >= 1, "window_keyframes", ">= 1");
+  require(keyframe_distance >= 0.0, "keyframe_distance", ">= 0 [m]");
+  require(keyframe_angle >= 0.0, "keyframe_angle", ">= 0 [rad]");
+  require(map_voxel >= 0.0, "map_voxel", ">= 0 [m]");
+  require(normal_radius > 0.0, "normal_radius", "> 0 [m]");
+  require(normal_beam_gaps >= 0.0, "normal_beam_gaps", ">= 0");
+  require(normal_max_neighbours >= 1, "normal_max_neighbours", ">= 1");
+  require(normal_min_points >= 3, "normal_min_points", ">= 3");
+  require(max_line_flatness > 0.0 && max_line_flatness <= 1.0, "max_line_flatness", "in (0, 1]");
+  require(fine_correspondence > 0.0, "fine_correspondence", "> 0 [m]");
+  require(coarse_correspondence >= fine_correspondence, "coarse_correspondence", ">= fine_correspondence [m]");
+  require(max_iterations >= 1, "max_iterations", ">= 1");
+  require(robust_scale > 0.0, "robust_scale", "> 0 [m]");
+  require(rotation_length > 0.0, "rotation_length", "> 0 [m]");
+  require(point_sigma > 0.0, "point_sigma", "> 0 [m]");
+  require(odometry_sigma_translation > 0.0, "odometry_sigma_translation", "> 0 [m]");
+  require(odometry_sigma_per_meter >= 0.0, "odometry_sigma_per_meter", ">= 0 [m/m]");
+  require(odometry_sigma_rotation > 0.0, "odometry_sigma_rotation", "> 0 [rad]");
+  require(odometry_sigma_rotation_per_rad >= 0.0, "odometry_sigma_rotation_per_rad", ">= 0 [rad/rad]");
+  require(odometry_sigma_rotation_per_meter >= 0.0, "odometry_sigma_rotation_per_meter", ">= 0 [rad/m]");
+  require(degeneracy_threshold >= 0.0, "degeneracy_threshold", ">= 0");
+  require(inlier_distance > 0.0, "inlier_distance", "> 0 [m]");
+  require(min_quality >= 0.0 && min_quality <= 1.0, "min_quality", "in [0, 1]");
+  require(min_correspondences >= 3, "min_correspondences", ">= 3 (three unknowns)");
+  require(max_correction_translation > 0.0, "max_correction_translation", "> 0 [m]");
+  require(max_correction_rotation > 0.0, "max_correction_rotation", "> 0 [rad]");
+  require(velocity_guess_difference >= 0.0, "velocity_guess_difference", ">= 0 [m, rad]");
+}
+
+ScanMatcher::ScanMatcher(ScanMatcherConfig config) : config_(config) {
+  config_.validate();
+  grid_cell_ = config_.fine_correspondence;
+}
+
+std::vector<StampedPose> ScanMatcher::keyframe_poses() const {
+  std::vector<StampedPose> out;
+  out.reserve(keyframes_.size());
+  for (const auto& k : keyframes_) out.push_back({k.timestamp, k.laser_pose});
+  return out;
+}
+
+void ScanMatcher::usable_endpoints(const LaserScan& scan, std::vector<Point2>& out) const {
+  out.clear();
+  out.reserve(scan.size());
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    // Invalid (NaN) and no-return readings carry no surface; very long ones
+    // are too noisy and sparse to fit lines to.
+    if (scan.status(i) != BeamStatus::kValid) continue;
+    const double r = scan.ranges[i];
+    if (r < config_.min_range || r >= config_.max_range) continue;
+    const double a = scan.bearing(i);
+    out.emplace_back(r * std::cos(a), r * std::sin(a));
+  }
+}
+
+std::vector<MapPoint> ScanMatcher::line_points(const std::vector<Point2>& endpoints, double angle_increment) const {
+  std::vector<MapPoint> out;
+  out.reserve(endpoints.size());
+  const std::size_t n = endpoints.size();
+  const std::size_t reach = config_.normal_max_neighbours;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Point2& p = endpoints[i];
+    // Neighbours along the scan, walking out while they stay on the same
+    // surface patch: within normal_radius of p, or a few beam spacings where
+    // the beams are sparse (far walls).
+    const double radius =
+        std::max(config_.normal_radius, config_.normal_beam_gaps * p.norm() * std::abs(angle_increment));
+    const double r2 = radius * radius;
+    std::size_t lo = i, hi = i;
+    while (lo > 0 && i - lo < reach && (endpoints[lo - 1] - p).squaredNorm() < r2) --lo;
+    while (hi + 1 < n && hi - i < reach && (endpoints[hi + 1] - p).squaredNorm() < r2) ++hi;
+    const std::size_t count = hi - lo + 1;
+    if (count < config_.normal_min_points) continue;
+    Point2 mean = Point2::Zero();
+    for (std::size_t j = lo; j <= hi; ++j) mean += endpoints[j];
+    mean /= static_cast<double>(count);
+    double sxx = 0.0, sxy = 0.0, syy = 0.0;
+    for (std::size_t j = lo; j <= hi; ++j) {
+      const Point2 d = endpoints[j] - mean;
+      sxx += d.x() * d.x(), sxy += d.x() * d.y(), syy += d.y() * d.y();
+    }
+    // Closed-form eigen decomposition of the 2x2 scatter matrix.
+    const double half_trace = 0.5 * (sxx + syy);
+    const double disc = std::sqrt(std::max(0.0, 0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy));
+    const double large = half_trace + disc, small = half_trace - disc;
+    if (large <= 0.0 || small > config_.max_line_flatness * large) continue;  // not a line: corner or clutter
+    // The normal is the eigenvector of the small eigenvalue, i.e. perpendicular
+    // to the large one's: (sxy, large - sxx) or (large - syy, sxy).
+    Point2 dir = std::abs(sxx - large) < std::abs(syy - large) ? Point2(large - syy, sxy) : Point2(sxy, large - sxx);
+    if (dir.squaredNorm() < 1e-20) dir = Point2(1.0, 0.0);
+    dir.normalize();
+    Point2 normal(-dir.y(), dir.x());
+    if (normal.dot(p) > 0.0) normal = -normal;  // face the sensor
+    out.push_back({p, normal});
+  }
+  thin_in_order(out, config_.map_voxel, [](const MapPoint& m) -> const Point2& { return m.position; });
+  return out;
+}
+
+void ScanMatcher::thin_source(const std::vector<Point2>& endpoints) {
+  source_ = endpoints;
+  thin_in_order(source_, config_.scan_voxel, [](const Point2& p) -> const Point2& { return p; });
+}
+
+void ScanMatcher::add_keyframe(double timestamp, const Pose2& laser_pose, const std::vector<Point2>& endpoints,
+                               double angle_increment) {
+  keyframes_.push_back({timestamp, laser_pose, line_points(endpoints, angle_increment)});
+  while (keyframes_.size() > config_.window_keyframes) keyframes_.pop_front();
+  ++stats_.keyframes;
+  rebuild_map();
+}
+
+void ScanMatcher::rebuild_map() {
+  // Gather all keyframe points in the local frame, in the order of preference
+  // (oldest or newest keyframe first), and keep one point per map_voxel cell.
+  std::vector<MapPoint> all;
+  std::size_t total = 0;
+  for (const auto& k : keyframes_) total += k.points.size();
+  all.reserve(total);
+  const auto append = [&all](const Keyframe& k) {
+    const double c = std::cos(k.laser_pose.theta), s = std::sin(k.laser_pose.theta);
+    for (const auto& m : k.points) {
+      all.push_back({k.laser_pose.transform(m.position),
+                     Point2(c * m.normal.x() - s * m.normal.y(), s * m.normal.x() + c * m.normal.y())});
+    }
+  };
+  if (config_.keep_oldest_map_points) {
+    for (const auto& k : keyframes_) append(k);
+  } else {
+    for (auto it = keyframes_.rbegin(); it != keyframes_.rend(); ++it) append(*it);
+  }
+  map_points_.clear();
+  grid_w_ = grid_h_ = 0;
+  cell_start_.assign(1, 0);
+  if (all.empty()) {
+    stats_.map_points = 0;
+    return;
+  }
+  thin_to_voxels(all, config_.map_voxel, [](const MapPoint& m) -> const Point2& { return m.position; });
+  // Dense grid over the map's bounding box (bounded by the window and range).
+  double x0 = all[0].position.x(), y0 = all[0].position.y(), x1 = x0, y1 = y0;
+  for (const auto& m : all) {
+    x0 = std::min(x0, m.position.x()), x1 = std::max(x1, m.position.x());
+    y0 = std::min(y0, m.position.y()), y1 = std::max(y1, m.position.y());
+  }
+  grid_x0_ = x0, grid_y0_ = y0;
+  grid_w_ = static_cast<std::int32_t>(std::floor((x1 - x0) / grid_cell_)) + 1;
+  grid_h_ = static_cast<std::int32_t>(std::floor((y1 - y0) / grid_cell_)) + 1;
+  const std::size_t cells = static_cast<std::size_t>(grid_w_) * static_cast<std::size_t>(grid_h_);
+  std::vector<std::uint32_t> cell_of(all.size());
+  cell_start_.assign(cells + 1, 0);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const auto cx = std::min(grid_w_ - 1, static_cast<std::int32_t>((all[i].position.x() - x0) / grid_cell_));
+    const auto cy = std::min(grid_h_ - 1, static_cast<std::int32_t>((all[i].position.y() - y0) / grid_cell_));
+    cell_of[i] = static_cast<std::uint32_t>(cy * grid_w_ + cx);
+    ++cell_start_[cell_of[i] + 1];
+  }
+  for (std::size_t c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
+  map_points_.resize(all.size());
+  std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
+  for (std::size_t i = 0; i < all.size(); ++i) map_points_[fill[cell_of[i]]++] = all[i];
+  stats_.map_points = map_points_.size();
+}
+
+std::int32_t ScanMatcher::nearest(const Point2& p, double max_dist) const {
+  if (grid_w_ == 0) return -1;
+  const double fx = (p.x() - grid_x0_) / grid_cell_, fy = (p.y() - grid_y0_) / grid_cell_;
+  const auto reach = static_cast<std::int32_t>(std::ceil(max_dist / grid_cell_));
+  const double lo_x = std::floor(fx), lo_y = std::floor(fy);
+  if (lo_x + reach < 0 || lo_y + reach < 0 || lo_x - reach >= grid_w_ || lo_y - reach >= grid_h_) return -1;
+  const auto cx = static_cast<std::int32_t>(lo_x), cy = static_cast<std::int32_t>(lo_y);
+  const std::int32_t x_begin = std::max(0, cx - reach), x_end = std::min(grid_w_ - 1, cx + reach);
+  const std::int32_t y_begin = std::max(0, cy - reach), y_end = std::min(grid_h_ - 1, cy + reach);
+  double best = max_dist * max_dist;
+  std::int32_t best_index = -1;
+  for (std::int32_t y = y_begin; y <= y_end; ++y) {
+    const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(grid_w_);
+    const std::uint32_t begin = cell_start_[row + static_cast<std::size_t>(x_begin)];
+    const std::uint32_t end = cell_start_[row + static_cast<std::size_t>(x_end) + 1];
+    // Cells of one row are contiguous in map_points_.
+    for (std::uint32_t j = begin; j < end; ++j) {
+      const double d = (map_points_[j].position - p).squaredNorm();
+      if (d < best) best = d, best_index = static_cast<std::int32_t>(j);
+    }
+  }
+  return best_index;
+}
+
+Pose2 ScanMatcher::align(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result) const {
+  Pose2 pose = guess;
+  const double L = config_.rotation_length;
+  const double k2 = config_.robust_scale * config_.robust_scale;
+  // Information of the odometry prior in the (x, y, theta * L) coordinates in
+  // which the updates below are additive.
+  Eigen::Vector3d prior_information = Eigen::Vector3d::Zero();
+  if (config_.odometry_prior) {
+    const double dist = std::hypot(laser_step.x, laser_step.y);
+    const double st = config_.odometry_sigma_translation + config_.odometry_sigma_per_meter * dist;
+    const double sr = config_.odometry_sigma_rotation +
+                      config_.odometry_sigma_rotation_per_rad * std::abs(laser_step.theta) +
+                      config_.odometry_sigma_rotation_per_meter * dist;
+    prior_information = Eigen::Vector3d(1.0 / (st * st), 1.0 / (st * st), 1.0 / (sr * sr * L * L));
+  }
+  const double point_information = 1.0 / (config_.point_sigma * config_.point_sigma);
+  for (std::size_t iter = 0; iter < config_.max_iterations; ++iter) {
+    const bool coarse = iter < config_.coarse_iterations;
+    const double max_dist = coarse ? config_.coarse_correspondence : config_.fine_correspondence;
+    // Linearize about the laser position c: rotating about it decouples the
+    // rotation from the translation, so that the eigenvalues below measure
+    // how well each direction is constrained.
+    const Point2 c = pose.translation();
+    const double cs = std::cos(pose.theta), sn = std::sin(pose.theta);
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    std::size_t correspondences = 0, inliers = 0;
+    for (const Point2& s : source_) {
+      const Point2 p(pose.x + cs * s.x() - sn * s.y(), pose.y + sn * s.x() + cs * s.y());
+      const std::int32_t j = nearest(p, max_dist);
+      if (j < 0) continue;
+      const MapPoint& m = map_points_[static_cast<std::size_t>(j)];
+      const double r = m.normal.dot(p - m.position);
+      const Point2 arm = p - c;
+      const Eigen::Vector3d J(m.normal.x(), m.normal.y(), (m.normal.y() * arm.x() - m.normal.x() * arm.y()) / L);
+      const double w = 1.0 / (1.0 + r * r / k2);  // Cauchy: far-off residuals barely pull
+      H.noalias() += w * J * J.transpose();
+      g.noalias() += w * r * J;
+      ++correspondences;
+      if (std::abs(r) < config_.inlier_distance) ++inliers;
+    }
+    result.iterations = iter + 1;
+    result.correspondences = correspondences;
+    result.quality = source_.empty() ? 0.0 : static_cast<double>(inliers) / static_cast<double>(source_.size());
+    if (correspondences < config_.min_correspondences) return pose;
+    // Directions the scan barely constrains are left out of the update, so
+    // the odometry guess is kept along them. Translation and rotation are
+    // tested apart: a featureless corridor leaves one translation direction
+    // free (the smallest eigenvector of the translation block, per
+    // correspondence, below the threshold) while the walls still fix the
+    // heading, which must then be corrected in full.
+    const double n = static_cast<double>(correspondences);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(H.topLeftCorner<2, 2>().eval());
+    int good = 0;
+    Eigen::Matrix3d basis = Eigen::Matrix3d::Zero();
+    for (int i = 0; i < 2; ++i) {
+      if (eig.eigenvalues()(i) / n >= config_.degeneracy_threshold) {
+        basis.block<2, 1>(0, good++) = eig.eigenvectors().col(i);
+      }
+    }
+    if (H(2, 2) / n >= config_.degeneracy_threshold) basis(2, good++) = 1.0;
+    result.degenerate = good < 3;
+    Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+    if (good > 0) {
+      const Eigen::Vector3d deviation(pose.x - guess.x, pose.y - guess.y, wrap_angle(pose.theta - guess.theta) * L);
+      const Eigen::Matrix3d A = point_information * H + Eigen::Matrix3d(prior_information.asDiagonal());
+      const Eigen::Vector3d b = point_information * g + prior_information.cwiseProduct(deviation);
+      const auto V = basis.leftCols(good);
+      const Eigen::MatrixXd reduced = V.transpose() * A * V;
+      delta = -V * reduced.ldlt().solve(V.transpose() * b);
+    }
+    const double dtheta = delta(2) / L;
+    // New pose: rotate by dtheta about c, then shift by (dx, dy).
+    const double dc = std::cos(dtheta), ds = std::sin(dtheta);
+    const Pose2 step(c.x() + delta(0) - (dc * c.x() - ds * c.y()), c.y() + delta(1) - (ds * c.x() + dc * c.y()), dtheta);
+    pose = step * pose;
+    if (!coarse && std::hypot(delta(0), delta(1)) < config_.converged_translation &&
+        std::abs(dtheta) < config_.converged_rotation) {
+      result.converged = true;
+      break;
+    }
+  }
+  return pose;
+}
+
+bool ScanMatcher::match(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result) {
+  const Pose2 refined = align(guess, laser_step, result);
+  stats_.iterations += result.iterations;
+  const Pose2 correction = guess.between(refined);
+  const bool plausible = std::hypot(correction.x, correction.y) <= config_.max_correction_translation &&
+                         std::abs(correction.theta) <= config_.max_correction_rotation;
+  if (result.correspondences >= config_.min_correspondences && result.quality >= config_.min_quality && plausible &&
+      (result.converged || !config_.reject_unconverged)) {
+    result.laser_pose = refined;
+    return true;
+  }
+  return false;
+}
+
+ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
+  if (!finite_pose(scan.odometry)) {
+    throw Error("ScanMatcher::add_scan: scan at t=" + std::to_string(scan.timestamp) + " has a non-finite odometry pose");
+  }
+  ScanMatchResult result;
+  result.timestamp = scan.timestamp;
+  ++stats_.scans;
+  usable_endpoints(scan, endpoints_);
+  const Pose2& offset = config_.laser_offset;
+
+  if (!have_previous_) {
+    result.source = ScanMatchSource::kFirst;
+    result.laser_pose = Pose2::identity();
+    result.quality = 1.0;
+  } else {
+    // Odometry increment of the robot, moved into the laser frame.
+    const Pose2 robot_step = previous_odometry_.between(scan.odometry);
+    const Pose2 laser_step = offset.inverse() * robot_step * offset;
+    const Pose2 guess = previous_laser_pose_ * laser_step;
+    result.laser_pose = guess;
+    if (std::hypot(robot_step.x, robot_step.y) < config_.stationary_translation &&
+        std::abs(robot_step.theta) < config_.stationary_rotation) {
+      result.source = ScanMatchSource::kStationary;
+      ++stats_.stationary;
+    } else {
+      result.source = ScanMatchSource::kOdometry;
+      if (!map_points_.empty()) {
+        thin_source(endpoints_);
+        bool ok = match(guess, laser_step, result);
+        // Odometry can be wrong in ways ICP does not undo from its guess (the
+        // fr079 log integrates backward driving as forward motion, and ICP
+        // then settles next to the wrong guess): where the constant-velocity
+        // prediction disagrees, match from it too and keep the better fit.
+        const double dt = scan.timestamp - previous_timestamp_;
+        if (previous_dt_ > 0.0 && dt > 0.0) {
+          const double k = std::clamp(dt / previous_dt_, 0.0, 3.0);
+          const Pose2 velocity_step(k * previous_laser_step_.x, k * previous_laser_step_.y,
+                                    k * previous_laser_step_.theta);
+          const Pose2 d = laser_step.between(velocity_step);
+          if (std::hypot(d.x, d.y) > config_.velocity_guess_difference ||
+              std::abs(d.theta) > config_.velocity_guess_difference) {
+            ++stats_.velocity_retries;
+            ScanMatchResult retry = result;
+            retry.laser_pose = guess;
+            if (match(previous_laser_pose_ * velocity_step, velocity_step, retry) &&
+                (!ok || retry.quality > result.quality)) {
+              ++stats_.velocity_matches;
+              result = retry;
+              ok = true;
+            }
+          }
+        }
+        if (ok) {
+          result.source = ScanMatchSource::kMatched;
+          ++stats_.matched;
+          if (result.degenerate) ++stats_.degenerate;
+        }
+      }
+      if (result.source == ScanMatchSource::kOdometry) {
+        result.degenerate = false;
+        ++stats_.odometry_fallbacks;
+      }
+    }
+  }
+  result.robot_pose = result.laser_pose * offset.inverse();
+
+  // A new keyframe when the laser moved enough since the last one.
+  bool add = keyframes_.empty();
+  if (!add) {
+    const Pose2 since = keyframes_.back().laser_pose.between(result.laser_pose);
+    add = std::hypot(since.x, since.y) >= config_.keyframe_distance ||
+          std::abs(since.theta) >= config_.keyframe_angle;
+  }
+  if (add) {
+    add_keyframe(scan.timestamp, result.laser_pose, endpoints_, scan.angle_increment);
+    result.new_keyframe = true;
+  }
+
+  if (have_previous_) {
+    previous_laser_step_ = previous_laser_pose_.between(result.laser_pose);
+    previous_dt_ = scan.timestamp - previous_timestamp_;
+  }
+  have_previous_ = true;
+  previous_odometry_ = scan.odometry;
+  previous_laser_pose_ = result.laser_pose;
+  previous_timestamp_ = scan.timestamp;
+  return result;
+}
+
+}  // namespace lshloc
