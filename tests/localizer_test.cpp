@@ -114,7 +114,7 @@ TEST(Localizer, RecoversWhenCarriedToAnotherBuilding) {
   feeder.feed_until(1.0);
   const auto run = [&](double recent_margin) {
     LocalizerConfig config;
-    config.confidence.duel_recent_margin = recent_margin;
+    config.report.confidence.duel_recent_margin = recent_margin;
     config.scan_matcher.laser_offset = first.target.laser_offset;
     Localizer localizer(map, config);
     std::vector<LocalizationEstimate> out;
@@ -193,8 +193,8 @@ TEST(Localizer, GivesUpAWellSupportedPlaceOnlyForASupportedChallenger) {
   // onto an estimate it does not support (N, C/N of the confidence test).
   const auto unsupported_moves = [&](bool challenger_needs_support) {
     ScenarioRunConfig config;
-    config.localizer.confidence.challenger_needs_support = challenger_needs_support;
-    const ConfidenceConfig& cc = config.localizer.confidence;
+    config.localizer.report.confidence.challenger_needs_support = challenger_needs_support;
+    const ConfidenceConfig& cc = config.localizer.report.confidence;
     const ScenarioRun run = run_scenario(sc, config);
     const auto supported = [&](const LocalizationEstimate& e) {
       return e.scored >= cc.min_scored && e.mean_score >= cc.min_mean_score;

@@ -42,8 +42,8 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["us_update_per_feature"] = run.map.us_update_per_feature();
   j["us_query_per_feature"] = run.localizer.us_query_per_feature();
   j["ns_per_score"] = run.localizer.ns_per_score();
-  j["duels"] = run.localizer.duels;
-  j["duels_won"] = run.localizer.duels_won;
+  j["duels"] = run.localizer.report.duels;
+  j["duels_won"] = run.localizer.report.duels_won;
   j["matcher_velocity_matches"] = run.localizer.scan_matcher.velocity_matches;
   j["matcher_odometry_fallbacks"] = run.localizer.scan_matcher.odometry_fallbacks;
   j["map_build_s"] = run.map_build_s;

@@ -281,4 +281,11 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
   return out;
 }
 
+void ScanContext::offer(const ScanSurface& surface) {
+  if (!surfaces_.empty() && translation_distance(last_pose_, surface.sensor_pose) < spacing_) return;
+  surfaces_.push_back(surface);
+  last_pose_ = surface.sensor_pose;
+  if (surfaces_.size() > scans_) surfaces_.erase(surfaces_.begin());
+}
+
 }  // namespace lshloc

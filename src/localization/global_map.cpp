@@ -41,7 +41,7 @@ GlobalMap::GlobalMap(GlobalMapConfig config)
       free_space_(config_.free_space) {}
 
 std::uint32_t GlobalMap::add_submap(std::string name) {
-  submaps_.push_back({std::move(name), {}, {}, 0});
+  submaps_.push_back({std::move(name), ScanContext(config_.context_scans, config_.context_spacing), 0});
   return static_cast<std::uint32_t>(submaps_.size() - 1);
 }
 
@@ -56,7 +56,7 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
 
   CpuStopwatch watch;
   const ScanSurface surface = extractor_.surface(scan, laser_pose);
-  const std::vector<Feature> features = extractor_.extract(surface, state.context);
+  const std::vector<Feature> features = extractor_.extract(surface, state.context.surfaces());
   stats_.extract_s += watch.seconds();
 
   watch = CpuStopwatch();
@@ -68,13 +68,7 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   mark_grids(submap, scan, laser_pose, surface);
   stats_.grid_s += watch.seconds();
 
-  // Keep the recent surface as descriptor context for the next scans.
-  if (state.context.empty() ||
-      translation_distance(state.last_context_pose, laser_pose) >= config_.context_spacing) {
-    state.context.push_back(surface);
-    state.last_context_pose = laser_pose;
-    if (state.context.size() > config_.context_scans) state.context.erase(state.context.begin());
-  }
+  state.context.offer(surface);
   return features.size();
 }
 

@@ -63,6 +63,21 @@ void IncrementalRansac::move_hypothesis(std::size_t from, std::size_t to) {
   serial_[to] = serial_[from], pose_[to] = pose_[from];
 }
 
+HypothesisBatch HypothesisBatchBuffer::assign(std::span<const Hypothesis> hypotheses) {
+  const std::size_t m = hypotheses.size();
+  submap_.resize(m), tx_.resize(m), ty_.resize(m), cos_.resize(m), sin_.resize(m), theta_.resize(m);
+  for (std::size_t j = 0; j < m; ++j) {
+    const Pose2& T = hypotheses[j].T_submap_local;
+    submap_[j] = hypotheses[j].submap;
+    tx_[j] = static_cast<float>(T.x);
+    ty_[j] = static_cast<float>(T.y);
+    cos_[j] = static_cast<float>(std::cos(T.theta));
+    sin_[j] = static_cast<float>(std::sin(T.theta));
+    theta_[j] = static_cast<float>(T.theta);
+  }
+  return {submap_.data(), tx_.data(), ty_.data(), cos_.data(), sin_.data(), theta_.data(), m};
+}
+
 void IncrementalRansac::add_hypotheses(std::span<const Hypothesis> hypotheses) {
   for (const Hypothesis& h : hypotheses) {
     const Pose2& T = h.T_submap_local;

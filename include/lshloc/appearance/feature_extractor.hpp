@@ -157,4 +157,22 @@ class FeatureExtractor {
   FeatureExtractorStats stats_;
 };
 
+/// The recent surfaces of one robot's scans that enter its next scans'
+/// descriptors as context: a scan joins once the sensor has moved `spacing`
+/// [m] since the last one that joined, and the oldest leaves beyond `scans`.
+/// Not thread-safe.
+class ScanContext {
+ public:
+  ScanContext(std::size_t scans, double spacing) : scans_(scans), spacing_(spacing) {}
+  /// Offers the surface of the newest scan (after its features were extracted).
+  void offer(const ScanSurface& surface);
+  std::span<const ScanSurface> surfaces() const { return surfaces_; }
+
+ private:
+  std::size_t scans_;
+  double spacing_;
+  std::vector<ScanSurface> surfaces_;  // a few scans: erasing the front is cheap
+  Pose2 last_pose_;
+};
+
 }  // namespace lshloc

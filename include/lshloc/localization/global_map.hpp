@@ -88,8 +88,7 @@ class GlobalMap {
  private:
   struct SubmapState {
     std::string name;
-    std::vector<ScanSurface> context;  // a few scans: erasing the front is cheap
-    Pose2 last_context_pose;
+    ScanContext context;  ///< descriptor context of the submap's next scans
     std::size_t scans = 0;
   };
 

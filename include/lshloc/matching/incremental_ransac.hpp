@@ -112,6 +112,18 @@ struct HypothesisBatch {
   std::size_t size = 0;
 };
 
+/// Hypotheses laid out as a HypothesisBatch, in buffers reused from call to
+/// call (headings as given, not wrapped). Not thread-safe.
+class HypothesisBatchBuffer {
+ public:
+  /// The batch of `hypotheses`; valid until the next call.
+  HypothesisBatch assign(std::span<const Hypothesis> hypotheses);
+
+ private:
+  std::vector<std::uint32_t> submap_;
+  std::vector<float> tx_, ty_, cos_, sin_, theta_;
+};
+
 /// A hypothesis with its accumulated score C and the number N of features it
 /// was scored against.
 struct ScoredHypothesis {

@@ -1,0 +1,214 @@
+#pragma once
+// The localizer's report policy: after each scan it turns iRANSAC's
+// hypotheses into the reported estimate and its confidence flag. It holds
+// the reported place against look-alikes (hysteresis and the two duels), lets
+// it follow the local map's drift (tracking children and a pattern search),
+// and says "localized" only on strong, stable, unrivalled support.
+// Poses [m, rad]; config fields ending in _deg are degrees.
+// Not thread-safe: one policy per localizer, called from its thread.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "lshloc/matching/incremental_ransac.hpp"
+
+namespace lshloc {
+
+/// When the localizer says "localized" (DESIGN.md: say it only when the
+/// evidence is strong; a confident answer should never be wrong).
+struct ConfidenceConfig {
+  std::uint32_t min_scored = 500;    ///< N of the best hypothesis at least this (about 10 scans of support)
+  double min_mean_score = 0.35;      ///< C/N of the best hypothesis at least this
+  double min_margin = 0.15;          ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
+  std::size_t stable_scans = 5;      ///< the best stayed in one place (1 m, 10 deg) this many scans
+  /// Hysteresis of the reported estimate: the best hypothesis near the last
+  /// reported one (within `same_place_m`, `same_place_deg`) stays reported
+  /// unless a hypothesis elsewhere beats its C/N by more than this.
+  double switch_margin = 0.02;
+  /// Before the estimate moves elsewhere, the challenger and the incumbent
+  /// are scored on the same `duel_points` data-points drawn uniformly from
+  /// the whole local map, and the move happens only if the challenger's mean
+  /// score is higher by more than `duel_margin` and by more than `duel_z`
+  /// standard errors of the paired difference. iRANSAC's C/N compares
+  /// hypotheses scored on different points: a young look-alike scored only
+  /// where the target left the mapped area otherwise beats the true place,
+  /// whose support lies in the older scans. 0 disables the duel.
+  std::size_t duel_points = 1000;
+  double duel_margin = 0.03;
+  double duel_z = 3.0;
+  /// When iRANSAC holds no hypothesis at the reported place any more (only
+  /// the duel keeps it), the challenger also wins by leading on the newest
+  /// ransac.recent_window data-points by this much (and duel_z standard
+  /// errors). Over a long history the local map bends, and a true place
+  /// whose older scans the drift has moved loses the whole-map duel to a
+  /// stale report; a kidnapped robot, too. 0: off.
+  double duel_recent_margin = 0.15;
+  /// ... but a reported place that was once well supported (iRANSAC gave
+  /// it min_scored data-points at a mean of min_mean_score) loses so only
+  /// where the map knows its surroundings: on at least this share of the
+  /// recent data-points, its map scores them (hit, or local walls in space
+  /// the map saw free, local rays through map walls). Where the map holds
+  /// almost nothing about the reported place, the recent scans are no
+  /// evidence against it (aces: the robot drives from a junction into a
+  /// corridor the mappers saw only from far away, and a fully mapped
+  /// look-alike fits those scans better).
+  double duel_recent_min_evidence = 0.1;
+  /// A reported place that was once well supported is given up, by either
+  /// duel, only for a challenger that iRANSAC supports as well (min_scored
+  /// data-points at a mean of min_mean_score). A look-alike that fits the
+  /// local map only where the true place's map is thin (the robot drives
+  /// where the mappers barely went) otherwise takes over on a small lead
+  /// without ever being well supported itself (RESULTS.md, aces 1341).
+  bool challenger_needs_support = true;
+  double same_place_m = 1.0;    ///< [m]
+  double same_place_deg = 10.0;  ///< [deg]
+};
+
+/// Settings of the report policy: the confidence test and how the reported
+/// place follows the local map's drift.
+struct ReportPolicyConfig {
+  ConfidenceConfig confidence;
+  /// Tracking: each scan, the reported hypothesis spawns children moved by
+  /// +-track_step_m along x and y and +-track_step_deg in heading about the
+  /// robot's current pose, so that a correct place keeps a hypothesis that
+  /// follows the local map's drift even when the database proposes none.
+  bool track_reported = true;
+  double track_step_m = 0.1;     ///< [m]
+  double track_step_deg = 1.0;   ///< [deg]
+  /// Each scan the reported hypothesis is refined by a pattern search (moves
+  /// of +-refine_step_m along x and y and +-refine_step_deg about the
+  /// robot, halved when none helps, refine_rounds rounds) on refine_points
+  /// data-points drawn from the newest refine_window: iRANSAC's hypotheses
+  /// keep the pose they were born with, while the local map drifts under
+  /// them. 0 points: report iRANSAC's hypothesis as it is.
+  std::size_t refine_points = 400;
+  std::size_t refine_window = 4000;
+  std::size_t refine_rounds = 4;
+  double refine_step_m = 0.1;     ///< [m]
+  double refine_step_deg = 1.0;   ///< [deg]
+  double refine_min_gain = 0.02;  ///< a move must raise the mean score on the sample by this much
+
+  void validate() const;
+};
+
+/// The localizer's answer for one target scan.
+struct LocalizationEstimate {
+  bool has_estimate = false;
+  bool localized = false;       ///< the confidence state
+  std::uint32_t submap = 0;
+  Pose2 pose;                   ///< the scan's laser pose in the submap frame
+  Pose2 T_submap_local;
+  double mean_score = 0.0;      ///< C/N of the best hypothesis
+  std::uint32_t scored = 0;     ///< N of the best hypothesis
+  double margin = 0.0;          ///< C/N lead over the best hypothesis elsewhere
+  Pose2 local_pose;             ///< the scan's laser pose in the local frame
+};
+
+/// What the report policy needs of the localizer's data-points: the scores
+/// of hypotheses on a random sample of them. The localizer implements it over
+/// iRANSAC's data-points and the pose-grid scorer; tests use a fake.
+class SampleScorer {
+ public:
+  /// Sums over the sample of two hypotheses' scores that a duel needs beyond
+  /// their plain sums.
+  struct PairSums {
+    double squared_difference = 0.0;  ///< of the per-point scores of hypotheses 0 and 1
+    double second_absolute = 0.0;     ///< of hypothesis 1's |score|
+  };
+  virtual ~SampleScorer() = default;
+  /// Draws `n` data-points uniformly (with replacement) from the newest
+  /// `window` (0: all) as the sample of the next score() calls; returns how
+  /// many were drawn (0 when there are no data-points).
+  virtual std::size_t draw(std::size_t window, std::size_t n) = 0;
+  /// sums[j] = the sum over the sample of hypothesis j's score; with `pair`,
+  /// also the PairSums of hypotheses 0 and 1 (at least two then).
+  virtual void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair = nullptr) = 0;
+};
+
+struct ReportPolicyStats {
+  std::size_t duels = 0;         ///< challenger-incumbent duels run
+  std::size_t duels_won = 0;     ///< duels the challenger won (the estimate moved)
+  std::size_t refine_moves = 0;  ///< accepted moves of the tracking refinement
+};
+
+/// iRANSAC's settings that the policy reads.
+struct RansacPreference {
+  double preference_z = 2.0;       ///< best = argmax C/N - z/sqrt(N)
+  double min_score = 30.0;         ///< C_o: hypotheses below it are not candidates
+  std::size_t recent_window = 8000;  ///< data-points of the recent-points duel
+};
+
+class ReportPolicy {
+ public:
+  ReportPolicy(ReportPolicyConfig config, RansacPreference ransac);
+
+  /// The reported hypothesis moved about the robot's pose `local_pose`, for
+  /// iRANSAC to verify this scan (tracking); empty before the first report
+  /// or with tracking off. Valid until the next call.
+  std::span<const Hypothesis> tracking_children(const Pose2& local_pose);
+
+  /// The report for the scan whose laser pose in the local frame is
+  /// `local_pose`, from iRANSAC's best and active hypotheses after it.
+  LocalizationEstimate report(std::optional<ScoredHypothesis> best, std::span<const ScoredHypothesis> active,
+                              const Pose2& local_pose, SampleScorer& sample);
+
+  const ReportPolicyConfig& config() const { return config_; }
+  const ReportPolicyStats& stats() const { return stats_; }
+
+ private:
+  struct Duel {
+    double challenger_mean = 0.0;
+    double incumbent_mean = 0.0;
+    double lead_stderr = 0.0;  ///< standard error of the mean paired difference
+    /// Mean |score| of the incumbent: the share of the points on which the
+    /// map says anything at its place (scores are +-1 or 0).
+    double incumbent_evidence = 0.0;
+    std::size_t incumbent = 0;  ///< which of the incumbents stood for its place
+  };
+  /// Mean scores of `challenger` and the best of `incumbents` (hypotheses of
+  /// one place) over the same duel_points data-points drawn uniformly from
+  /// the newest `window` (0: all).
+  Duel duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents, std::size_t window,
+            SampleScorer& sample);
+  /// `h` (or `alternative`, if it fits the sample better) refined by the
+  /// pattern search of refine_points about the robot's `local_pose`.
+  Hypothesis refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose,
+                    SampleScorer& sample);
+  /// The hysteresis and the duels: the hypothesis to report this scan.
+  std::optional<ScoredHypothesis> hold_or_move(std::optional<ScoredHypothesis> best,
+                                               std::span<const ScoredHypothesis> active, const Pose2& local_pose,
+                                               SampleScorer& sample);
+  bool supported(const ScoredHypothesis& h) const;
+
+  ReportPolicyConfig config_;
+  RansacPreference ransac_;
+  std::deque<std::optional<Hypothesis>> recent_best_;
+  std::optional<Hypothesis> reported_;
+  /// iRANSAC's last hypothesis at the reported place: it keeps the pose that
+  /// fitted the older scans after preemption cut it and tracking moved on.
+  std::optional<Hypothesis> anchor_;
+  /// The reported place has met the confidence test's absolute part
+  /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
+  bool reported_supported_ = false;
+  std::size_t last_drawn_ = 0;  ///< size of the sample last drawn
+  std::array<Hypothesis, 6> children_;
+  std::vector<double> sums_;
+  ReportPolicyStats stats_;
+};
+
+/// `h` moved by +-step_m along x and y and +-step_rad in heading about the
+/// robot's local pose P: T' = T * P * d * P^-1, so that a small move of the
+/// robot's global pose stays small however far the local origin lies.
+std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P, double step_m, double step_rad);
+
+/// Whether two hypotheses put the robot's current pose `local` (in the local
+/// frame) at the same place: compared at the robot, not at the local frame's
+/// origin, which may lie far away and turn small heading differences into
+/// large translations.
+bool same_place(const Hypothesis& a, const Hypothesis& b, const Pose2& local, double dist_m, double angle_rad);
+
+}  // namespace lshloc

@@ -1,0 +1,221 @@
+#include "lshloc/localization/report_policy.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc {
+
+namespace {
+
+double radians(double deg) { return deg * std::numbers::pi / 180.0; }
+
+}  // namespace
+
+bool same_place(const Hypothesis& a, const Hypothesis& b, const Pose2& local, double dist_m, double angle_rad) {
+  if (a.submap != b.submap) return false;
+  const Pose2 pa = a.T_submap_local * local, pb = b.T_submap_local * local;
+  return translation_distance(pa, pb) <= dist_m && angle_distance(pa.theta, pb.theta) <= angle_rad;
+}
+
+std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P, double step_m, double step_rad) {
+  std::array<Hypothesis, 6> out;
+  std::size_t k = 0;
+  for (const Pose2& d : {Pose2(step_m, 0, 0), Pose2(-step_m, 0, 0), Pose2(0, step_m, 0), Pose2(0, -step_m, 0),
+                         Pose2(0, 0, step_rad), Pose2(0, 0, -step_rad)}) {
+    out[k++] = {h.submap, h.T_submap_local * (P * d * P.inverse())};
+  }
+  return out;
+}
+
+void ReportPolicyConfig::validate() const {
+  if (confidence.stable_scans == 0) throw Error("ReportPolicyConfig: confidence.stable_scans must be >= 1");
+  if (refine_points > 0 && !(refine_step_m > 0.0 && refine_step_deg > 0.0)) {
+    throw Error("ReportPolicyConfig: refine_step_m and refine_step_deg must be > 0 when refine_points > 0");
+  }
+}
+
+ReportPolicy::ReportPolicy(ReportPolicyConfig config, RansacPreference ransac)
+    : config_((config.validate(), config)), ransac_(ransac) {}
+
+bool ReportPolicy::supported(const ScoredHypothesis& h) const {
+  // The confidence test's absolute part: iRANSAC has scored the hypothesis
+  // on enough data-points, at a high enough mean.
+  return h.scored >= config_.confidence.min_scored && h.mean_score() >= config_.confidence.min_mean_score;
+}
+
+std::span<const Hypothesis> ReportPolicy::tracking_children(const Pose2& local_pose) {
+  if (!config_.track_reported || !reported_) return {};
+  children_ = moves_about_robot(*reported_, local_pose, config_.track_step_m, radians(config_.track_step_deg));
+  return children_;
+}
+
+std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredHypothesis> best,
+                                                           std::span<const ScoredHypothesis> active,
+                                                           const Pose2& local_pose, SampleScorer& sample) {
+  const ConfidenceConfig& cc = config_.confidence;
+  const double same_angle = radians(cc.same_place_deg);
+  const double z = ransac_.preference_z;
+  if (!best || !reported_) return best;
+  // Hysteresis: keep reporting the place of the last estimate while its best
+  // hypothesis is within switch_margin of the overall best.
+  const ScoredHypothesis* incumbent = nullptr;
+  for (const ScoredHypothesis& h : active) {
+    if (h.score < ransac_.min_score || h.scored == 0) continue;
+    if (!same_place(h.hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) continue;
+    if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
+  }
+  if (incumbent != nullptr) anchor_ = incumbent->hypothesis;
+  if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) return *incumbent;
+  if (cc.duel_points == 0 || same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) {
+    return best;
+  }
+  ++stats_.duels;
+  std::array<Hypothesis, 2> held{*reported_, {}};
+  std::size_t held_count = 1;
+  if (anchor_ && same_place(*anchor_, *reported_, local_pose, cc.same_place_m, same_angle)) {
+    held[held_count++] = *anchor_;
+  }
+  const std::span<const Hypothesis> incumbents(held.data(), held_count);
+  const auto wins = [&](const Duel& duel_result, double margin) {
+    const double lead = duel_result.challenger_mean - duel_result.incumbent_mean;
+    return lead > margin && lead > cc.duel_z * duel_result.lead_stderr;
+  };
+  const bool may_win = !reported_supported_ || !cc.challenger_needs_support || supported(*best);
+  const Duel d = duel(best->hypothesis, incumbents, 0, sample);
+  bool won = may_win && wins(d, cc.duel_margin);
+  if (!won && may_win && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
+    // iRANSAC dropped every hypothesis at the reported place: only the duel
+    // holds it there, on old scans that the local map's drift may have bent.
+    // A clear lead on the recent data-points then suffices, unless the place
+    // was once well supported and its map knows almost nothing about them.
+    const Duel recent = duel(best->hypothesis, incumbents, ransac_.recent_window, sample);
+    won = wins(recent, cc.duel_recent_margin) &&
+          (!reported_supported_ || recent.incumbent_evidence >= cc.duel_recent_min_evidence);
+  }
+  if (won) {
+    ++stats_.duels_won;
+    anchor_ = best->hypothesis;
+    return best;
+  }
+  if (incumbent != nullptr) return *incumbent;
+  const auto n = static_cast<std::uint32_t>(last_drawn_);
+  return ScoredHypothesis{incumbents[d.incumbent], d.incumbent_mean * n, n};
+}
+
+LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
+                                          std::span<const ScoredHypothesis> active, const Pose2& local_pose,
+                                          SampleScorer& sample) {
+  const ConfidenceConfig& cc = config_.confidence;
+  const double same_angle = radians(cc.same_place_deg);
+  LocalizationEstimate e;
+  e.local_pose = local_pose;
+  best = hold_or_move(best, active, local_pose, sample);
+  recent_best_.push_back(best ? std::optional<Hypothesis>(best->hypothesis) : std::nullopt);
+  if (recent_best_.size() > cc.stable_scans) recent_best_.pop_front();
+  if (!best) return e;
+  // Tracking: the reported place follows the local map's drift by a small
+  // search on recent data-points, from the last report when the place is
+  // kept (or iRANSAC's hypothesis there, whichever fits better).
+  const bool kept = reported_ && same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle);
+  if (config_.refine_points > 0) {
+    reported_ = kept ? refine(*reported_, best->hypothesis, local_pose, sample)
+                     : refine(best->hypothesis, std::nullopt, local_pose, sample);
+  } else {
+    reported_ = best->hypothesis;
+  }
+  reported_supported_ = (kept && reported_supported_) || supported(*best);
+  e.has_estimate = true;
+  e.submap = reported_->submap;
+  e.T_submap_local = reported_->T_submap_local;
+  e.pose = e.T_submap_local * local_pose;
+  e.mean_score = best->mean_score();
+  e.scored = best->scored;
+
+  // The best competitor elsewhere: another submap, or more than 2 m away.
+  double rival = 0.0;
+  for (const ScoredHypothesis& h : active) {
+    if (h.score < ransac_.min_score || h.scored == 0) continue;
+    if (same_place(h.hypothesis, best->hypothesis, local_pose, 2.0, std::numbers::pi)) continue;
+    rival = std::max(rival, h.mean_score());
+  }
+  e.margin = e.mean_score - rival;
+
+  bool stable = recent_best_.size() >= cc.stable_scans;
+  for (const auto& h : recent_best_) {
+    stable = stable && h && same_place(*h, best->hypothesis, local_pose, cc.same_place_m, same_angle);
+  }
+  e.localized = stable && supported(*best) && e.margin >= cc.min_margin;
+  return e;
+}
+
+ReportPolicy::Duel ReportPolicy::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents,
+                                      std::size_t window, SampleScorer& sample) {
+  last_drawn_ = sample.draw(window, config_.confidence.duel_points);
+  if (last_drawn_ == 0 || incumbents.empty()) return {};
+  // The incumbent place is represented by whichever of its hypotheses fits
+  // the whole local map best: the tracked report follows the recent drift,
+  // iRANSAC's hypothesis there may fit the older scans better.
+  std::size_t chosen = 0;
+  if (incumbents.size() > 1) {
+    sample.score(incumbents, sums_);
+    chosen = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
+  }
+  const std::array<Hypothesis, 2> pair{challenger, incumbents[chosen]};
+  SampleScorer::PairSums pair_sums;
+  sample.score(pair, sums_, &pair_sums);
+  const auto n = static_cast<double>(last_drawn_);
+  Duel d{.challenger_mean = sums_[0] / n,
+         .incumbent_mean = sums_[1] / n,
+         .incumbent_evidence = pair_sums.second_absolute / n,
+         .incumbent = chosen};
+  const double lead = d.challenger_mean - d.incumbent_mean;
+  if (n > 1.0) {
+    d.lead_stderr = std::sqrt(std::max(0.0, (pair_sums.squared_difference / n - lead * lead) / (n - 1.0)));
+  }
+  return d;
+}
+
+Hypothesis ReportPolicy::refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose,
+                                SampleScorer& sample) {
+  last_drawn_ = sample.draw(config_.refine_window, config_.refine_points);
+  if (last_drawn_ == 0) return h;
+  const double min_gain = config_.refine_min_gain * static_cast<double>(last_drawn_);
+  // h's sum over the sample carries from one step to the next: scores do
+  // not depend on which other hypotheses share a batch.
+  double h_sum = 0.0;
+  if (alternative) {
+    const std::array<Hypothesis, 2> starts{h, *alternative};
+    sample.score(starts, sums_);
+    h_sum = sums_[0];
+    if (sums_[1] - sums_[0] > min_gain) {
+      h = *alternative;
+      h_sum = sums_[1];
+    }
+  } else {
+    sample.score(std::span<const Hypothesis>(&h, 1), sums_);
+    h_sum = sums_[0];
+  }
+  double m = config_.refine_step_m, a = radians(config_.refine_step_deg);
+  for (std::size_t round = 0; round < config_.refine_rounds; ++round) {
+    const auto moves = moves_about_robot(h, local_pose, m, a);
+    sample.score(moves, sums_);
+    const auto best = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
+    // Where the map knows little (most points score 0) every move looks
+    // alike: a move must win by a clear share of the points, or the pose
+    // would wander on noise.
+    const double gain = sums_[best] - h_sum;
+    if (gain <= 0.0 || gain < min_gain) {
+      m *= 0.5, a *= 0.5;
+    } else {
+      h = moves[best];
+      h_sum = sums_[best];
+      ++stats_.refine_moves;
+    }
+  }
+  return h;
+}
+
+}  // namespace lshloc

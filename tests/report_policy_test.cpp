@@ -1,0 +1,184 @@
+// The report policy against a fake sample scorer: the confidence test, the
+// hysteresis, the duels and their support rule, tracking and refinement,
+// each checked on hypotheses whose scores the test sets.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <numbers>
+#include <vector>
+
+#include "lshloc/localization/report_policy.hpp"
+
+namespace lshloc {
+namespace {
+
+/// Every data-point of a sample scores `score_of(h)` for hypothesis h: the
+/// test sets which place the local map fits.
+class FakeSample final : public SampleScorer {
+ public:
+  std::function<double(const Hypothesis&)> score_of = [](const Hypothesis&) { return 0.0; };
+  std::size_t draws = 0;
+
+  std::size_t draw(std::size_t, std::size_t n) override {
+    ++draws;
+    n_ = n;
+    return n;
+  }
+  void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
+    sums.assign(hypotheses.size(), 0.0);
+    for (std::size_t j = 0; j < hypotheses.size(); ++j) sums[j] = score_of(hypotheses[j]) * static_cast<double>(n_);
+    if (pair != nullptr) {
+      const double d = score_of(hypotheses[0]) - score_of(hypotheses[1]);
+      pair->squared_difference = d * d * static_cast<double>(n_);
+      pair->second_absolute = std::abs(score_of(hypotheses[1])) * static_cast<double>(n_);
+    }
+  }
+
+ private:
+  std::size_t n_ = 0;
+};
+
+Hypothesis at(std::uint32_t submap, double x, double y = 0.0, double theta = 0.0) {
+  return {submap, Pose2(x, y, theta)};
+}
+
+ScoredHypothesis scored(const Hypothesis& h, double mean, std::uint32_t n) { return {h, mean * n, n}; }
+
+ReportPolicyConfig plain() {
+  ReportPolicyConfig c;
+  c.refine_points = 0;  // report iRANSAC's hypothesis as it is
+  c.track_reported = false;
+  return c;
+}
+
+const RansacPreference kPreference{.preference_z = 2.0, .min_score = 30.0, .recent_window = 8000};
+
+LocalizationEstimate step(ReportPolicy& policy, const std::vector<ScoredHypothesis>& active, SampleScorer& sample,
+                          const Pose2& local = {}) {
+  std::optional<ScoredHypothesis> best;
+  for (const auto& h : active) {
+    if (h.score < kPreference.min_score) continue;
+    if (!best || h.preference(kPreference.preference_z) > best->preference(kPreference.preference_z)) best = h;
+  }
+  return policy.report(best, active, local, sample);
+}
+
+TEST(ReportPolicy, NoHypothesisNoEstimate) {
+  ReportPolicy policy(plain(), kPreference);
+  FakeSample sample;
+  const LocalizationEstimate e = step(policy, {}, sample);
+  EXPECT_FALSE(e.has_estimate);
+  EXPECT_FALSE(e.localized);
+  EXPECT_TRUE(policy.tracking_children(Pose2()).empty());
+}
+
+TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
+  ReportPolicy policy(plain(), kPreference);
+  FakeSample sample;
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3);
+  const std::size_t stable = plain().confidence.stable_scans;
+  for (std::size_t i = 0; i < stable; ++i) {
+    const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000)}, sample);
+    ASSERT_TRUE(e.has_estimate);
+    EXPECT_EQ(e.submap, 2u);
+    EXPECT_NEAR(e.pose.x, 10.0, 1e-12);
+    EXPECT_EQ(e.localized, i + 1 == stable) << "scan " << i;
+  }
+  // Too few data-points (N below min_scored): not confident.
+  ReportPolicy young(plain(), kPreference);
+  for (std::size_t i = 0; i < stable + 2; ++i) EXPECT_FALSE(step(young, {scored(place, 0.6, 400)}, sample).localized);
+  // A rival elsewhere within min_margin of C/N: not confident.
+  ReportPolicy rivalled(plain(), kPreference);
+  for (std::size_t i = 0; i < stable + 2; ++i) {
+    const LocalizationEstimate e = step(rivalled, {scored(place, 0.6, 1000), scored(at(0, 3.0), 0.5, 1000)}, sample);
+    EXPECT_FALSE(e.localized);
+    EXPECT_NEAR(e.margin, 0.1, 1e-9);
+  }
+}
+
+TEST(ReportPolicy, HysteresisKeepsTheReportedPlaceAgainstASmallLead) {
+  ReportPolicy policy(plain(), kPreference);
+  FakeSample sample;
+  const Hypothesis a = at(0, 0.0), b = at(1, 0.0);
+  step(policy, {scored(a, 0.5, 1000)}, sample);
+  // b leads by 0.01 < switch_margin (0.02): a stays, and no duel is run.
+  LocalizationEstimate e = step(policy, {scored(a, 0.5, 1000), scored(b, 0.51, 1000)}, sample);
+  EXPECT_EQ(e.submap, 0u);
+  EXPECT_EQ(policy.stats().duels, 0u);
+  // b leads by 0.1 while a is still in iRANSAC: a duel on the sample decides;
+  // the sample says b fits better, so the estimate moves.
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == 1 ? 0.8 : 0.2; };
+  e = step(policy, {scored(a, 0.5, 1000), scored(b, 0.6, 1000)}, sample);
+  EXPECT_EQ(e.submap, 1u);
+  EXPECT_EQ(policy.stats().duels, 1u);
+  EXPECT_EQ(policy.stats().duels_won, 1u);
+}
+
+TEST(ReportPolicy, AChallengerThatLosesTheDuelDoesNotMoveTheEstimate) {
+  ReportPolicy policy(plain(), kPreference);
+  FakeSample sample;
+  const Hypothesis a = at(0, 0.0), b = at(1, 0.0);
+  step(policy, {scored(a, 0.5, 1000)}, sample);
+  // iRANSAC prefers b (it dropped a), but on the whole local map a fits better.
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == 0 ? 0.6 : 0.3; };
+  const LocalizationEstimate e = step(policy, {scored(b, 0.7, 800)}, sample);
+  EXPECT_EQ(e.submap, 0u);
+  EXPECT_EQ(policy.stats().duels, 1u);
+  EXPECT_EQ(policy.stats().duels_won, 0u);
+  // With a no longer in iRANSAC, the report stands on the duel's sample.
+  EXPECT_NEAR(e.mean_score, 0.6, 1e-9);
+}
+
+TEST(ReportPolicy, AWellSupportedPlaceYieldsOnlyToASupportedChallenger) {
+  FakeSample sample;
+  const Hypothesis a = at(0, 0.0), b = at(1, 0.0);
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == 1 ? 0.9 : 0.1; };
+  for (const bool rule : {true, false}) {
+    ReportPolicyConfig config = plain();
+    config.confidence.challenger_needs_support = rule;
+    ReportPolicy policy(config, kPreference);
+    step(policy, {scored(a, 0.5, 1000)}, sample);  // a is well supported
+    // b wins the duel by far but iRANSAC has scored it on 100 points only.
+    const LocalizationEstimate e = step(policy, {scored(b, 0.9, 100)}, sample);
+    EXPECT_EQ(e.submap, rule ? 0u : 1u) << "challenger_needs_support " << rule;
+  }
+}
+
+TEST(ReportPolicy, TrackingChildrenSurroundTheReportAtTheRobot) {
+  ReportPolicyConfig config = plain();
+  config.track_reported = true;
+  ReportPolicy policy(config, kPreference);
+  FakeSample sample;
+  const Hypothesis a = at(3, 4.0, -2.0, 0.5);
+  step(policy, {scored(a, 0.5, 1000)}, sample);
+  const Pose2 robot(20.0, 5.0, 1.0);  // far from the local origin
+  const auto children = policy.tracking_children(robot);
+  ASSERT_EQ(children.size(), 6u);
+  const Pose2 reported = a.T_submap_local * robot;
+  for (const Hypothesis& c : children) {
+    EXPECT_EQ(c.submap, 3u);
+    const Pose2 moved = c.T_submap_local * robot;
+    // Each child moves the robot's pose by one step: 0.1 m or 1 degree.
+    const double dxy = translation_distance(moved, reported), dth = angle_distance(moved.theta, reported.theta);
+    EXPECT_TRUE((std::abs(dxy - 0.1) < 1e-9 && dth < 1e-9) || (dxy < 1e-9 && std::abs(dth - std::numbers::pi / 180.0) < 1e-9))
+        << dxy << " " << dth;
+  }
+}
+
+TEST(ReportPolicy, RefinementMovesTheReportTowardsWhatTheSampleFits) {
+  ReportPolicyConfig config = plain();
+  config.refine_points = 400;
+  ReportPolicy policy(config, kPreference);
+  FakeSample sample;
+  // The sample fits best with the robot 0.15 m further along x than iRANSAC's hypothesis.
+  const Pose2 truth(5.15, 1.0, 0.0);
+  sample.score_of = [&](const Hypothesis& h) { return 1.0 - translation_distance(h.T_submap_local, truth); };
+  const LocalizationEstimate e = step(policy, {scored(at(0, 5.0, 1.0), 0.5, 1000)}, sample);
+  EXPECT_NEAR(e.pose.x, 5.15, 0.0126);  // steps 0.1, 0.05, 0.025, 0.0125
+  EXPECT_NEAR(e.pose.y, 1.0, 1e-9);
+  EXPECT_GE(policy.stats().refine_moves, 2u);
+}
+
+}  // namespace
+}  // namespace lshloc
