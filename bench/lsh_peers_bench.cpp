@@ -104,7 +104,9 @@ class LshlocIndex : public Index {
     return s.str();
   }
   void add(const Descriptor& d, std::uint32_t id) override { db_.insert(d, id); }
-  void search(const Descriptor& q, std::size_t k, std::vector<std::uint32_t>& out) override { db_.query(q, k, out, q_); }
+  void search(const Descriptor& q, std::size_t k, std::vector<std::uint32_t>& out) override {
+    db_.query(q, k, out, q_);
+  }
   double mean_candidates() const {
     return q_.queries ? static_cast<double>(q_.candidates_touched) / static_cast<double>(q_.queries) : 0.0;
   }
@@ -253,25 +255,43 @@ int main(int argc, char** argv) try {
       if (i + 1 >= argc) throw lshloc::Error("option " + a + " needs a value");
       return argv[++i];
     };
-    if (a == "--sizes") opt.sizes = parse_sizes(next());
-    else if (a == "--only") opt.only = parse_list(next());
-    else if (a == "--query-every") opt.query_every = std::stoul(next());
-    else if (a == "--hnsw-ef") opt.hnsw_ef = std::stoul(next());
-    else if (a == "--hnsw-ef-construction") opt.hnsw_ef_construction = std::stoul(next());
-    else if (a == "--copy-noise") opt.copy_noise = std::stod(next());
-    else if (a == "--flann-checks") opt.flann_checks = std::stoi(next());
-    else if (a == "--data") data_dir = next();
-    else if (a == "--lsh-k") opt.lsh.K = std::stoul(next());
-    else if (a == "--lsh-l") opt.lsh.L = std::stoul(next());
-    else if (a == "--lsh-w") opt.lsh.w = std::stod(next());
-    else if (a == "--lsh-cap") opt.lsh.bucket_capacity = std::stoul(next());
-    else if (a == "--lsh-max-candidates") opt.lsh.max_candidates = std::stoul(next());
-    else if (a == "--lsh-sketch") opt.lsh.sketch_bits = std::stoul(next());
-    else if (a == "--lsh-sketch-weight") opt.lsh.sketch_collision_weight = std::stoul(next());
-    else if (a == "--lsh-keep-newest") opt.lsh.full_bucket = lshloc::FullBucket::kKeepNewest;
-    else throw lshloc::Error("unknown option " + a +
-                             " (known: --sizes, --only, --query-every, --hnsw-ef, --hnsw-ef-construction, "
-                             "--flann-checks, --data, --lsh-k, --lsh-l, --lsh-w, --lsh-cap, --lsh-max-candidates, --lsh-sketch, --lsh-sketch-weight, --lsh-keep-newest)");
+    if (a == "--sizes")
+      opt.sizes = parse_sizes(next());
+    else if (a == "--only")
+      opt.only = parse_list(next());
+    else if (a == "--query-every")
+      opt.query_every = std::stoul(next());
+    else if (a == "--hnsw-ef")
+      opt.hnsw_ef = std::stoul(next());
+    else if (a == "--hnsw-ef-construction")
+      opt.hnsw_ef_construction = std::stoul(next());
+    else if (a == "--copy-noise")
+      opt.copy_noise = std::stod(next());
+    else if (a == "--flann-checks")
+      opt.flann_checks = std::stoi(next());
+    else if (a == "--data")
+      data_dir = next();
+    else if (a == "--lsh-k")
+      opt.lsh.K = std::stoul(next());
+    else if (a == "--lsh-l")
+      opt.lsh.L = std::stoul(next());
+    else if (a == "--lsh-w")
+      opt.lsh.w = std::stod(next());
+    else if (a == "--lsh-cap")
+      opt.lsh.bucket_capacity = std::stoul(next());
+    else if (a == "--lsh-max-candidates")
+      opt.lsh.max_candidates = std::stoul(next());
+    else if (a == "--lsh-sketch")
+      opt.lsh.sketch_bits = std::stoul(next());
+    else if (a == "--lsh-sketch-weight")
+      opt.lsh.sketch_collision_weight = std::stoul(next());
+    else if (a == "--lsh-keep-newest")
+      opt.lsh.full_bucket = lshloc::FullBucket::kKeepNewest;
+    else
+      throw lshloc::Error("unknown option " + a +
+                          " (known: --sizes, --only, --query-every, --hnsw-ef, --hnsw-ef-construction, "
+                          "--flann-checks, --data, --lsh-k, --lsh-l, --lsh-w, --lsh-cap, --lsh-max-candidates, "
+                          "--lsh-sketch, --lsh-sketch-weight, --lsh-keep-newest)");
   }
   std::sort(opt.sizes.begin(), opt.sizes.end());
   const std::size_t total = opt.sizes.back();
@@ -280,7 +300,8 @@ int main(int argc, char** argv) try {
   };
 
   // 1. The descriptor stream and the queries.
-  const lshloc::io::DatasetCatalog catalog(lshloc::io::DatasetCatalog::resolve_data_dir(data_dir, LSHLOC_SOURCE_DIR "/../shared/data"));
+  const lshloc::io::DatasetCatalog catalog(
+      lshloc::io::DatasetCatalog::resolve_data_dir(data_dir, LSHLOC_SOURCE_DIR "/../shared/data"));
   lshloc::FeatureExtractor extractor;
   const lshloc::DescriptorContextConfig context;
   std::vector<Descriptor> stream;
@@ -314,8 +335,8 @@ int main(int argc, char** argv) try {
     ++submap_id;
   }
   const std::size_t true_map = stream.size();
-  for (const char* b : {"fr079", "aces", "mit-csail", "acapulco", "belgioioso", "edmonton", "fhw",
-                               "freiburg-campus", "infinite-corridor", "orebro", "seattle"}) {
+  for (const char* b : {"fr079", "aces", "mit-csail", "acapulco", "belgioioso", "edmonton", "fhw", "freiburg-campus",
+                        "infinite-corridor", "orebro", "seattle"}) {
     if (stream.size() == total) break;
     try {
       const lshloc::BuildingRecording rec = catalog.load(b, false);
@@ -376,8 +397,9 @@ int main(int argc, char** argv) try {
     });
   if (wanted("faiss-lsh"))
     makers.push_back([&] {
-      return std::make_unique<FaissIndex>(std::make_unique<faiss::IndexLSH>(kDim, opt.faiss_lsh_bits, true, false),
-                                          "faiss-lsh", "nbits=" + std::to_string(opt.faiss_lsh_bits) + " (exhaustive Hamming scan)", false);
+      return std::make_unique<FaissIndex>(
+          std::make_unique<faiss::IndexLSH>(kDim, opt.faiss_lsh_bits, true, false), "faiss-lsh",
+          "nbits=" + std::to_string(opt.faiss_lsh_bits) + " (exhaustive Hamming scan)", false);
     });
 #else
   std::printf("# FAISS: not found at build time, skipped\n");
@@ -436,11 +458,13 @@ int main(int argc, char** argv) try {
           any += hit(q, out);
         }
         char buf[64];
-        std::snprintf(buf, sizeof buf, " recall_all_cand=%.3f", static_cast<double>(any) / static_cast<double>(queries.size()));
+        std::snprintf(buf, sizeof buf, " recall_all_cand=%.3f",
+                      static_cast<double>(any) / static_cast<double>(queries.size()));
         params += buf;
       }
       std::printf("%-15s %9zu %11.2f %11.2f %9.3f %9.0f  %s\n", index->name().c_str(), size,
-                  1e6 * insert_s / static_cast<double>(inserted_since), 1e6 * query_s / static_cast<double>(queried_since),
+                  1e6 * insert_s / static_cast<double>(inserted_since),
+                  1e6 * query_s / static_cast<double>(queried_since),
                   static_cast<double>(hits) / static_cast<double>(queries.size()), bytes, params.c_str());
       std::fflush(stdout);
       insert_s = query_s = 0.0;

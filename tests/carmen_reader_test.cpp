@@ -33,9 +33,11 @@ std::string expect_error(const std::string& text, const std::string& suffix = ".
 
 TEST(CarmenReader, ReadsFlaserOdomParamAndSkipsTheRest) {
   const std::string path = test::temp_path(".log");
-  test::write_file(path, "# a comment\n\nPARAM robot_frontlaser_offset -0.04 nohost 0\nPARAM robot_front_laser_max 80.99 h 0\n"
-                         "NEFF 10 0 pippo 0\nSYNC foo\nODOM 1 2 0.1 0.5 0.0 0 100.5 host 100.5\n" +
-                             flaser_line(180, 2.5, 101.0) + flaser_line(361, 81.91, 102.0));
+  test::write_file(
+      path,
+      "# a comment\n\nPARAM robot_frontlaser_offset -0.04 nohost 0\nPARAM robot_front_laser_max 80.99 h 0\n"
+      "NEFF 10 0 pippo 0\nSYNC foo\nODOM 1 2 0.1 0.5 0.0 0 100.5 host 100.5\n" +
+          flaser_line(180, 2.5, 101.0) + flaser_line(361, 81.91, 102.0));
   const CarmenLog log = read_carmen_log(path);
   ASSERT_EQ(log.scans.size(), 2u);
   ASSERT_EQ(log.odometry.size(), 1u);
@@ -92,8 +94,9 @@ TEST(CarmenReader, InvalidReadingsAreFlaggedNotFatal) {
 
 TEST(CarmenReader, RobotLaser1TakesItsOwnGeometry) {
   // type start fov res maxrange acc rem n r.. m rem.. lx ly lth rx ry rth tv rv fs ss ta ts host lts
-  std::string line = "ROBOTLASER1 0 -1.5708 3.1416 0.0174533 30.0 0.01 0 3 1.0 30.0 2.0 0 "
-                     "0.5 0.6 0.7 0.1 0.2 0.3 0 0 0 0 0 55.5 host 55.5\n";
+  std::string line =
+      "ROBOTLASER1 0 -1.5708 3.1416 0.0174533 30.0 0.01 0 3 1.0 30.0 2.0 0 "
+      "0.5 0.6 0.7 0.1 0.2 0.3 0 0 0 0 0 55.5 host 55.5\n";
   const std::string path = test::temp_path(".log");
   test::write_file(path, line);
   const auto log = read_carmen_log(path);

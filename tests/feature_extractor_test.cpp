@@ -138,7 +138,8 @@ TEST(FeatureExtractor, TheSamePlaceFromANearbyViewpointLooksAlike) {
   for (const auto& fa : a)
     for (const auto& fb : b) {
       const double gap = translation_distance(fa.pose, fb.pose);
-      if (gap < 0.5 && angle_distance(fa.pose.theta, fb.pose.theta) < 0.35) same += d(fa.descriptor, fb.descriptor), ++n_same;
+      if (gap < 0.5 && angle_distance(fa.pose.theta, fb.pose.theta) < 0.35)
+        same += d(fa.descriptor, fb.descriptor), ++n_same;
       if (gap > 3.0) other += d(fa.descriptor, fb.descriptor), ++n_other;
     }
   ASSERT_GT(n_same, 2u);

@@ -89,7 +89,8 @@ RecoveryResult run_recovery(double outlier_share, FeatureOrderRule rule, std::ui
   std::size_t next = 0;
   for (int scan = 0; scan < scans; ++scan) {
     std::vector<LocalPoint> fresh;
-    for (int k = 0; k < 10 && next < scene.local.size(); ++k, ++next) fresh.push_back(to_local_point(scene.local[next]));
+    for (int k = 0; k < 10 && next < scene.local.size(); ++k, ++next)
+      fresh.push_back(to_local_point(scene.local[next]));
     // 1000 hypotheses from correspondences of the local features seen so far:
     // a true partner with probability 1 - outlier_share, else any map feature.
     std::vector<Hypothesis> hyps;
@@ -148,7 +149,8 @@ std::vector<std::set<std::uint32_t>> nister_reference(const std::vector<std::vec
   std::vector<std::set<std::uint32_t>> scored;
   for (std::size_t i = 1; i <= seq.size(); ++i) {
     const std::size_t f = M >> (i / B);
-    std::sort(ids.begin(), ids.end(), [&](std::uint32_t a, std::uint32_t b) { return C[a] != C[b] ? C[a] > C[b] : a < b; });
+    std::sort(ids.begin(), ids.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return C[a] != C[b] ? C[a] > C[b] : a < b; });
     ids.resize(std::min(ids.size(), f));
     for (const std::uint32_t j : ids) C[j] += c[j][seq[i - 1]];
     scored.emplace_back(ids.begin(), ids.end());

@@ -27,10 +27,10 @@ inline void append(std::vector<Segment>& world, const std::vector<Segment>& more
 }
 
 struct SimConfig {
-  std::size_t beams = 360;     ///< over 180 degrees (FLASER layout)
-  double max_range = 81.91;    ///< [m] the no-return reading
-  double noise_sigma = 0.0;    ///< [m] Gaussian range noise
-  bool round_to_cm = true;     ///< ranges printed with 2 decimals, as the recon logs
+  std::size_t beams = 360;   ///< over 180 degrees (FLASER layout)
+  double max_range = 81.91;  ///< [m] the no-return reading
+  double noise_sigma = 0.0;  ///< [m] Gaussian range noise
+  bool round_to_cm = true;   ///< ranges printed with 2 decimals, as the recon logs
   unsigned seed = 7;
 };
 
@@ -43,7 +43,7 @@ inline double cast_ray(const std::vector<Segment>& world, const Point2& origin, 
     const double denom = dir.x() * e.y() - dir.y() * e.x();
     if (std::abs(denom) < 1e-12) continue;
     const Point2 w = s.a - origin;
-    const double t = (w.x() * e.y() - w.y() * e.x()) / denom;  // along the ray
+    const double t = (w.x() * e.y() - w.y() * e.x()) / denom;      // along the ray
     const double u = (w.x() * dir.y() - w.y() * dir.x()) / denom;  // along the segment
     if (t > 1e-9 && u >= 0.0 && u <= 1.0) best = std::min(best, t);
   }

@@ -21,14 +21,14 @@ TEST(LocalizationMetrics, FindsTimeToLocalizeFinalAndMedianError) {
   std::vector<std::optional<Pose2>> truth;
   for (int i = 0; i < 8; ++i) truth.push_back(i == 3 ? std::nullopt : std::optional<Pose2>(Pose2(i, 0, 0)));
   std::vector<ScanEstimate> est = {
-      ScanEstimate{},        // 0: none
-      at(1, 1.0, true),      // 1: wrong submap, confident -> confident wrong
-      at(0, 2.2),            // 2: correct (0.2)
-      at(0, 50.0),           // 3: no truth, ignored
-      at(0, 7.0),            // 4: error 3 -> incorrect
-      at(0, 5.5, true),      // 5: 0.5
-      at(0, 6.1, true),      // 6: 0.1
-      at(0, 7.3, true),      // 7: 0.3
+      ScanEstimate{},    // 0: none
+      at(1, 1.0, true),  // 1: wrong submap, confident -> confident wrong
+      at(0, 2.2),        // 2: correct (0.2)
+      at(0, 50.0),       // 3: no truth, ignored
+      at(0, 7.0),        // 4: error 3 -> incorrect
+      at(0, 5.5, true),  // 5: 0.5
+      at(0, 6.1, true),  // 6: 0.1
+      at(0, 7.3, true),  // 7: 0.3
   };
   const auto m = evaluate_localization(est, truth, 0);
   EXPECT_EQ(m.scans, 8u);
@@ -61,9 +61,7 @@ TEST(LocalizationMetrics, WrongFinalSubmapIsAFailure) {
   EXPECT_NEAR(m.correct_fraction_after, 0.5, 1e-12);
 }
 
-TEST(LocalizationMetrics, SizeMismatchThrows) {
-  EXPECT_ANY_THROW(evaluate_localization({ScanEstimate{}}, {}, 0));
-}
+TEST(LocalizationMetrics, SizeMismatchThrows) { EXPECT_ANY_THROW(evaluate_localization({ScanEstimate{}}, {}, 0)); }
 
 }  // namespace
 }  // namespace lshloc

@@ -162,7 +162,8 @@ TEST(Localizer, KeepsItsPlaceWhileDrivingWhereTheMapKnowsNothing) {
   const std::size_t from = 2 * target.scans.size() / 3;
   ASSERT_GT(unmap_the_end_of_the_run(sc, from, 4.0).size(), 100u) << "the test needs a sizeable unmapped part";
   const ScenarioRun run = run_scenario(sc, ScenarioRunConfig{});
-  const auto m = evaluate_localization(run.scan_estimates(), target.truth, static_cast<std::uint32_t>(sc.target_submap));
+  const auto m =
+      evaluate_localization(run.scan_estimates(), target.truth, static_cast<std::uint32_t>(sc.target_submap));
   ASSERT_TRUE(m.localized_at.has_value());
   EXPECT_LT(*m.localized_at, from);
   ASSERT_TRUE(m.final_error_m.has_value()) << "the final estimate left the target's building";

@@ -136,7 +136,8 @@ TEST(LshDatabase, SketchRankingPutsTheTrueMatchAboveLookAlikes) {
       first[bits ? 1 : 0] += !got.empty() && got[0] == p;
     }
   }
-  EXPECT_GT(first[1], first[0] + 15) << "true match first: " << first[0] << " by counts, " << first[1] << " by sketches";
+  EXPECT_GT(first[1], first[0] + 15) << "true match first: " << first[0] << " by counts, " << first[1]
+                                     << " by sketches";
   EXPECT_GE(first[1], kPlaces * 7 / 10);
 }
 

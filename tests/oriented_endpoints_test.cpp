@@ -36,7 +36,7 @@ TEST(OrientedEndpoints, WallNormalsPointBackAtTheSensor) {
   for (const Pose2& p : points) {
     EXPECT_NEAR(p.x, 3.0, 0.05);
     EXPECT_LT(angle_distance(p.theta, kPi), 6.0 * kPi / 180.0) << p.y;  // normal -x, towards the laser
-    EXPECT_GT(std::abs(p.y - 1.0), 0.3 + 0.1);  // no normals across the gap's edges
+    EXPECT_GT(std::abs(p.y - 1.0), 0.3 + 0.1);                          // no normals across the gap's edges
   }
 }
 
@@ -44,8 +44,8 @@ TEST(OrientedEndpoints, LeavesOutIsolatedAndInvalidReturns) {
   LaserScan scan;
   scan.ranges.assign(181, 81.9f);
   set_flaser_geometry(scan);
-  scan.ranges[90] = 2.0f;                       // isolated return
-  scan.ranges[91] = std::nanf("");              // invalid
+  scan.ranges[90] = 2.0f;           // isolated return
+  scan.ranges[91] = std::nanf("");  // invalid
   EXPECT_TRUE(oriented_endpoints(scan).empty());
 }
 

@@ -37,7 +37,8 @@ PoseGraph biased_chain(const std::vector<Pose2>& truth, double bias) {
     Pose2 z = truth[i - 1].between(truth[i]);
     z = Pose2(z.x, z.y, z.theta + bias);
     g.add_node(g.pose(static_cast<std::uint32_t>(i - 1)) * z);
-    g.add_edge({static_cast<std::uint32_t>(i - 1), static_cast<std::uint32_t>(i), z, diagonal_information(0.02, 0.5 * kDeg), false});
+    g.add_edge({static_cast<std::uint32_t>(i - 1), static_cast<std::uint32_t>(i), z,
+                diagonal_information(0.02, 0.5 * kDeg), false});
   }
   return g;
 }
@@ -181,7 +182,8 @@ TEST(PoseGraphSlam, ClosesLoopsAroundARoomWithCorrectEdges) {
   PoseGraphSlamConfig config;
   config.loop_min_travel = 8.0;
   PoseGraphSlam slam(config);
-  for (std::size_t i = 0; i < truth.size(); ++i) slam.add_scan(sim.scan(truth[i], odometry[i], 0.1 * static_cast<double>(i)));
+  for (std::size_t i = 0; i < truth.size(); ++i)
+    slam.add_scan(sim.scan(truth[i], odometry[i], 0.1 * static_cast<double>(i)));
   slam.finish();
   EXPECT_GT(slam.stats().loop_closures, 0u);
   // Every closure edge agrees with the true relative pose of its two scans.

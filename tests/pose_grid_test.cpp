@@ -151,7 +151,8 @@ TEST(PoseGrid, BothToleranceModesAnswerTheSame) {
   a.tolerance_mode = ToleranceMode::kDilateAtInsert;
   b.tolerance_mode = ToleranceMode::kProbeNeighbours;
   PoseGridHashMap ga(a), gb(b);
-  for (const auto& m : random_marks(2000, 21)) ga.mark(m.submap, m.x, m.y, m.theta, m.flags), gb.mark(m.submap, m.x, m.y, m.theta, m.flags);
+  for (const auto& m : random_marks(2000, 21))
+    ga.mark(m.submap, m.x, m.y, m.theta, m.flags), gb.mark(m.submap, m.x, m.y, m.theta, m.flags);
   for (const auto& q : random_marks(20000, 22))
     ASSERT_EQ(ga.probe(q.submap, q.x, q.y, q.theta), gb.probe(q.submap, q.x, q.y, q.theta));
   EXPECT_GT(ga.stats().bins_used, 50 * gb.stats().bins_used);  // 5 x 5 x 5 window, few overlaps
@@ -162,13 +163,13 @@ TEST(PoseGrid, HeadingWrapsAroundInBothModes) {
     PoseGridConfig cfg;
     cfg.theta_bins = 36, cfg.theta_tolerance = 1, cfg.tolerance_mode = mode;
     PoseGridHashMap grid(cfg);
-    grid.insert(0, 1.1, 2.1, -0.01);       // bin 35 (headings are binned over [0, 2 pi))
+    grid.insert(0, 1.1, 2.1, -0.01);        // bin 35 (headings are binned over [0, 2 pi))
     grid.insert(0, 5.1, 5.1, kPi - 0.001);  // bin 17
     EXPECT_EQ(grid.cell_of(0, 1.1, 2.1, -0.01).itheta, 35);
     EXPECT_EQ(grid.cell_of(0, 1.1, 2.1, 0.01).itheta, 0);
     EXPECT_TRUE(grid.probe(0, 1.1, 2.1, 0.01));  // bin 0 is next to bin 35
     EXPECT_TRUE(grid.probe(0, 1.1, 2.1, 2 * kPi - 0.01));
-    EXPECT_FALSE(grid.probe(0, 1.1, 2.1, 0.2));  // bin 1: two bins away
+    EXPECT_FALSE(grid.probe(0, 1.1, 2.1, 0.2));          // bin 1: two bins away
     EXPECT_TRUE(grid.probe(0, 5.1, 5.1, -kPi + 0.001));  // +pi and -pi are neighbours
     EXPECT_TRUE(grid.probe(0, 5.1, 5.1, kPi + 0.05));
     EXPECT_FALSE(grid.probe(1, 5.1, 5.1, kPi));  // other submap
@@ -209,7 +210,7 @@ TEST(PoseGrid, DenseCellsAreTheBoundingBoxesTimesHeadingBins) {
   cfg.cell_size = 1.0, cfg.theta_bins = 10, cfg.xy_tolerance = 1, cfg.theta_tolerance = 1;
   PoseGridHashMap grid(cfg);
   grid.insert(0, 0.5, 0.5, 0.0);
-  grid.insert(0, 9.5, 4.5, 1.0);  // submap 0: 10 x 5 cells
+  grid.insert(0, 9.5, 4.5, 1.0);   // submap 0: 10 x 5 cells
   grid.insert(3, -2.5, 7.5, 0.0);  // submap 3: 1 cell
   const auto s = grid.stats();
   EXPECT_DOUBLE_EQ(s.dense_cells, (10.0 * 5.0 + 1.0) * 10.0);
@@ -229,8 +230,8 @@ TEST(PoseGrid, RejectsBadInput) {
   bad.max_load_factor = 1.0;
   EXPECT_THROW(PoseGridHashMap{bad}, Error);
   PoseGridHashMap grid;
-  EXPECT_THROW(grid.insert(0, 1e5, 0.0, 0.0), Error);          // beyond 65536 cells
-  EXPECT_THROW(grid.insert(16383, 0.0, 0.0, 0.0), Error);      // submap 16383 is reserved
+  EXPECT_THROW(grid.insert(0, 1e5, 0.0, 0.0), Error);      // beyond 65536 cells
+  EXPECT_THROW(grid.insert(16383, 0.0, 0.0, 0.0), Error);  // submap 16383 is reserved
   EXPECT_THROW(grid.insert(0, std::nan(""), 0.0, 0.0), Error);
   EXPECT_THROW(grid.mark(0, 0.0, 0.0, 0.0, 0), Error);
   EXPECT_EQ(grid.probe(0, 1e5, 0.0, 0.0), 0);  // out of range: nothing known
@@ -292,8 +293,10 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   // Map of submap 0: a wall along x = 5 (normal heading pi), seen by rays that
   // crossed x = 0..4 freely. The free-space grid marks the wall's cells as
   // holding returns and, as GlobalMap dilates, the cells beyond it occupied.
-  PoseGridHashMap occupancy(PoseGridConfig{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 0});
-  PoseGridHashMap free_space(PoseGridConfig{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
+  PoseGridHashMap occupancy(
+      PoseGridConfig{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 0});
+  PoseGridHashMap free_space(
+      PoseGridConfig{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
   for (double y = -2.0; y <= 2.0; y += 0.05) {
     occupancy.insert(0, 5.01, y, kPi);
     free_space.mark(0, 5.01, y, 0.0, cell_flags::kOccupied | cell_flags::kReturn | cell_flags::kNormal);
@@ -308,8 +311,12 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   // A sparse return of a far wall: no normal, so not in `occupancy`.
   free_space.mark(0, 7.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
   free_space.mark(0, 7.26, 1.01, 0.0, cell_flags::kOccupied);
-  const PoseGridScorerConfig config{.hit = 1.0f, .free = -1.0f, .unknown = 0.0f, .ray_through_wall = -2.0f,
-                                    .ray_through_free = 0.5f, .ray_through_contested = -0.25f,
+  const PoseGridScorerConfig config{.hit = 1.0f,
+                                    .free = -1.0f,
+                                    .unknown = 0.0f,
+                                    .ray_through_wall = -2.0f,
+                                    .ray_through_free = 0.5f,
+                                    .ray_through_contested = -0.25f,
                                     .surface_on_return = 0.75f};
   PoseGridScorer scorer(occupancy, free_space, config);
   // Hypotheses: identity in submap 0, identity in submap 1 (nothing mapped).
@@ -323,19 +330,19 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
     return c[0];
   };
   using K = LocalPoint::Kind;
-  EXPECT_EQ(score({5.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 1.0f);    // on the wall, right normal
-  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kSurface}), 0.0f);   // on the wall, wrong normal: unknown
+  EXPECT_EQ(score({5.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 1.0f);  // on the wall, right normal
+  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kSurface}), 0.0f);                     // on the wall, wrong normal: unknown
   EXPECT_EQ(score({7.01f, 1.01f, 0.0f, K::kSurface}), 0.75f);  // on a return without a normal: any heading
   EXPECT_EQ(score({7.26f, 1.01f, 0.0f, K::kSurface}), 0.0f);   // beside it: unknown
   EXPECT_EQ(score({3.01f, 1.01f, 0.0f, K::kSurface}), 0.0f);   // a return map rays crossed: unknown
-  EXPECT_EQ(score({1.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), -1.0f);   // a surface in free space
-  EXPECT_EQ(score({9.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 0.0f);    // beyond the map
-  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kFreeSpace}), -2.0f);                      // a ray through the wall
-  EXPECT_EQ(score({5.26f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);  // beside the wall's returns: no evidence
-  EXPECT_EQ(score({1.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.5f);                       // a ray where map rays passed
-  EXPECT_EQ(score({2.01f, 0.01f, 0.0f, K::kFreeSpace}), 0.0f);                       // free and occupied: no evidence
-  EXPECT_EQ(score({3.01f, 1.01f, 0.0f, K::kFreeSpace}), -0.25f);  // a return map rays crossed: contested
-  EXPECT_EQ(score({9.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);                       // beyond the map
+  EXPECT_EQ(score({1.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), -1.0f);  // a surface in free space
+  EXPECT_EQ(score({9.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 0.0f);   // beyond the map
+  EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kFreeSpace}), -2.0f);                   // a ray through the wall
+  EXPECT_EQ(score({5.26f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);        // beside the wall's returns: no evidence
+  EXPECT_EQ(score({1.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.5f);        // a ray where map rays passed
+  EXPECT_EQ(score({2.01f, 0.01f, 0.0f, K::kFreeSpace}), 0.0f);        // free and occupied: no evidence
+  EXPECT_EQ(score({3.01f, 1.01f, 0.0f, K::kFreeSpace}), -0.25f);      // a return map rays crossed: contested
+  EXPECT_EQ(score({9.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);        // beyond the map
   EXPECT_THROW(PoseGridScorer(occupancy, occupancy, config), Error);  // the free-space grid must be 2-D
 }
 

@@ -161,7 +161,8 @@ TEST(ReportPolicy, TrackingChildrenSurroundTheReportAtTheRobot) {
     const Pose2 moved = c.T_submap_local * robot;
     // Each child moves the robot's pose by one step: 0.1 m or 1 degree.
     const double dxy = translation_distance(moved, reported), dth = angle_distance(moved.theta, reported.theta);
-    EXPECT_TRUE((std::abs(dxy - 0.1) < 1e-9 && dth < 1e-9) || (dxy < 1e-9 && std::abs(dth - std::numbers::pi / 180.0) < 1e-9))
+    EXPECT_TRUE((std::abs(dxy - 0.1) < 1e-9 && dth < 1e-9) ||
+                (dxy < 1e-9 && std::abs(dth - std::numbers::pi / 180.0) < 1e-9))
         << dxy << " " << dth;
   }
 }

@@ -51,10 +51,11 @@ std::vector<Pose2> drifting_odometry(const std::vector<Pose2>& truth, double bia
   return odo;
 }
 
-void expect_pose_near(const Pose2& estimate, const Pose2& truth, double tol_m, double tol_rad, const std::string& what) {
-  EXPECT_LT(translation_distance(estimate, truth), tol_m) << what << ": estimate (" << estimate.x << ", " << estimate.y
-                                                          << ", " << estimate.theta << ") truth (" << truth.x << ", "
-                                                          << truth.y << ", " << truth.theta << ")";
+void expect_pose_near(const Pose2& estimate, const Pose2& truth, double tol_m, double tol_rad,
+                      const std::string& what) {
+  EXPECT_LT(translation_distance(estimate, truth), tol_m)
+      << what << ": estimate (" << estimate.x << ", " << estimate.y << ", " << estimate.theta << ") truth (" << truth.x
+      << ", " << truth.y << ", " << truth.theta << ")";
   EXPECT_LT(angle_distance(estimate.theta, truth.theta), tol_rad) << what;
 }
 
@@ -98,7 +99,8 @@ TEST(ScanMatcher, NoisyRangesStillRecoverMotion) {
   test::LaserSim sim(test::test_room(), sc);
   ScanMatcher matcher;
   Pose2 last;
-  for (std::size_t i = 0; i < truth.size(); ++i) last = matcher.add_scan(sim.scan(truth[i], odo[i], 0.1 * static_cast<double>(i))).laser_pose;
+  for (std::size_t i = 0; i < truth.size(); ++i)
+    last = matcher.add_scan(sim.scan(truth[i], odo[i], 0.1 * static_cast<double>(i))).laser_pose;
   expect_pose_near(last, truth[0].between(truth.back()), 0.02, 0.3 * kDeg, "final pose with 1 cm range noise");
 }
 
@@ -222,7 +224,8 @@ TEST(ScanMatcher, LaserOffsetMapsLaserMotionToRobotMotion) {
   ScanMatcher matcher(config);
   const Pose2 laser0 = robot[0] * config.laser_offset;
   for (std::size_t i = 0; i < robot.size(); ++i) {
-    const ScanMatchResult r = matcher.add_scan(sim.scan(robot[i] * config.laser_offset, odo[i], 0.1 * static_cast<double>(i)));
+    const ScanMatchResult r =
+        matcher.add_scan(sim.scan(robot[i] * config.laser_offset, odo[i], 0.1 * static_cast<double>(i)));
     // Local frame = first laser pose.
     expect_pose_near(r.laser_pose, laser0.between(robot[i] * config.laser_offset), 0.01, 0.2 * kDeg,
                      "laser pose " + std::to_string(i));
@@ -260,10 +263,10 @@ TEST(RelationsMetric, KnownErrorsOnASyntheticTrajectory) {
   const auto rel = [&](int a, int b) {
     relations.push_back({100.0 + a, 100.0 + b, truth[a].pose.between(truth[b].pose)});
   };
-  rel(0, 1);  // no error
-  rel(4, 5);  // error at the end: translation 0.5, rotation 0.1
-  rel(5, 6);  // error at the start
-  rel(2, 9);  // no error
+  rel(0, 1);                                     // no error
+  rel(4, 5);                                     // error at the end: translation 0.5, rotation 0.1
+  rel(5, 6);                                     // error at the start
+  rel(2, 9);                                     // no error
   relations.push_back({100.0, 250.0, Pose2()});  // t2 has no pose: skipped
   const RelationsError e = evaluate_relations(estimate, relations);
   EXPECT_EQ(e.relations, 5u);

@@ -182,11 +182,13 @@ TEST(FloorPlan, DistinctSeedsGiveDistinctBuildings) {
     EXPECT_GT(plan.wall_segments, 50u) << "an office has many walls";
     EXPECT_GT(plan.doors.size(), 10u);
     std::size_t rooms = 0, corridors = 0;
-    for (const auto& r : plan.regions) rooms += r.kind != RegionKind::kCorridor, corridors += r.kind == RegionKind::kCorridor;
+    for (const auto& r : plan.regions)
+      rooms += r.kind != RegionKind::kCorridor, corridors += r.kind == RegionKind::kCorridor;
     EXPECT_GT(rooms, 10u);
     EXPECT_GE(corridors, 1u);
     std::vector<double> lengths;
-    for (std::size_t k = 0; k < plan.wall_segments; ++k) lengths.push_back((plan.segments[k].b - plan.segments[k].a).norm());
+    for (std::size_t k = 0; k < plan.wall_segments; ++k)
+      lengths.push_back((plan.segments[k].b - plan.segments[k].a).norm());
     std::sort(lengths.begin(), lengths.end());
     for (const auto& other : signatures) EXPECT_NE(other, lengths) << "seed " << seed << " repeats a building";
     signatures.push_back(lengths);

@@ -17,7 +17,7 @@ void write_file(const std::string& path, const std::string& text);
 
 }  // namespace lshloc::test
 
-#define LSHLOC_REQUIRE_DATA(dir)                                                               \
-  const auto dir##_opt = ::lshloc::test::data_dir();                                           \
+#define LSHLOC_REQUIRE_DATA(dir)                                                                \
+  const auto dir##_opt = ::lshloc::test::data_dir();                                            \
   if (!dir##_opt) GTEST_SKIP() << "shared data directory not found (set LSHLOC_DATA); skipped"; \
   const std::string dir = *dir##_opt

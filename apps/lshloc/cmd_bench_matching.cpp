@@ -35,13 +35,13 @@ constexpr double kPi = std::numbers::pi;
 
 struct BenchMatchingOptions {
   bool json = false;
-  std::string map_log;             ///< corrected CARMEN log; empty: synthetic walls
+  std::string map_log;  ///< corrected CARMEN log; empty: synthetic walls
   std::size_t viewpoints = 10000;
-  std::size_t warm_up = 100;       ///< viewpoints before the "first 100" window
-  std::size_t window = 100;        ///< viewpoints averaged at the start and the end
-  double inlier_share = 0.01;      ///< share of hypotheses from true correspondences
-  double drift_xy = 0.0;           ///< [m] std. dev. of the local map's drift per viewpoint (random walk)
-  double drift_theta_deg = 0.0;    ///< [deg] same, heading
+  std::size_t warm_up = 100;     ///< viewpoints before the "first 100" window
+  std::size_t window = 100;      ///< viewpoints averaged at the start and the end
+  double inlier_share = 0.01;    ///< share of hypotheses from true correspondences
+  double drift_xy = 0.0;         ///< [m] std. dev. of the local map's drift per viewpoint (random walk)
+  double drift_theta_deg = 0.0;  ///< [deg] same, heading
   std::string tolerance_mode = "dilate";
   std::string order_rule = "fresh";
   PoseGridConfig grid;
@@ -139,7 +139,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
   //    T_submap_local is T_true * D_k, D_k a random walk, so old features and
   //    hypotheses disagree with new ones (the case the order rules differ on).
   const Pose2 T_true(12.5, -7.25, 0.6);  // T_submap_local at viewpoint 0
-  Pose2 drift;                          // D_k
+  Pose2 drift;                           // D_k
   std::mt19937_64 rng(o.ransac.seed + 1);
   std::normal_distribution<double> dxy(0.0, o.drift_xy), dth(0.0, o.drift_theta_deg * kPi / 180.0);
   std::vector<double> error_m(o.viewpoints, std::numeric_limits<double>::infinity()), error_deg(o.viewpoints, 180.0);
@@ -289,13 +289,13 @@ void add_bench_matching_command(CLI::App& bench, GlobalOptions& global) {
   cmd->add_option("--block", o->ransac.block_size, "B: halve the active set every B-th iteration")
       ->capture_default_str();
   cmd->add_option("--iterations", o->ransac.iterations_per_scan, "iterations per viewpoint")->capture_default_str();
-  cmd->add_option("--order", o->order_rule, "feature order rule: uniform (paper), recent, fresh (each new feature first)")
+  cmd->add_option("--order", o->order_rule,
+                  "feature order rule: uniform (paper), recent, fresh (each new feature first)")
       ->capture_default_str();
   cmd->add_option("--cell", o->grid.cell_size, "[m] pose-grid cell size")->capture_default_str();
   cmd->add_option("--theta-bins", o->grid.theta_bins, "pose-grid heading bins")->capture_default_str();
   cmd->add_option("--xy-tolerance", o->grid.xy_tolerance, "[cells] neighbours in x, y")->capture_default_str();
-  cmd->add_option("--theta-tolerance", o->grid.theta_tolerance, "[bins] neighbours in heading")
-      ->capture_default_str();
+  cmd->add_option("--theta-tolerance", o->grid.theta_tolerance, "[bins] neighbours in heading")->capture_default_str();
   cmd->add_option("--max-load", o->grid.max_load_factor, "pose-grid load (bins used / capacity) that doubles it")
       ->capture_default_str();
   cmd->add_option("--tolerance-mode", o->tolerance_mode, "dilate (at insert) or probe (neighbours at query)")

@@ -59,7 +59,8 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
       const std::size_t windows = opt.targets / target_buildings + (k < opt.targets % target_buildings ? 1 : 0);
       sim::SplitBuilding split = sim::synthetic_split_building(opt.world, k, windows);
       one[0] = std::move(split.submap);
-      for (auto& t : split.targets) targets.push_back(std::move(t)), target_submaps.push_back(static_cast<std::uint32_t>(k));
+      for (auto& t : split.targets)
+        targets.push_back(std::move(t)), target_submaps.push_back(static_cast<std::uint32_t>(k));
     } else {
       one[0] = sim::synthetic_submap(opt.world.seed, k, opt.world.map_scans);
     }
@@ -67,8 +68,9 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
     MapFeeder feeder(map, one);
     feeder.feed_until(1.0);
     map_scans += one[0].scans.size();
-    if (tty) std::fprintf(stderr, "\r  %zu submaps: mapped %zu/%zu buildings, %zu features", submaps, k + 1, submaps,
-                          map.stats().features);
+    if (tty)
+      std::fprintf(stderr, "\r  %zu submaps: mapped %zu/%zu buildings, %zu features", submaps, k + 1, submaps,
+                   map.stats().features);
   }
   if (tty) std::fprintf(stderr, "\n");
   const GlobalMapStats ms = map.stats();
@@ -100,13 +102,16 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
   j["ns_per_score"] = scores > 0 ? 1e9 * score_s / scores : 0.0;
   j["targets"] = targets.size();
   j["targets_localized"] = localized;
-  j["median_localized_at"] = localized_at.empty() ? nlohmann::json() : nlohmann::json(localized_at[localized_at.size() / 2]);
+  j["median_localized_at"] =
+      localized_at.empty() ? nlohmann::json() : nlohmann::json(localized_at[localized_at.size() / 2]);
   j["rss_mb"] = rss_mb();
   j["bytes_per_feature"] = ms.bytes_per_feature();
-  j["bytes_database_per_feature"] = ms.features ? static_cast<double>(ms.database.bytes) / static_cast<double>(ms.features) : 0.0;
-  j["bytes_grids_per_feature"] =
-      ms.features ? static_cast<double>(ms.occupancy.memory_bytes + ms.free_space.memory_bytes) / static_cast<double>(ms.features)
-                  : 0.0;
+  j["bytes_database_per_feature"] =
+      ms.features ? static_cast<double>(ms.database.bytes) / static_cast<double>(ms.features) : 0.0;
+  j["bytes_grids_per_feature"] = ms.features
+                                     ? static_cast<double>(ms.occupancy.memory_bytes + ms.free_space.memory_bytes) /
+                                           static_cast<double>(ms.features)
+                                     : 0.0;
   j["grid_fraction"] = ms.occupancy.grid_fraction;
   j["per_target"] = per_target;
   return j;
@@ -121,7 +126,9 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
       "Grow global maps of synthetic buildings (e.g. 1, 10, 40, 100, 300 submaps) and print, per size,\n"
       "one JSON line: per-feature update and retrieval costs, cost per score, memory per map feature,\n"
       "and how many targets dropped at unknown places localized.");
-  cmd->add_option("--submaps", opt->sizes, "map sizes in submaps, comma-separated")->delimiter(',')->capture_default_str();
+  cmd->add_option("--submaps", opt->sizes, "map sizes in submaps, comma-separated")
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->add_option("--map-scans", opt->world.map_scans, "scans each mapper robot records")->capture_default_str();
   cmd->add_option("--target-scans", opt->world.target_scans, "scans of each target's run")->capture_default_str();
   cmd->add_option("--targets", opt->targets, "targets per size, in different buildings")->capture_default_str();
@@ -134,8 +141,8 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
     if (print_config_if_asked(opt->localizer)) return;
     if (opt->targets == 0) throw Error("bench scale: --targets must be at least 1");
     const bool tty = isatty(fileno(stderr));
-    std::vector<io::CostSeries> series = {{"update [us/feature]", {}, {}}, {"retrieval [us/feature]", {}, {}},
-                                          {"score [ns/pair] / 10", {}, {}}};
+    std::vector<io::CostSeries> series = {
+        {"update [us/feature]", {}, {}}, {"retrieval [us/feature]", {}, {}}, {"score [ns/pair] / 10", {}, {}}};
     for (std::size_t size : opt->sizes) {
       if (size == 0) throw Error("bench scale: a map size must be at least 1 submap");
       const nlohmann::json j = run_size(*opt, size, tty);

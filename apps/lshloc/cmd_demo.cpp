@@ -17,8 +17,8 @@ namespace lshloc::app {
 
 namespace {
 struct DemoOptions {
-  sim::SyntheticScenarioConfig world{.seed = 2026, .buildings = 6, .target_building = 3, .map_scans = 1500,
-                                     .target_scans = 400};
+  sim::SyntheticScenarioConfig world{
+      .seed = 2026, .buildings = 6, .target_building = 3, .map_scans = 1500, .target_scans = 400};
   std::string out = "lshloc-demo";
   bool json = false;
   LocalizerOptions localizer;
@@ -27,10 +27,10 @@ struct DemoOptions {
 
 void add_demo_command(CLI::App& app, GlobalOptions& global) {
   auto opt = std::make_shared<DemoOptions>();
-  auto* cmd = app.add_subcommand(
-      "demo",
-      "Generate synthetic buildings, let mapper robots build the global map, drop a target robot\n"
-      "at an unknown place and localize it. Needs no data files; writes figures to --out.");
+  auto* cmd =
+      app.add_subcommand("demo",
+                         "Generate synthetic buildings, let mapper robots build the global map, drop a target robot\n"
+                         "at an unknown place and localize it. Needs no data files; writes figures to --out.");
   cmd->add_option("--buildings", opt->world.buildings, "synthetic buildings in the global map")->capture_default_str();
   cmd->add_option("--target", opt->world.target_building, "index of the building the target tours")
       ->capture_default_str();
@@ -50,17 +50,17 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
     const Scenario sc = sim::synthetic_scenario(opt->world);
     std::size_t map_scans = 0;
     for (const auto& s : sc.submaps) map_scans += s.scans.size();
-    std::fprintf(stderr, "Mapper robots feed %zu scans into the global map; the target robot starts in one of the\n"
-                         "buildings, at a place it is not told, and drives %zu scans.\n",
+    std::fprintf(stderr,
+                 "Mapper robots feed %zu scans into the global map; the target robot starts in one of the\n"
+                 "buildings, at a place it is not told, and drives %zu scans.\n",
                  map_scans, sc.target.scans.size());
     std::optional<std::size_t> announced;
-    const ScenarioRun run =
-        run_scenario(sc, make_run_config(opt->localizer), [&](std::size_t done, std::size_t total) {
-          if (tty && (done % 10 == 0 || done == total)) std::fprintf(stderr, "\r  localizing: scan %zu/%zu", done, total);
-          if (done == total && tty) std::fprintf(stderr, "\n");
-        });
-    const auto m = evaluate_localization(run.scan_estimates(), sc.target.truth,
-                                         static_cast<std::uint32_t>(sc.target_submap));
+    const ScenarioRun run = run_scenario(sc, make_run_config(opt->localizer), [&](std::size_t done, std::size_t total) {
+      if (tty && (done % 10 == 0 || done == total)) std::fprintf(stderr, "\r  localizing: scan %zu/%zu", done, total);
+      if (done == total && tty) std::fprintf(stderr, "\n");
+    });
+    const auto m =
+        evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
     for (std::size_t i = 0; i < run.estimates.size() && !announced; ++i) {
       if (run.estimates[i].localized) announced = i;
     }
@@ -72,8 +72,8 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
       return;
     }
     const auto& last = run.estimates.back();
-    std::printf("Global map: %zu buildings, %zu map features (%.0f bytes each).\n", sc.submaps.size(),
-                run.map.features, run.map.bytes_per_feature());
+    std::printf("Global map: %zu buildings, %zu map features (%.0f bytes each).\n", sc.submaps.size(), run.map.features,
+                run.map.bytes_per_feature());
     std::printf("The target robot was in %s (building %zu).\n", sc.submaps[sc.target_submap].name.c_str(),
                 sc.target_submap);
     if (announced) {
@@ -93,16 +93,18 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
       }
     }
     if (m.localized_at) {
-      std::printf("Right to within 1 m at every scan from scan %zu on (median error %.3f m); %.0f ms of CPU to get there.\n",
-                  *m.localized_at, *m.median_error_after_m, 1e3 * run.cpu_s[*m.localized_at]);
+      std::printf(
+          "Right to within 1 m at every scan from scan %zu on (median error %.3f m); %.0f ms of CPU to get there.\n",
+          *m.localized_at, *m.median_error_after_m, 1e3 * run.cpu_s[*m.localized_at]);
     }
     std::printf("Confident estimates: %zu, of which wrong: %zu.\n", m.confident_scans, m.confident_wrong);
     std::printf("Cost: %.2f ms per target scan (%.0fx real time).\n",
                 1e3 * run.localize_cpu_s / static_cast<double>(run.estimates.size()),
                 run.localize_cpu_s > 0 ? run.log_duration_s / run.localize_cpu_s : 0.0);
-    std::printf("Figures: %s-error.png (error per scan), %s-map.png (trajectories over the map), and .svg;\n"
-                "trace: %s/trace.csv. Whole demo: %.1f s.\n",
-                stem.c_str(), stem.c_str(), opt->out.c_str(), wall);
+    std::printf(
+        "Figures: %s-error.png (error per scan), %s-map.png (trajectories over the map), and .svg;\n"
+        "trace: %s/trace.csv. Whole demo: %.1f s.\n",
+        stem.c_str(), stem.c_str(), opt->out.c_str(), wall);
   });
 }
 

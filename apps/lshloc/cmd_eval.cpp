@@ -45,10 +45,9 @@ std::size_t default_start(const std::string& building) {
   return it == starts.end() ? 0 : it->second;
 }
 
-
 struct TruthRank {
-  std::size_t near = 0;    ///< active hypotheses within 0.5 m / 5 deg of the truth
-  std::size_t rank = 0;    ///< preference rank of the best of them (0 = reported)
+  std::size_t near = 0;  ///< active hypotheses within 0.5 m / 5 deg of the truth
+  std::size_t rank = 0;  ///< preference rank of the best of them (0 = reported)
   double mean = 0.0;
   std::uint32_t scored = 0;
   std::size_t active = 0;
@@ -139,8 +138,9 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     write_scenario_trace(path, sc, run, m);
     std::FILE* f = std::fopen((path + ".truth.csv").c_str(), "w");
     if (f == nullptr) throw Error(path + ".truth.csv: cannot write");
-    std::fprintf(f, "scan,near_truth,best_rank,best_mean,best_scored,active,local_x,local_y,local_theta,"
-                    "truth_all_mean,truth_recent_mean,reported_all_mean\n");
+    std::fprintf(f,
+                 "scan,near_truth,best_rank,best_mean,best_scored,active,local_x,local_y,local_theta,"
+                 "truth_all_mean,truth_recent_mean,reported_all_mean\n");
     for (std::size_t i = 0; i < ranks.size(); ++i) {
       if (sc.target.truth[i]) {
         const TruthRank& r = ranks[i];
@@ -198,7 +198,8 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
       curves.push_back(eval_scenario(catalog, scenario, *opt, opt->submaps.size() > 1));
     }
     if (!opt->plot_dir.empty() && curves.size() > 1) {
-      const std::string stem = opt->plot_dir + "/" + opt->scenario.building + "-s" + std::to_string(opt->scenario.start);
+      const std::string stem =
+          opt->plot_dir + "/" + opt->scenario.building + "-s" + std::to_string(opt->scenario.start);
       const std::string title = opt->scenario.building + ", start " + std::to_string(opt->scenario.start) +
                                 ": error per viewpoint for each map size";
       io::plot_error_curves(stem + "-error.png", title, curves);

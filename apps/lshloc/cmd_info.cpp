@@ -35,12 +35,16 @@ nlohmann::json summarize_log(const std::string& path) {
       case io::CarmenRecord::Type::kLaser:
         ++scans, beams.insert(rec.scan.size()), scan_span.add(rec.scan.timestamp);
         break;
-      case io::CarmenRecord::Type::kOdometry: ++odometry, odom_span.add(rec.odometry.timestamp); break;
-      case io::CarmenRecord::Type::kParam: ++params; break;
+      case io::CarmenRecord::Type::kOdometry:
+        ++odometry, odom_span.add(rec.odometry.timestamp);
+        break;
+      case io::CarmenRecord::Type::kParam:
+        ++params;
+        break;
     }
   }
-  return {{"file", path},         {"scans", scans},   {"odometry", odometry},
-          {"beams", beams},       {"params", params}, {"duration_s", scans > 1 ? scan_span.length() : odom_span.length()}};
+  return {{"file", path},   {"scans", scans},   {"odometry", odometry},
+          {"beams", beams}, {"params", params}, {"duration_s", scans > 1 ? scan_span.length() : odom_span.length()}};
 }
 
 }  // namespace

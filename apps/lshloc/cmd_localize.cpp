@@ -72,13 +72,12 @@ Submap load_map_argument(const std::string& arg, bool slam) {
 
 void add_localize_command(CLI::App& app, GlobalOptions& global) {
   auto opt = std::make_shared<LocalizeOptions>();
-  auto* cmd = app.add_subcommand(
-      "localize",
-      "Localize a target robot's log in a global map made of one or more mapped logs.\n"
-      "Each --map LOG is a submap posed by its own FLASER poses (a corrected log; with\n"
-      "--map-slam, a raw log posed by lshloc's SLAM), or --map LOG,POSES takes the\n"
-      "poses from a `timestamp x y theta` file.\n"
-      "Writes the estimated trajectory (TUM; a side CSV names the submap of each scan).");
+  auto* cmd = app.add_subcommand("localize",
+                                 "Localize a target robot's log in a global map made of one or more mapped logs.\n"
+                                 "Each --map LOG is a submap posed by its own FLASER poses (a corrected log; with\n"
+                                 "--map-slam, a raw log posed by lshloc's SLAM), or --map LOG,POSES takes the\n"
+                                 "poses from a `timestamp x y theta` file.\n"
+                                 "Writes the estimated trajectory (TUM; a side CSV names the submap of each scan).");
   cmd->add_option("--map", opt->maps, "map log[,poses file]; repeat or comma-free list for several submaps")
       ->required();
   cmd->add_option("--target", opt->target, "the target robot's raw log (odometry + scans)")->required();
@@ -136,7 +135,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     j["localized"] = last.localized;
     j["first_localized_at"] = first_localized ? nlohmann::json(*first_localized) : nlohmann::json();
     j["final_submap"] = last.has_estimate ? nlohmann::json(sc.submaps[last.submap].name) : nlohmann::json();
-    j["final_pose"] = last.has_estimate ? nlohmann::json({last.pose.x, last.pose.y, last.pose.theta}) : nlohmann::json();
+    j["final_pose"] =
+        last.has_estimate ? nlohmann::json({last.pose.x, last.pose.y, last.pose.theta}) : nlohmann::json();
     j["final_mean_score"] = last.mean_score;
     add_localizer_cost(j, run);
     if (opt->json) {

@@ -44,15 +44,21 @@ void from_json(const nlohmann::json& j, DescriptorContextConfig& c) {
       j.at("max_distance").get_to(c.max_distance);
 }
 void to_json(nlohmann::json& j, const PlaceRecallConfig& c) {
-  j = {{"k", c.k}, {"exact", c.exact}, {"match_distance", c.match_distance}, {"match_angle_deg", c.match_angle_deg},
-       {"thin_cell", c.thin_cell}, {"thin_angle", c.thin_angle}, {"extractor", c.extractor}, {"context", c.context},
+  j = {{"k", c.k},
+       {"exact", c.exact},
+       {"match_distance", c.match_distance},
+       {"match_angle_deg", c.match_angle_deg},
+       {"thin_cell", c.thin_cell},
+       {"thin_angle", c.thin_angle},
+       {"extractor", c.extractor},
+       {"context", c.context},
        {"lsh", c.lsh}};
 }
 void from_json(const nlohmann::json& j, PlaceRecallConfig& c) {
   j.at("k").get_to(c.k), j.at("exact").get_to(c.exact), j.at("match_distance").get_to(c.match_distance),
       j.at("match_angle_deg").get_to(c.match_angle_deg), j.at("thin_cell").get_to(c.thin_cell),
-      j.at("thin_angle").get_to(c.thin_angle), j.at("extractor").get_to(c.extractor),
-      j.at("context").get_to(c.context), j.at("lsh").get_to(c.lsh);
+      j.at("thin_angle").get_to(c.thin_angle), j.at("extractor").get_to(c.extractor), j.at("context").get_to(c.context),
+      j.at("lsh").get_to(c.lsh);
 }
 
 }  // namespace lshloc
@@ -87,9 +93,15 @@ nlohmann::json run_recall(const GlobalOptions& global, const RecallOptions& opt)
       {"mean_distinct_candidates", r.mean_distinct_candidates},
       {"lsh_buckets", r.lsh.buckets},
       {"lsh_bytes_per_entry", r.lsh.bytes_per_entry()},
-      {"lsh", {{"K", opt.lsh.K}, {"L", opt.lsh.L}, {"w", opt.lsh.w}, {"bucket_capacity", opt.lsh.bucket_capacity},
-               {"max_candidates", opt.lsh.max_candidates}, {"seed", opt.lsh.seed},
-               {"sketch_bits", opt.lsh.sketch_bits}, {"sketch_collision_weight", opt.lsh.sketch_collision_weight}}},
+      {"lsh",
+       {{"K", opt.lsh.K},
+        {"L", opt.lsh.L},
+        {"w", opt.lsh.w},
+        {"bucket_capacity", opt.lsh.bucket_capacity},
+        {"max_candidates", opt.lsh.max_candidates},
+        {"seed", opt.lsh.seed},
+        {"sketch_bits", opt.lsh.sketch_bits},
+        {"sketch_collision_weight", opt.lsh.sketch_collision_weight}}},
   };
   if (opt.exact) {
     out["exact_recall_at_1"] = r.exact_recall_at_1;
@@ -106,12 +118,12 @@ nlohmann::json run_recall(const GlobalOptions& global, const RecallOptions& opt)
 }  // namespace
 
 void add_recall_command(CLI::App& app, GlobalOptions& global) {
-  auto* cmd = app.add_subcommand(
-      "recall",
-      "Place recall@k of the appearance database on a scenario: inserts the features of every map\n"
-      "scan, queries with the features of every target scan that has ground truth (placed at its\n"
-      "true pose), and prints recall@1/10/100 over covered queries (a map feature within 0.5 m),\n"
-      "beside exact-L2 recall and the per-feature insert and query times.");
+  auto* cmd =
+      app.add_subcommand("recall",
+                         "Place recall@k of the appearance database on a scenario: inserts the features of every map\n"
+                         "scan, queries with the features of every target scan that has ground truth (placed at its\n"
+                         "true pose), and prints recall@1/10/100 over covered queries (a map feature within 0.5 m),\n"
+                         "beside exact-L2 recall and the per-feature insert and query times.");
   auto opt = std::make_shared<RecallOptions>();
   cmd->add_option("--building", opt->scenario.building, "target building")->capture_default_str();
   cmd->add_option("--start", opt->scenario.start, "first raw scan of the target window")->capture_default_str();

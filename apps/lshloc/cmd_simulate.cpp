@@ -96,45 +96,44 @@ void run_simulate(const SimulateOptions& o) {
       closed += r.kind != sim::RegionKind::kCorridor && !r.reachable;
     }
     if (o.json) {
-      const nlohmann::json line = {
-          {"name", rec.name},
-          {"scans", rec.raw_scans.size()},
-          {"beams", o.beams},
-          {"segments", building.plan.segments.size()},
-          {"wall_segments", building.plan.wall_segments},
-          {"rooms", rooms},
-          {"halls", halls},
-          {"closed_rooms", closed},
-          {"doors", building.plan.doors.size()},
-          {"extent_m", {rounded(building.plan.width, 2), rounded(building.plan.height, 2)}},
-          {"path_length_m", rounded(stats.path_length, 2)},
-          {"odometry_final_error_m", rounded(stats.odometry_final_error, 3)},
-          {"trajectory_s", stats.seconds_trajectory},
-          {"laser_s", stats.seconds_laser},
-          {"generate_s", gen},
-          {"simulate_s", simulate},
-          {"write_s", write},
-          {"scans_per_s", stats.scans_per_second()},
-          {"raw_log", files.raw_log},
-          {"corrected_log", files.corrected_log},
-          {"poses", files.poses},
-          {"segments_file", segments},
-          {"svg", svg}};
+      const nlohmann::json line = {{"name", rec.name},
+                                   {"scans", rec.raw_scans.size()},
+                                   {"beams", o.beams},
+                                   {"segments", building.plan.segments.size()},
+                                   {"wall_segments", building.plan.wall_segments},
+                                   {"rooms", rooms},
+                                   {"halls", halls},
+                                   {"closed_rooms", closed},
+                                   {"doors", building.plan.doors.size()},
+                                   {"extent_m", {rounded(building.plan.width, 2), rounded(building.plan.height, 2)}},
+                                   {"path_length_m", rounded(stats.path_length, 2)},
+                                   {"odometry_final_error_m", rounded(stats.odometry_final_error, 3)},
+                                   {"trajectory_s", stats.seconds_trajectory},
+                                   {"laser_s", stats.seconds_laser},
+                                   {"generate_s", gen},
+                                   {"simulate_s", simulate},
+                                   {"write_s", write},
+                                   {"scans_per_s", stats.scans_per_second()},
+                                   {"raw_log", files.raw_log},
+                                   {"corrected_log", files.corrected_log},
+                                   {"poses", files.poses},
+                                   {"segments_file", segments},
+                                   {"svg", svg}};
       std::printf("%s\n", line.dump().c_str());
     } else {
-      std::printf("%s: %.1f x %.1f m, %zu segments, %zu rooms, %zu halls, %zu doors; %zu scans over %.0f m "
-                  "(odometry off by %.2f m at the end); %.0f scans/s -> %s\n",
-                  rec.name.c_str(), building.plan.width, building.plan.height, building.plan.segments.size(), rooms,
-                  halls, building.plan.doors.size(), rec.raw_scans.size(), stats.path_length, stats.odometry_final_error,
-                  stats.scans_per_second(), files.raw_log.c_str());
+      std::printf(
+          "%s: %.1f x %.1f m, %zu segments, %zu rooms, %zu halls, %zu doors; %zu scans over %.0f m "
+          "(odometry off by %.2f m at the end); %.0f scans/s -> %s\n",
+          rec.name.c_str(), building.plan.width, building.plan.height, building.plan.segments.size(), rooms, halls,
+          building.plan.doors.size(), rec.raw_scans.size(), stats.path_length, stats.odometry_final_error,
+          stats.scans_per_second(), files.raw_log.c_str());
     }
     std::fflush(stdout);
   }
   const double rate = simulate_s > 0.0 ? static_cast<double>(total_scans) / simulate_s : 0.0;
   if (o.json) {
-    const nlohmann::json summary = {{"buildings", o.buildings},  {"scans", total_scans},
-                                    {"generate_s", generate_s}, {"simulate_s", simulate_s},
-                                    {"write_s", write_s},       {"scans_per_s", rate}};
+    const nlohmann::json summary = {{"buildings", o.buildings}, {"scans", total_scans}, {"generate_s", generate_s},
+                                    {"simulate_s", simulate_s}, {"write_s", write_s},   {"scans_per_s", rate}};
     std::printf("%s\n", summary.dump().c_str());
   } else {
     std::printf("%zu buildings, %zu scans: floor plans %.2f s, simulation %.2f s (%.0f scans/s), writing %.2f s\n",
@@ -157,8 +156,12 @@ void add_simulate_command(CLI::App& app, GlobalOptions& /*global*/) {
   cmd->add_option("--buildings", o->buildings, "number of buildings")->capture_default_str();
   cmd->add_option("--seed", o->seed, "run seed: building k's layout and tour derive from it")->capture_default_str();
   cmd->add_option("--scans", o->scans, "scans per building")->capture_default_str()->check(CLI::Range(1, 10000000));
-  cmd->add_option("--beams", o->beams, "beams per scan over 180 degrees")->capture_default_str()->check(CLI::Range(2, 100000));
-  cmd->add_option("--max-range", o->max_range, "[m] laser max range (no return beyond)")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->add_option("--beams", o->beams, "beams per scan over 180 degrees")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 100000));
+  cmd->add_option("--max-range", o->max_range, "[m] laser max range (no return beyond)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--json", o->json, "one JSON object per line");
   cmd->add_flag("--svg", o->svg, "also draw each floor plan with the robot's path (DIR/NAME/NAME.svg)");
   cmd->callback([o] { run_simulate(*o); });

@@ -111,7 +111,8 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   if (!opt.per_scan.empty()) {
     per_scan.reset(std::fopen(opt.per_scan.c_str(), "w"));
     if (!per_scan) throw Error(opt.per_scan + ": cannot open for writing (--per-scan)");
-    std::fprintf(per_scan.get(), "# timestamp x y theta source quality iterations correspondences degenerate keyframe\n");
+    std::fprintf(per_scan.get(),
+                 "# timestamp x y theta source quality iterations correspondences degenerate keyframe\n");
   }
   using Clock = std::chrono::steady_clock;
   Clock::duration busy{};
@@ -210,10 +211,11 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
     std::printf("%s\n", j.dump().c_str());
     return;
   }
-  std::printf("%s: %zu scans, %.0f scans/s (matching and loop closure); matched %zu, odometry fallbacks %zu, "
-              "stationary %zu, degenerate %zu, keyframes %zu; graph nodes %zu, loop closures %zu of %zu attempts\n",
-              opt.log.c_str(), log.scans.size(), scans_per_s, st.matched, st.odometry_fallbacks, st.stationary,
-              st.degenerate, st.keyframes, gs.nodes, gs.loop_closures, gs.loop_attempts);
+  std::printf(
+      "%s: %zu scans, %.0f scans/s (matching and loop closure); matched %zu, odometry fallbacks %zu, "
+      "stationary %zu, degenerate %zu, keyframes %zu; graph nodes %zu, loop closures %zu of %zu attempts\n",
+      opt.log.c_str(), log.scans.size(), scans_per_s, st.matched, st.odometry_fallbacks, st.stationary, st.degenerate,
+      st.keyframes, gs.nodes, gs.loop_closures, gs.loop_attempts);
   if (ours) {
     std::printf("relations: %zu of %zu matched\n", ours->matched, ours->relations);
     const auto row = [](const char* name, const std::optional<RelationsError>& e) {
@@ -250,8 +252,8 @@ void add_slam_command(CLI::App& app, GlobalOptions& global) {
                   "stationary), match quality, ICP iterations, correspondences, degenerate, keyframe");
   cmd->add_flag("--json", opt->json, "print one JSON line instead of the readable summary");
   cmd->add_flag("--no-loop-closure", opt->no_loop_closure,
-               "scan matching only (the localizer's local map); by default a pose graph closes loops by correlative "
-               "matching");
+                "scan matching only (the localizer's local map); by default a pose graph closes loops by correlative "
+                "matching");
   cmd->add_flag("--localizer-matcher", opt->localizer_matcher,
                 "start from the localizer's matcher settings (LocalizerConfig::scan_matcher: denser points, normals "
                 "from 3 points) instead of the mapping defaults");

@@ -50,8 +50,7 @@ CLI::Option* add_enum_option(CLI::App& cmd, const std::string& name, Enum& value
 inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool research_flags = false) {
   const std::string group = "Settings";
   cmd.add_option_function<std::string>(
-         "--config",
-         [&o](const std::string& path) { apply_run_config(io::read_json_file(path), o.config, path); },
+         "--config", [&o](const std::string& path) { apply_run_config(io::read_json_file(path), o.config, path); },
          "JSON file of settings (the shape --print-config writes; any subset): every field of the global map "
          "and the localizer, under its C++ name")
       ->trigger_on_parse()

@@ -106,23 +106,26 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
   return stem;
 }
 
-void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m) {
+void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run,
+                          const LocalizationMetrics& m) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (f == nullptr) throw Error(path + ": cannot write the trace");
-  std::fprintf(f, "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
-                  "truth_theta,error_m,cpu_s\n");
+  std::fprintf(f,
+               "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
+               "truth_theta,error_m,cpu_s\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = sc.target.truth[i];
     std::fprintf(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%u,%.4f,", i, sc.target.scans[i].timestamp,
                  e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta, e.localized ? 1 : 0, e.mean_score,
                  e.scored, e.margin);
-    if (t) std::fprintf(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
-    else std::fprintf(f, ",,,,");
+    if (t)
+      std::fprintf(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
+    else
+      std::fprintf(f, ",,,,");
     std::fprintf(f, "%.4f\n", run.cpu_s[i]);
   }
   if (std::fclose(f) != 0) throw Error(path + ": cannot write the trace");
 }
-
 
 }  // namespace lshloc::app

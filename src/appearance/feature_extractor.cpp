@@ -83,8 +83,8 @@ ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const 
     const double r = (p - sensor).norm();
     if (r < config_.min_range || r >= config_.max_range) continue;
     const bool new_segment =
-        kept.empty() || (p - kept.back()).norm() >
-                            config_.segment_gap + config_.segment_gap_per_meter * std::max(r, kept_range.back());
+        kept.empty() ||
+        (p - kept.back()).norm() > config_.segment_gap + config_.segment_gap_per_meter * std::max(r, kept_range.back());
     if (new_segment) raw_begin.push_back(kept.size());
     kept.push_back(p);
     kept_range.push_back(r);
@@ -122,7 +122,7 @@ ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const 
 }
 
 FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan,
-                                                    std::span<const ScanSurface> context, Descriptor& out) const {
+                                                     std::span<const ScanSurface> context, Descriptor& out) const {
   const double radius = config_.descriptor_radius, radius2 = radius * radius;
   const double inner = config_.descriptor_inner_radius;
   const double log_span = std::log(radius / inner);
@@ -143,7 +143,7 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
       const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
       const double r = std::sqrt(d2);
       // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
-      const double u = r < inner          ? r / inner
+      const double u = r < inner           ? r / inner
                        : config_.log_rings ? 1.0 + (kRings - 1) * std::log(r / inner) / log_span
                                            : 1.0 + (kRings - 1) * (r - inner) / (radius - inner);
       const double taper = std::min(1.0, (radius - r) / taper_width);
@@ -210,7 +210,8 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
     if (usable < 0.0) continue;
     // Keypoints at fixed spacing, centred on the segment.
     const auto count = static_cast<std::size_t>(std::floor(usable / config_.keypoint_spacing)) + 1;
-    const double first = config_.edge_margin + 0.5 * (usable - static_cast<double>(count - 1) * config_.keypoint_spacing);
+    const double first =
+        config_.edge_margin + 0.5 * (usable - static_cast<double>(count - 1) * config_.keypoint_spacing);
     std::size_t lo = 0;
     for (std::size_t k = 0; k < count; ++k) {
       ++stats_.candidates;
@@ -267,7 +268,8 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
   } else if (config_.prefer_structure) {
     std::vector<std::size_t> order(candidates.size());
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return structure[a] > structure[b]; });
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return structure[a] > structure[b]; });
     order.resize(config_.max_keypoints);
     std::sort(order.begin(), order.end());
     for (std::size_t i : order) out.push_back(candidates[i]);

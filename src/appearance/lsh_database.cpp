@@ -330,9 +330,11 @@ void LshDatabase::rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) co
     if (id < sketch_ids_) {
       const std::uint64_t* e = sketches_.data() + static_cast<std::size_t>(id) * sketch_words_;
       d = 0;
-      for (std::size_t w = 0; w < sketch_words_; ++w) d += static_cast<std::uint32_t>(std::popcount(e[w] ^ q.sketch_[w]));
+      for (std::size_t w = 0; w < sketch_words_; ++w)
+        d += static_cast<std::uint32_t>(std::popcount(e[w] ^ q.sketch_[w]));
       // Each table the candidate missed costs `weight` bits.
-      d += static_cast<std::uint32_t>(weight * (config_.L - std::min<std::size_t>(q.slot_count_[q.ranked_[i]], config_.L)));
+      d += static_cast<std::uint32_t>(weight *
+                                      (config_.L - std::min<std::size_t>(q.slot_count_[q.ranked_[i]], config_.L)));
     }
     q.hamming_[i] = d;
     ++q.sketch_histogram_[d];

@@ -38,7 +38,8 @@ LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estim
   const std::size_t last = *last_truth;
   if (std::isfinite(m.error_per_scan_m[last])) {
     m.final_error_m = m.error_per_scan_m[last];
-    m.final_heading_error_deg = angle_distance(estimates[last].pose.theta, truth[last]->theta) * 180.0 / std::numbers::pi;
+    m.final_heading_error_deg =
+        angle_distance(estimates[last].pose.theta, truth[last]->theta) * 180.0 / std::numbers::pi;
   }
   m.success = m.final_error_m && *m.final_error_m < config.success_error_m;
 

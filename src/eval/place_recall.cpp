@@ -26,7 +26,8 @@ class PositionGrid {
   void add(std::uint32_t id, const MapLocation& loc) { cells_[key(loc.x, loc.y)].push_back(id); }
   template <class F>
   void for_near(double x, double y, F&& f) const {
-    const auto cx = static_cast<std::int64_t>(std::floor(x / cell_)), cy = static_cast<std::int64_t>(std::floor(y / cell_));
+    const auto cx = static_cast<std::int64_t>(std::floor(x / cell_)),
+               cy = static_cast<std::int64_t>(std::floor(y / cell_));
     for (std::int64_t dx = -1; dx <= 1; ++dx)
       for (std::int64_t dy = -1; dy <= 1; ++dy)
         if (auto it = cells_.find(pack(cx + dx, cy + dy)); it != cells_.end())
@@ -63,7 +64,8 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
   LshDatabase db(config.lsh);
   std::vector<Descriptor> map_descriptors;
   std::vector<std::vector<ScanFeatures>> per_submap;
-  for (const Submap& submap : scenario.submaps) per_submap.push_back(extract_submap_features(submap, extractor, config.context));
+  for (const Submap& submap : scenario.submaps)
+    per_submap.push_back(extract_submap_features(submap, extractor, config.context));
   const std::size_t map_scans = extractor.stats().scans;
   // Optional thinning: a feature whose (x, y, theta) cell already holds one
   // of its submap is not inserted (the map then grows with area, not time).
@@ -76,8 +78,9 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
           const auto cx = static_cast<std::int64_t>(std::floor(f.pose.x / config.thin_cell));
           const auto cy = static_cast<std::int64_t>(std::floor(f.pose.y / config.thin_cell));
           const auto ct = static_cast<std::int64_t>(std::floor((f.pose.theta + std::numbers::pi) / config.thin_angle));
-          const std::uint64_t key = (static_cast<std::uint64_t>(r) << 56) ^ (static_cast<std::uint64_t>(cx & 0xFFFFFF) << 32) ^
-                                    (static_cast<std::uint64_t>(cy & 0xFFFFFF) << 8) ^ static_cast<std::uint64_t>(ct & 0xFF);
+          const std::uint64_t key =
+              (static_cast<std::uint64_t>(r) << 56) ^ (static_cast<std::uint64_t>(cx & 0xFFFFFF) << 32) ^
+              (static_cast<std::uint64_t>(cy & 0xFFFFFF) << 8) ^ static_cast<std::uint64_t>(ct & 0xFF);
           if (!seen_cells.insert(key).second) {
             ++thinned;
             continue;
@@ -161,8 +164,8 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
       for (std::size_t j = 0; j < nb; ++j)
         for (std::size_t c = 0; c < kDescriptorSize; ++c)
           qb(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(c)) = queries[covered_ids[b + j]].descriptor[c];
-      const Matrix d = (-2.0f * qb.topRows(static_cast<Eigen::Index>(nb)) * m.transpose()).rowwise() +
-                       m_norm.transpose();
+      const Matrix d =
+          (-2.0f * qb.topRows(static_cast<Eigen::Index>(nb)) * m.transpose()).rowwise() + m_norm.transpose();
       for (std::size_t j = 0; j < nb; ++j) {
         for (Eigen::Index c = 0; c < n_map; ++c)
           row[static_cast<std::size_t>(c)] = {d(static_cast<Eigen::Index>(j), c), static_cast<std::uint32_t>(c)};

@@ -11,9 +11,9 @@ namespace lshloc {
 
 const std::vector<std::string>& canonical_building_order() {
   static const std::vector<std::string> order = {
-      "fr079",     "intel",           "aces",   "fr101",          "mit-csail",         "acapulco", "belgioioso",
-      "edmonton",  "fhw",             "freiburg-campus", "infinite-corridor", "orebro",   "seattle",
-      "fr-clinic", "mit-killian"};
+      "fr079",      "intel",     "aces",       "fr101",           "mit-csail",         "acapulco",
+      "belgioioso", "edmonton",  "fhw",        "freiburg-campus", "infinite-corridor", "orebro",
+      "seattle",    "fr-clinic", "mit-killian"};
   return order;
 }
 
@@ -56,8 +56,7 @@ void split_target_building(const BuildingRecording& rec, const ScenarioConfig& c
   if (config.length == 0) throw Error("the target window is empty: give a length of at least 1 scan");
   if (config.start >= raw.size() || config.length > raw.size() - config.start) {
     throw Error(rec.name + ": the window of " + std::to_string(config.length) + " scans from scan " +
-                std::to_string(config.start) + " does not fit its raw log of " + std::to_string(raw.size()) +
-                " scans");
+                std::to_string(config.start) + " does not fit its raw log of " + std::to_string(raw.size()) + " scans");
   }
   const double t_begin = raw[config.start].timestamp - config.guard_s;
   const double t_end = raw[config.start + config.length - 1].timestamp + config.guard_s;

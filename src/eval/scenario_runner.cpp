@@ -29,7 +29,8 @@ void MapFeeder::feed_until(double share) {
     any = false;
     for (std::size_t r = 0; r < submaps_.size(); ++r) {
       const auto& scans = submaps_[r].scans;
-      const auto limit = std::min(scans.size(), static_cast<std::size_t>(share * static_cast<double>(scans.size()) + 0.5));
+      const auto limit =
+          std::min(scans.size(), static_cast<std::size_t>(share * static_cast<double>(scans.size()) + 0.5));
       if (fed_[r] < limit) {
         map_.add_scan(ids_[r], scans[fed_[r]], scans[fed_[r]].pose);
         ++fed_[r];
@@ -40,7 +41,8 @@ void MapFeeder::feed_until(double share) {
 }
 
 ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
-                            const Progress& progress, const LocalizerObserver& observer, const BeforeScan& before_scan) {
+                            const Progress& progress, const LocalizerObserver& observer,
+                            const BeforeScan& before_scan) {
   ScenarioRun run;
   config.scan_matcher.laser_offset = target.laser_offset;
   Localizer localizer(map, config);
@@ -76,7 +78,7 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
       const Point2 g = last.T_submap_local.transform(Point2(x.x, x.y));
       const double th = last.T_submap_local.transform_angle(x.theta);
       (map.occupancy().probe(last.submap, g.x(), g.y(), th) & cell_flags::kOccupied ? run.final_inliers
-                                                                                     : run.final_outliers)
+                                                                                    : run.final_outliers)
           .push_back(g);
     }
   }

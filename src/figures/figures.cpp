@@ -34,8 +34,9 @@ class Figure {
   explicit Figure(std::string path) : path_(std::move(path)) {
     svg_ = ends_with(path_, ".svg");
     if (!svg_ && !ends_with(path_, ".png")) throw Error(path_ + ": figures are written as .png or .svg");
-    surface_ = svg_ ? cairo_svg_surface_create(path_.c_str(), kWidth, kHeight)
-                    : cairo_image_surface_create(CAIRO_FORMAT_ARGB32, static_cast<int>(kWidth), static_cast<int>(kHeight));
+    surface_ =
+        svg_ ? cairo_svg_surface_create(path_.c_str(), kWidth, kHeight)
+             : cairo_image_surface_create(CAIRO_FORMAT_ARGB32, static_cast<int>(kWidth), static_cast<int>(kHeight));
     if (cairo_surface_status(surface_) != CAIRO_STATUS_SUCCESS) throw Error(path_ + ": cannot create the figure");
     cr_ = cairo_create(surface_);
     cairo_set_source_rgb(cr_, 1, 1, 1);
@@ -87,8 +88,10 @@ class Figure {
 
 std::string format_number(double v) {
   char buf[32];
-  if (v != 0 && (std::abs(v) >= 1e5 || std::abs(v) < 1e-2)) std::snprintf(buf, sizeof buf, "%.0e", v);
-  else std::snprintf(buf, sizeof buf, "%g", v);
+  if (v != 0 && (std::abs(v) >= 1e5 || std::abs(v) < 1e-2))
+    std::snprintf(buf, sizeof buf, "%.0e", v);
+  else
+    std::snprintf(buf, sizeof buf, "%g", v);
   return buf;
 }
 
@@ -173,8 +176,10 @@ void plot_error_curves(const std::string& path, const std::string& title, const 
       const double e = s.error_m[i];
       if (std::isnan(e)) continue;
       const double y = ax.ty(std::clamp(e, ax.y0, ax.y1));
-      if (pen) cairo_line_to(cr, ax.tx(s.viewpoint[i]), y);
-      else cairo_move_to(cr, ax.tx(s.viewpoint[i]), y), pen = true;
+      if (pen)
+        cairo_line_to(cr, ax.tx(s.viewpoint[i]), y);
+      else
+        cairo_move_to(cr, ax.tx(s.viewpoint[i]), y), pen = true;
     }
     cairo_stroke(cr);
   }
@@ -204,8 +209,10 @@ void plot_cost_curves(const std::string& path, const std::string& title, const s
     cairo_set_line_width(cr, 2);
     for (std::size_t i = 0; i < series[k].map_features.size() && i < series[k].cost.size(); ++i) {
       const double x = ax.tx(series[k].map_features[i]), y = ax.ty(series[k].cost[i]);
-      if (i == 0) cairo_move_to(cr, x, y);
-      else cairo_line_to(cr, x, y);
+      if (i == 0)
+        cairo_move_to(cr, x, y);
+      else
+        cairo_line_to(cr, x, y);
     }
     cairo_stroke(cr);
     for (std::size_t i = 0; i < series[k].map_features.size() && i < series[k].cost.size(); ++i) {
@@ -221,7 +228,8 @@ void plot_map_figure(const std::string& path, const MapFigure& fig) {
   Figure f(path);
   double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
   const auto grow = [&](const std::vector<Point2>& pts) {
-    for (const auto& p : pts) x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x()), y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
+    for (const auto& p : pts)
+      x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x()), y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
   };
   grow(fig.map_points), grow(fig.true_trajectory), grow(fig.estimated_trajectory);
   if (!(x1 > x0)) x0 = -1, x1 = 1;
@@ -244,8 +252,10 @@ void plot_map_figure(const std::string& path, const MapFigure& fig) {
     cairo_set_source_rgb(cr, c.r, c.g, c.b);
     cairo_set_line_width(cr, width);
     for (std::size_t i = 0; i < pts.size(); ++i) {
-      if (i == 0) cairo_move_to(cr, ax.tx(pts[i].x()), ax.ty(pts[i].y()));
-      else cairo_line_to(cr, ax.tx(pts[i].x()), ax.ty(pts[i].y()));
+      if (i == 0)
+        cairo_move_to(cr, ax.tx(pts[i].x()), ax.ty(pts[i].y()));
+      else
+        cairo_line_to(cr, ax.tx(pts[i].x()), ax.ty(pts[i].y()));
     }
     cairo_stroke(cr);
   };

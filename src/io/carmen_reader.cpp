@@ -80,15 +80,15 @@ void CarmenReader::parse_robotlaser1(const std::string& where, CarmenRecord& rec
   if (f.size() < 9) throw Error(count_error(where, "ROBOTLASER1", f.size(), "at least 9 before the ranges"));
   const auto n = static_cast<std::size_t>(read_count(f, 8, where, "the beam count"));
   if (f.size() < 10 + n) {
-    throw Error(count_error(where, "ROBOTLASER1", f.size(), "more than " + std::to_string(9 + n) + " for " +
-                                                              std::to_string(n) + " beams"));
+    throw Error(count_error(where, "ROBOTLASER1", f.size(),
+                            "more than " + std::to_string(9 + n) + " for " + std::to_string(n) + " beams"));
   }
   const auto m = static_cast<std::size_t>(read_count(f, 9 + n, where, "the remission count"));
   const std::size_t expected = n + m + 24;
   if (f.size() != expected && f.size() != expected - 2) {
-    throw Error(count_error(where, "ROBOTLASER1", f.size(),
-                            std::to_string(expected) + " for " + std::to_string(n) + " beams and " +
-                                std::to_string(m) + " remissions"));
+    throw Error(count_error(
+        where, "ROBOTLASER1", f.size(),
+        std::to_string(expected) + " for " + std::to_string(n) + " beams and " + std::to_string(m) + " remissions"));
   }
   LaserScan& s = record.scan;
   const double start = parse_double(f[2], where, 2, "the start angle [rad]");
@@ -113,7 +113,8 @@ void CarmenReader::parse_odom(const std::string& where, CarmenRecord& record) {
   // ODOM x y theta tv rv accel ipc_timestamp [hostname logger_timestamp]
   const auto& f = fields_;
   if (f.size() != 8 && f.size() != 10) {
-    throw Error(count_error(where, "ODOM", f.size(), "10 (ODOM x y theta tv rv accel ipc_timestamp hostname logger_timestamp)"));
+    throw Error(count_error(where, "ODOM", f.size(),
+                            "10 (ODOM x y theta tv rv accel ipc_timestamp hostname logger_timestamp)"));
   }
   OdometryReading& o = record.odometry;
   o.pose = read_pose(f, 1, where, "odometry pose (x y theta)");
@@ -176,9 +177,16 @@ CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& con
   CarmenRecord rec;
   while (reader.next(rec)) {
     switch (rec.type) {
-      case CarmenRecord::Type::kLaser: log.scans.push_back(std::move(rec.scan)); rec.scan = {}; break;
-      case CarmenRecord::Type::kOdometry: log.odometry.push_back(rec.odometry); break;
-      case CarmenRecord::Type::kParam: log.params[rec.param_name] = rec.param_value; break;
+      case CarmenRecord::Type::kLaser:
+        log.scans.push_back(std::move(rec.scan));
+        rec.scan = {};
+        break;
+      case CarmenRecord::Type::kOdometry:
+        log.odometry.push_back(rec.odometry);
+        break;
+      case CarmenRecord::Type::kParam:
+        log.params[rec.param_name] = rec.param_value;
+        break;
     }
   }
   return log;

@@ -38,7 +38,8 @@ constexpr std::size_t kFlushBytes = 1 << 16;
 
 }  // namespace
 
-CarmenWriter::CarmenWriter(std::string path, CarmenWriterConfig config) : path_(std::move(path)), config_(std::move(config)) {
+CarmenWriter::CarmenWriter(std::string path, CarmenWriterConfig config)
+    : path_(std::move(path)), config_(std::move(config)) {
   if (config_.range_decimals < 0 || config_.range_decimals > 9 || config_.pose_decimals < 0 ||
       config_.pose_decimals > 12 || config_.time_decimals < 0 || config_.time_decimals > 9) {
     throw Error("CARMEN writer: decimals must be in 0..9 (ranges, time stamps) and 0..12 (poses)");
@@ -106,7 +107,8 @@ void CarmenWriter::close() {
   } catch (const Error& e) {
     error = e.what();
   }
-  if (gz_ && gzclose(static_cast<gzFile>(gz_)) != Z_OK && error.empty()) error = path_ + ": closing the gzip stream failed";
+  if (gz_ && gzclose(static_cast<gzFile>(gz_)) != Z_OK && error.empty())
+    error = path_ + ": closing the gzip stream failed";
   if (file_ && std::fclose(static_cast<std::FILE*>(file_)) != 0 && error.empty()) error = path_ + ": closing failed";
   gz_ = file_ = nullptr;
   if (!error.empty()) throw Error(error);
@@ -171,7 +173,8 @@ void write_carmen_log(const std::string& path, std::span<const LaserScan> scans,
   if (!scans.empty()) {
     char text[64];
     const auto [end, ec] = std::to_chars(text, text + sizeof text, scans.front().max_range, std::chars_format::general);
-    if (ec == std::errc()) out.param("robot_front_laser_max", std::string_view(text, static_cast<std::size_t>(end - text)));
+    if (ec == std::errc())
+      out.param("robot_front_laser_max", std::string_view(text, static_cast<std::size_t>(end - text)));
   }
   if (laser_offset.x != 0.0 || laser_offset.y != 0.0 || laser_offset.theta != 0.0) {
     // CARMEN's offset parameters: metres forward, sideways, and the angle.
@@ -203,8 +206,8 @@ void write_pose_file(const std::string& path, std::span<const StampedPose> poses
   if (!f) throw Error(path + ": cannot open for writing");
   bool ok = std::fprintf(f, "# timestamp x y theta: the true laser pose of the raw scan with this time stamp\n") > 0;
   for (const auto& p : poses) {
-    ok = ok && std::fprintf(f, "%.*f %.*f %.*f %.*f\n", config.time_decimals, p.timestamp, config.pose_decimals, p.pose.x,
-                            config.pose_decimals, p.pose.y, config.pose_decimals, p.pose.theta) > 0;
+    ok = ok && std::fprintf(f, "%.*f %.*f %.*f %.*f\n", config.time_decimals, p.timestamp, config.pose_decimals,
+                            p.pose.x, config.pose_decimals, p.pose.y, config.pose_decimals, p.pose.theta) > 0;
   }
   ok = (std::fclose(f) == 0) && ok;
   if (!ok) throw Error(path + ": write failed");

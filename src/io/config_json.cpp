@@ -53,7 +53,9 @@ constexpr std::array kHypothesisSourceNames{std::pair{HypothesisSource::kDatabas
 }  // namespace
 
 void to_json(nlohmann::json& j, const Pose2& p) { j = {{"x", p.x}, {"y", p.y}, {"theta", p.theta}}; }
-void from_json(const nlohmann::json& j, Pose2& p) { p = Pose2(j.at("x").get<double>(), j.at("y").get<double>(), j.at("theta").get<double>()); }
+void from_json(const nlohmann::json& j, Pose2& p) {
+  p = Pose2(j.at("x").get<double>(), j.at("y").get<double>(), j.at("theta").get<double>());
+}
 void to_json(nlohmann::json& j, FullBucket v) { enum_to_json(j, v, kFullBucketNames); }
 void from_json(const nlohmann::json& j, FullBucket& v) { enum_from_json(j, v, kFullBucketNames); }
 void to_json(nlohmann::json& j, ToleranceMode v) { enum_to_json(j, v, kToleranceModeNames); }
@@ -67,26 +69,52 @@ void from_json(const nlohmann::json& j, HypothesisSource& v) { enum_from_json(j,
 
 // Field lists: every member under its C++ name (a field added to a struct
 // must be added here too; the round-trip test compares every field).
-#define LSHLOC_JSON_FIELDS(Type, ...)                                                             \
-  void to_json(nlohmann::json& nlohmann_json_j, const Type& nlohmann_json_t) {                    \
-    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_TO, __VA_ARGS__))                      \
-  }                                                                                               \
-  void from_json(const nlohmann::json& nlohmann_json_j, Type& nlohmann_json_t) {                  \
-    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_FROM, __VA_ARGS__))                    \
+#define LSHLOC_JSON_FIELDS(Type, ...)                                            \
+  void to_json(nlohmann::json& nlohmann_json_j, const Type& nlohmann_json_t) {   \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_TO, __VA_ARGS__))     \
+  }                                                                              \
+  void from_json(const nlohmann::json& nlohmann_json_j, Type& nlohmann_json_t) { \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_FROM, __VA_ARGS__))   \
   }
 
-LSHLOC_JSON_FIELDS(FeatureExtractorConfig, min_range, max_range, segment_gap, segment_gap_per_meter, min_segment_points, tangent_half_window, max_keypoints, keypoint_spacing, keypoint_max_range, normal_half_window, max_normal_residual, edge_margin, rings, sectors, occupancy_component, descriptor_radius, descriptor_inner_radius, rim_taper, log_rings, bin_power, min_descriptor_support, prefer_structure)
-LSHLOC_JSON_FIELDS(LshConfig, K, L, w, seed, bucket_capacity, full_bucket, max_candidates, sketch_bits, sketch_collision_weight, initial_slots)
-LSHLOC_JSON_FIELDS(PoseGridConfig, cell_size, theta_bins, xy_tolerance, theta_tolerance, tolerance_mode, max_load_factor, initial_capacity, seed)
-LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_features_per_scan, new_hypotheses_per_scan, iterations_per_scan, min_score, preference_z, count_unknown, order_rule, recent_window, preemption_rank, seed)
-LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_voxel, window_keyframes, keyframe_distance, keyframe_angle, map_voxel, keep_oldest_map_points, normal_radius, normal_beam_gaps, normal_max_neighbours, normal_min_points, max_line_flatness, coarse_correspondence, fine_correspondence, coarse_iterations, max_iterations, robust_scale, converged_translation, converged_rotation, rotation_length, odometry_prior, point_sigma, odometry_sigma_translation, odometry_sigma_per_meter, odometry_sigma_rotation, odometry_sigma_rotation_per_rad, odometry_sigma_rotation_per_meter, degeneracy_threshold, inlier_distance, min_quality, min_correspondences, max_correction_translation, max_correction_rotation, velocity_guess_difference, reject_unconverged, stationary_translation, stationary_rotation)
+LSHLOC_JSON_FIELDS(FeatureExtractorConfig, min_range, max_range, segment_gap, segment_gap_per_meter, min_segment_points,
+                   tangent_half_window, max_keypoints, keypoint_spacing, keypoint_max_range, normal_half_window,
+                   max_normal_residual, edge_margin, rings, sectors, occupancy_component, descriptor_radius,
+                   descriptor_inner_radius, rim_taper, log_rings, bin_power, min_descriptor_support, prefer_structure)
+LSHLOC_JSON_FIELDS(LshConfig, K, L, w, seed, bucket_capacity, full_bucket, max_candidates, sketch_bits,
+                   sketch_collision_weight, initial_slots)
+LSHLOC_JSON_FIELDS(PoseGridConfig, cell_size, theta_bins, xy_tolerance, theta_tolerance, tolerance_mode,
+                   max_load_factor, initial_capacity, seed)
+LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_features_per_scan, new_hypotheses_per_scan,
+                   iterations_per_scan, min_score, preference_z, count_unknown, order_rule, recent_window,
+                   preemption_rank, seed)
+LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_voxel, window_keyframes,
+                   keyframe_distance, keyframe_angle, map_voxel, keep_oldest_map_points, normal_radius,
+                   normal_beam_gaps, normal_max_neighbours, normal_min_points, max_line_flatness, coarse_correspondence,
+                   fine_correspondence, coarse_iterations, max_iterations, robust_scale, converged_translation,
+                   converged_rotation, rotation_length, odometry_prior, point_sigma, odometry_sigma_translation,
+                   odometry_sigma_per_meter, odometry_sigma_rotation, odometry_sigma_rotation_per_rad,
+                   odometry_sigma_rotation_per_meter, degeneracy_threshold, inlier_distance, min_quality,
+                   min_correspondences, max_correction_translation, max_correction_rotation, velocity_guess_difference,
+                   reject_unconverged, stationary_translation, stationary_rotation)
 LSHLOC_JSON_FIELDS(PoseGraphConfig, max_iterations, converged_step, robust_scale)
 LSHLOC_JSON_FIELDS(CorrelativeMatcherConfig, cell, sigma, block, angle_step_deg, max_query_points, runner_up_distance)
-LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement, node_distance, node_angle, node_voxel, edge_sigma_xy, edge_sigma_xy_per_m, edge_sigma_theta_deg, edge_sigma_theta_per_m_deg, loop_closure, loop_min_travel, loop_window, loop_window_per_m, loop_max_window, loop_window_deg, loop_context_nodes, loop_min_score, loop_max_runner_up, loop_sigma_xy, loop_sigma_theta_deg, optimize_above)
-LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, endpoint_spacing, free_ray_stride, free_ray_margin, free_ray_max_range, free_ray_no_return_range, context_scans, context_spacing)
-LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, stable_scans, switch_margin, duel_points, duel_margin, duel_z, duel_recent_margin, duel_recent_min_evidence, challenger_needs_support, same_place_m, same_place_deg)
-LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points, refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
-LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty, return_support, contested_penalty, free_space_agreement, context_scans, context_spacing, data_point_spacing, free_points_per_surface_point, free_point_fraction, free_point_margin, hypothesis_source, report, seed)
+LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement, node_distance, node_angle, node_voxel,
+                   edge_sigma_xy, edge_sigma_xy_per_m, edge_sigma_theta_deg, edge_sigma_theta_per_m_deg, loop_closure,
+                   loop_min_travel, loop_window, loop_window_per_m, loop_max_window, loop_window_deg,
+                   loop_context_nodes, loop_min_score, loop_max_runner_up, loop_sigma_xy, loop_sigma_theta_deg,
+                   optimize_above)
+LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, endpoint_spacing, free_ray_stride,
+                   free_ray_margin, free_ray_max_range, free_ray_no_return_range, context_scans, context_spacing)
+LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, stable_scans, switch_margin, duel_points,
+                   duel_margin, duel_z, duel_recent_margin, duel_recent_min_evidence, challenger_needs_support,
+                   same_place_m, same_place_deg)
+LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
+                   refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
+LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty,
+                   return_support, contested_penalty, free_space_agreement, context_scans, context_spacing,
+                   data_point_spacing, free_points_per_surface_point, free_point_fraction, free_point_margin,
+                   hypothesis_source, report, seed)
 
 #undef LSHLOC_JSON_FIELDS
 

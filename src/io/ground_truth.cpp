@@ -37,15 +37,17 @@ void read_table(const std::string& path, std::size_t min_fields, const char* lay
 
 std::vector<StampedPose> read_pose_file(const std::string& path) {
   std::vector<StampedPose> out;
-  read_table(path, 4, "timestamp x y theta",
-             [&](const std::vector<double>& v) { out.push_back({v[0], Pose2(v[1], v[2], v[3])}); });
+  read_table(path, 4, "timestamp x y theta", [&](const std::vector<double>& v) {
+    out.push_back({v[0], Pose2(v[1], v[2], v[3])});
+  });
   return out;
 }
 
 std::vector<Relation> read_relations(const std::string& path) {
   std::vector<Relation> out;
-  read_table(path, 8, "t1 t2 dx dy dz roll pitch yaw",
-             [&](const std::vector<double>& v) { out.push_back({v[0], v[1], Pose2(v[2], v[3], v[7])}); });
+  read_table(path, 8, "t1 t2 dx dy dz roll pitch yaw", [&](const std::vector<double>& v) {
+    out.push_back({v[0], v[1], Pose2(v[2], v[3], v[7])});
+  });
   return out;
 }
 

@@ -16,14 +16,15 @@ void GlobalMapConfig::validate() const {
   if (!(endpoint_spacing >= 0.0)) throw Error("GlobalMapConfig: endpoint_spacing must be >= 0 m");
   if (free_ray_stride == 0) throw Error("GlobalMapConfig: free_ray_stride must be >= 1 (beams)");
   if (!(free_ray_margin >= 0.0) || !(free_ray_max_range > 0.0) || !(free_ray_no_return_range >= 0.0)) {
-    throw Error("GlobalMapConfig: free_ray_margin and free_ray_no_return_range must be >= 0 m and free_ray_max_range > 0 m");
+    throw Error(
+        "GlobalMapConfig: free_ray_margin and free_ray_no_return_range must be >= 0 m and free_ray_max_range > 0 m");
   }
 }
 
 double GlobalMapStats::bytes_per_feature() const {
   if (features == 0) return 0.0;
-  const double bytes = static_cast<double>(database.bytes + occupancy.memory_bytes + free_space.memory_bytes +
-                                           location_bytes);
+  const double bytes =
+      static_cast<double>(database.bytes + occupancy.memory_bytes + free_space.memory_bytes + location_bytes);
   return bytes / static_cast<double>(features);
 }
 
@@ -135,7 +136,8 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   // judged on those alone, as the neighbours of a wall seen only from far
   // away (never crossed by map rays) are often free space.
   for (std::size_t i = 0; i < scan.size(); ++i) {
-    if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range) continue;
+    if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range)
+      continue;
     const Point2 p = laser_pose.transform(beam_endpoints_[i]);
     for (int ix = -1; ix <= 1; ++ix) {
       for (int iy = -1; iy <= 1; ++iy) {

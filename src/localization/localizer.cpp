@@ -195,8 +195,8 @@ void Localizer::sample_data_points(const LaserScan& scan) {
                             LocalPoint::Kind::kSurface});
   }
   // Free-space points on evenly spread beams, as many as surface points.
-  const auto wanted = static_cast<std::size_t>(config_.free_points_per_surface_point *
-                                               static_cast<double>(data_points_.size()));
+  const auto wanted =
+      static_cast<std::size_t>(config_.free_points_per_surface_point * static_cast<double>(data_points_.size()));
   const std::size_t beams = scan.size();
   for (std::size_t k = 0; k < wanted && beams > 0; ++k) {
     const std::size_t i = (k * beams) / wanted;

@@ -116,7 +116,8 @@ std::size_t IncrementalRansac::next_feature() {
       fresh_next_ = std::max(fresh_next_, n - window);
       if (fresh_next_ < n) return fresh_next_++;
       [[fallthrough]];
-    case FeatureOrderRule::kRecentWindow: break;
+    case FeatureOrderRule::kRecentWindow:
+      break;
   }
   return n - window + random_below(window);
 }
@@ -139,7 +140,8 @@ void IncrementalRansac::preempt(std::size_t keep) {
   };
   order_.resize(m);
   for (std::size_t j = 0; j < m; ++j) order_[j] = static_cast<std::uint32_t>(j);
-  if (keep > 0) std::nth_element(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(keep - 1), order_.end(), better);
+  if (keep > 0)
+    std::nth_element(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(keep - 1), order_.end(), better);
   keep_.assign(m, 0);
   for (std::size_t k = 0; k < keep; ++k) keep_[order_[k]] = 1;
   // Compact in place, keeping the survivors' relative (random) order.
@@ -159,13 +161,12 @@ std::optional<ScoredHypothesis> IncrementalRansac::best() const {
   double best_mean = 0.0;
   for (std::size_t j = 0; j < tx_.size(); ++j) {
     if (scored_[j] == 0 || score_[j] < config_.min_score) continue;
-    const double mean = static_cast<double>(score_[j]) / scored_[j] -
-                        config_.preference_z / std::sqrt(static_cast<double>(scored_[j]));
+    const double mean =
+        static_cast<double>(score_[j]) / scored_[j] - config_.preference_z / std::sqrt(static_cast<double>(scored_[j]));
     if (best) {
       const std::size_t b = *best;
       if (mean < best_mean) continue;
-      if (mean == best_mean &&
-          (scored_[j] < scored_[b] || (scored_[j] == scored_[b] && serial_[j] > serial_[b])))
+      if (mean == best_mean && (scored_[j] < scored_[b] || (scored_[j] == scored_[b] && serial_[j] > serial_[b])))
         continue;
     }
     best = j, best_mean = mean;

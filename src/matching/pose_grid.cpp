@@ -18,8 +18,7 @@ void PoseGridConfig::validate() const {
   if (!(cell_size > 0.0) || !std::isfinite(cell_size)) fail("cell_size must be a positive number of metres");
   if (theta_bins < 1 || theta_bins > 255) fail("theta_bins must lie in 1..255, got " + std::to_string(theta_bins));
   if (xy_tolerance < 0 || xy_tolerance > 8) fail("xy_tolerance must lie in 0..8 cells");
-  if (theta_tolerance < 0 || theta_tolerance > 8)
-    fail("theta_tolerance must lie in 0..8 bins");
+  if (theta_tolerance < 0 || theta_tolerance > 8) fail("theta_tolerance must lie in 0..8 bins");
   if (!(max_load_factor > 0.05 && max_load_factor <= 0.9))
     fail("max_load_factor must lie in (0.05, 0.9] for linear probing");
   if (initial_capacity < 2) fail("initial_capacity must be at least 2");
@@ -146,8 +145,7 @@ CellFlags PoseGridHashMap::probe(std::uint32_t submap, double x, double y, doubl
   for (int dx = -t; dx <= t; ++dx)
     for (int dy = -t; dy <= t; ++dy) {
       const std::uint64_t xy = pack_xy(submap, c.ix + dx, c.iy + dy);
-      for (int r = 0; r < w.runs; ++r)
-        out |= table.lookup_run(xy, table.home(xy, w.first[r]), w.first[r], w.count[r]);
+      for (int r = 0; r < w.runs; ++r) out |= table.lookup_run(xy, table.home(xy, w.first[r]), w.first[r], w.count[r]);
     }
   return out;
 }

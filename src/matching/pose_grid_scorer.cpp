@@ -115,7 +115,7 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
     lookup_free_space(
         x, v, scores, [](std::size_t) { return true; },
         [through_wall, through_free, through_contested](CellFlags f) {
-          return (f & kWallBits) == cell_flags::kReturn  ? through_wall
+          return (f & kWallBits) == cell_flags::kReturn ? through_wall
                  : (f & kFreeBits) == cell_flags::kFree ? through_free
                  : (f & kWallBits) == kWallBits         ? through_contested
                                                         : 0.0f;
@@ -128,9 +128,9 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
   lookup_free_space(
       x, v, scores, [scores, hit](std::size_t j) { return scores[j] != hit; },
       [free, unknown, on_return](CellFlags f) {
-        return (f & kFreeBits) == cell_flags::kFree              ? free
+        return (f & kFreeBits) == cell_flags::kFree           ? free
                : (f & kBareReturnBits) == cell_flags::kReturn ? on_return
-                                                               : unknown;
+                                                              : unknown;
       });
 }
 
@@ -243,7 +243,8 @@ void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v
         if (theta_window) {
           const PoseGridHashMap::ThetaRuns w = grid_.theta_runs(it[j]);
           for (int r = 0; r < w.runs; ++r)
-            f |= table.lookup_run(xy[j], (home[j] + static_cast<std::size_t>(w.first[r])) & mask, w.first[r], w.count[r]);
+            f |= table.lookup_run(xy[j], (home[j] + static_cast<std::size_t>(w.first[r])) & mask, w.first[r],
+                                  w.count[r]);
         } else {
           f = table.lookup_run(xy[j], home[j], it[j], 1);
         }

@@ -17,7 +17,9 @@ namespace {
 
 using Rng = std::mt19937_64;
 
-double uniform(Rng& rng, double lo, double hi) { return lo < hi ? std::uniform_real_distribution<double>(lo, hi)(rng) : lo; }
+double uniform(Rng& rng, double lo, double hi) {
+  return lo < hi ? std::uniform_real_distribution<double>(lo, hi)(rng) : lo;
+}
 int uniform_int(Rng& rng, int lo, int hi) { return lo < hi ? std::uniform_int_distribution<int>(lo, hi)(rng) : lo; }
 bool chance(Rng& rng, double p) { return std::uniform_real_distribution<double>(0.0, 1.0)(rng) < p; }
 int poisson(Rng& rng, double mean) { return mean > 0.0 ? std::poisson_distribution<int>(mean)(rng) : 0; }
@@ -169,9 +171,15 @@ class PlanBuilder {
       const bool at_start = chance(rng_, 0.5);
       CellRect end_strip = all;
       if (vertical) {
-        if (at_start) end_strip.j1 = depth, body.j0 = depth; else end_strip.j0 = ny_ - depth, body.j1 = ny_ - depth;
+        if (at_start)
+          end_strip.j1 = depth, body.j0 = depth;
+        else
+          end_strip.j0 = ny_ - depth, body.j1 = ny_ - depth;
       } else {
-        if (at_start) end_strip.i1 = depth, body.i0 = depth; else end_strip.i0 = nx_ - depth, body.i1 = nx_ - depth;
+        if (at_start)
+          end_strip.i1 = depth, body.i0 = depth;
+        else
+          end_strip.i0 = nx_ - depth, body.i1 = nx_ - depth;
       }
       // The end strip is a row of rooms across the building.
       Sides s{};
@@ -185,9 +193,15 @@ class PlanBuilder {
       const int cut = static_cast<int>(uniform(rng_, 0.3, 0.55) * length);
       const bool cut_start = chance(rng_, 0.5);
       if (vertical) {
-        if (cut_start) wing.j0 += cut; else wing.j1 -= cut;
+        if (cut_start)
+          wing.j0 += cut;
+        else
+          wing.j1 -= cut;
       } else {
-        if (cut_start) wing.i0 += cut; else wing.i1 -= cut;
+        if (cut_start)
+          wing.i0 += cut;
+        else
+          wing.i1 -= cut;
       }
     }
     Sides sa{}, sb{};
@@ -243,7 +257,10 @@ class PlanBuilder {
     const int extent = split_x ? block.w() : block.h();
     const int at = uniform_int(rng_, cells(c_.room_min), extent - cells(c_.room_min));
     CellRect a = block, b = block;
-    if (split_x) a.i1 = b.i0 = block.i0 + at; else a.j1 = b.j0 = block.j0 + at;
+    if (split_x)
+      a.i1 = b.i0 = block.i0 + at;
+    else
+      a.j1 = b.j0 = block.j0 + at;
     Sides sa = sides, sb = sides;
     sa[split_x ? kRight : kTop] = false;
     sb[split_x ? kLeft : kBottom] = false;
@@ -316,8 +333,10 @@ class PlanBuilder {
     const int width = uniform_int(rng_, cells(c_.door_min_width), max_width);
     const int start = uniform_int(rng_, best->start + margin, best->end - margin - width);
     for (int k = start; k < start + width; ++k) {
-      if (best->vertical) door_v_[static_cast<std::size_t>(best->line) * ny_ + k] = 1;
-      else door_h_[static_cast<std::size_t>(best->line) * nx_ + k] = 1;
+      if (best->vertical)
+        door_v_[static_cast<std::size_t>(best->line) * ny_ + k] = 1;
+      else
+        door_h_[static_cast<std::size_t>(best->line) * nx_ + k] = 1;
     }
     const double along = metres(start) + metres(width) / 2.0;
     const Point2 centre = best->vertical ? Point2(metres(best->line), along) : Point2(along, metres(best->line));
@@ -410,7 +429,8 @@ class PlanBuilder {
         if (niche.i0 < 0 || niche.j0 < 0 || niche.i1 > nx_ || niche.j1 > ny_) continue;
         // All of it must come out of one room (not a hall, not the outside).
         const int room = label(niche.i0, niche.j0);
-        if (room <= kCorridorLabel || plan_.regions[static_cast<std::size_t>(room - 1)].kind != RegionKind::kRoom) continue;
+        if (room <= kCorridorLabel || plan_.regions[static_cast<std::size_t>(room - 1)].kind != RegionKind::kRoom)
+          continue;
         bool one_room = true;
         for (int j = niche.j0; j < niche.j1 && one_room; ++j)
           for (int i = niche.i0; i < niche.i1 && one_room; ++i) one_room = label(i, j) == room;
@@ -538,12 +558,14 @@ class PlanBuilder {
     if (along_x) {
       const int j = low_side ? cells(f.y0) - 1 : cells(f.y1);
       for (int i = cells(f.x0) - spare; i < cells(f.x1) + spare; ++i)
-        if (label_or_outside(i, j) == kCorridorLabel || label_or_outside(i, cells(f.y0 + f.height() / 2)) != kCorridorLabel)
+        if (label_or_outside(i, j) == kCorridorLabel ||
+            label_or_outside(i, cells(f.y0 + f.height() / 2)) != kCorridorLabel)
           return false;
     } else {
       const int i = low_side ? cells(f.x0) - 1 : cells(f.x1);
       for (int j = cells(f.y0) - spare; j < cells(f.y1) + spare; ++j)
-        if (label_or_outside(i, j) == kCorridorLabel || label_or_outside(cells(f.x0 + f.width() / 2), j) != kCorridorLabel)
+        if (label_or_outside(i, j) == kCorridorLabel ||
+            label_or_outside(cells(f.x0 + f.width() / 2), j) != kCorridorLabel)
           return false;
     }
     return true;
@@ -571,10 +593,12 @@ class PlanBuilder {
     }
     for (const auto& poly : obstacles_) {
       double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
-      for (const auto& p : poly) x0 = std::min(x0, p.x()), y0 = std::min(y0, p.y()), x1 = std::max(x1, p.x()), y1 = std::max(y1, p.y());
+      for (const auto& p : poly)
+        x0 = std::min(x0, p.x()), y0 = std::min(y0, p.y()), x1 = std::max(x1, p.x()), y1 = std::max(y1, p.y());
       for (int j = std::max(0, static_cast<int>(y0 / cell)); j < std::min(ny_, static_cast<int>(y1 / cell) + 1); ++j)
         for (int i = std::max(0, static_cast<int>(x0 / cell)); i < std::min(nx_, static_cast<int>(x1 / cell) + 1); ++i)
-          if (inside_convex(poly, {(i + 0.5) * cell, (j + 0.5) * cell})) blocked[static_cast<std::size_t>(j) * nx_ + i] = 1;
+          if (inside_convex(poly, {(i + 0.5) * cell, (j + 0.5) * cell}))
+            blocked[static_cast<std::size_t>(j) * nx_ + i] = 1;
     }
     std::vector<double> dist2(label_.size());
     for (std::size_t k = 0; k < blocked.size(); ++k) dist2[k] = blocked[k] ? 0.0 : kFar;
@@ -587,7 +611,8 @@ class PlanBuilder {
       for (int j = 0; j < ny_; ++j) dist2[static_cast<std::size_t>(j) * nx_ + i] = d[j];
     }
     for (int j = 0; j < ny_; ++j) {  // rows
-      f.assign(dist2.begin() + static_cast<std::ptrdiff_t>(j) * nx_, dist2.begin() + static_cast<std::ptrdiff_t>(j + 1) * nx_);
+      f.assign(dist2.begin() + static_cast<std::ptrdiff_t>(j) * nx_,
+               dist2.begin() + static_cast<std::ptrdiff_t>(j + 1) * nx_);
       distance_transform_1d(f, d, v, z);
       std::copy(d.begin(), d.end(), dist2.begin() + static_cast<std::ptrdiff_t>(j) * nx_);
     }
@@ -615,7 +640,8 @@ class PlanBuilder {
         const int count = std::max(1, static_cast<int>(length / 6.0));
         for (int k = 0; k < count; ++k) {
           const double t = (k + 0.5) / count;
-          const Point2 p = along_x ? Point2(b.x0 + t * b.width(), b.centre().y()) : Point2(b.centre().x(), b.y0 + t * b.height());
+          const Point2 p =
+              along_x ? Point2(b.x0 + t * b.width(), b.centre().y()) : Point2(b.centre().x(), b.y0 + t * b.height());
           if (g.at(p) >= kMinClearance) plan_.waypoints.push_back(p);
         }
         continue;
@@ -634,7 +660,7 @@ class PlanBuilder {
   Rng rng_;
   int nx_ = 0, ny_ = 0;
   int halls_ = 0;
-  std::vector<int> label_;  ///< kOutside, kCorridorLabel or 1 + region index
+  std::vector<int> label_;                     ///< kOutside, kCorridorLabel or 1 + region index
   std::vector<std::uint8_t> door_h_, door_v_;  ///< door edges on horizontal / vertical grid lines
   std::vector<std::pair<int, int>> door_pairs_;
   std::vector<Polygon> obstacles_;  ///< pillars and furniture, filled in the clearance grid
@@ -649,13 +675,15 @@ void validate(const FloorPlanConfig& c) {
   require(c.layout_cell > 0.0 && c.layout_cell <= 0.5, "layout_cell must be in (0, 0.5] m");
   require(c.room_min >= 1.5 && c.room_max >= 2.0 * c.room_min,
           "room_min must be >= 1.5 m and room_max >= 2 * room_min (rooms are split in two)");
-  require(c.min_size >= 2.0 * c.room_min + c.corridor_max_width + 2.0 && c.max_size >= c.min_size && c.max_size <= 500.0,
-          "need 2 * room_min + corridor_max_width + 2 <= min_size <= max_size <= 500 m");
+  require(
+      c.min_size >= 2.0 * c.room_min + c.corridor_max_width + 2.0 && c.max_size >= c.min_size && c.max_size <= 500.0,
+      "need 2 * room_min + corridor_max_width + 2 <= min_size <= max_size <= 500 m");
   require(c.corridor_min_width >= 1.2 && c.corridor_max_width >= c.corridor_min_width,
           "need 1.2 m <= corridor_min_width <= corridor_max_width");
   require(c.corridor_split_min >= 2.0 * c.room_min + c.corridor_max_width,
           "corridor_split_min must leave room for rooms on both sides of a corridor");
-  require(c.door_min_width >= 0.7 && c.door_max_width >= c.door_min_width, "need 0.7 m <= door_min_width <= door_max_width");
+  require(c.door_min_width >= 0.7 && c.door_max_width >= c.door_min_width,
+          "need 0.7 m <= door_min_width <= door_max_width");
   require(c.max_halls >= 0, "max_halls must not be negative");
   require(c.pillar_spacing_min >= 1.5 && c.pillar_spacing_max >= c.pillar_spacing_min,
           "need 1.5 m <= pillar_spacing_min <= pillar_spacing_max");

@@ -72,8 +72,10 @@ RayCaster::RayCaster(std::span<const Segment> segments, const RayCasterConfig& c
           const double bx = x0_ + i * cell_, by = y0_ + j * cell_;
           if (!segment_touches_box(s.a, s.b, bx, by, bx + cell_, by + cell_)) continue;
           const std::size_t c = static_cast<std::size_t>(j) * nx_ + i;
-          if (pass == 0) ++cell_start_[c + 1];
-          else cell_items_[fill[c]++] = static_cast<std::uint32_t>(k);
+          if (pass == 0)
+            ++cell_start_[c + 1];
+          else
+            cell_items_[fill[c]++] = static_cast<std::uint32_t>(k);
         }
       }
     }

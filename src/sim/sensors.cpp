@@ -9,8 +9,10 @@ namespace lshloc::sim {
 
 void set_beam_layout(const LaserConfig& config, LaserScan& scan) {
   if (config.beams < 2 || config.beams > 100000) throw Error("laser config: beams must be in [2, 100000]");
-  if (!(config.fov > 0.0) || config.fov > 2.0 * std::numbers::pi) throw Error("laser config: fov must be in (0, 2 pi] rad");
-  if (!(config.max_range > 0.0) || !std::isfinite(config.max_range)) throw Error("laser config: max_range must be positive [m]");
+  if (!(config.fov > 0.0) || config.fov > 2.0 * std::numbers::pi)
+    throw Error("laser config: fov must be in (0, 2 pi] rad");
+  if (!(config.max_range > 0.0) || !std::isfinite(config.max_range))
+    throw Error("laser config: max_range must be positive [m]");
   if (config.range_noise < 0.0 || config.dropout_probability < 0.0 || config.dropout_probability > 1.0) {
     throw Error("laser config: range_noise must be >= 0 and dropout_probability in [0, 1]");
   }

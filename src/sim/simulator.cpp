@@ -51,7 +51,8 @@ BuildingRecording simulate_recording(const SyntheticBuilding& building, const Si
   if (!std::isfinite(config.start_time)) throw Error("simulation config: start_time must be finite");
   const auto t_start = Clock::now();
   SimulationStats st;
-  const Trajectory tour = drive_tour(building.plan, config.trajectory, config.scans, derive_seed(config.seed, kTourStream));
+  const Trajectory tour =
+      drive_tour(building.plan, config.trajectory, config.scans, derive_seed(config.seed, kTourStream));
   st.seconds_trajectory = seconds_since(t_start);
   st.path_length = tour.length, st.rotation = tour.rotation, st.goals_reached = tour.goals_reached;
   const std::vector<Pose2> odometry =

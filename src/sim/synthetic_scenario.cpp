@@ -49,8 +49,8 @@ SplitBuilding synthetic_split_building(const SyntheticScenarioConfig& config, st
 
 Scenario synthetic_scenario(const SyntheticScenarioConfig& config) {
   if (config.buildings == 0 || config.target_building >= config.buildings) {
-    throw Error("synthetic scenario: target building " + std::to_string(config.target_building) +
-                " is not among the " + std::to_string(config.buildings) + " buildings");
+    throw Error("synthetic scenario: target building " + std::to_string(config.target_building) + " is not among the " +
+                std::to_string(config.buildings) + " buildings");
   }
   if (config.target_scans == 0) throw Error("synthetic scenario: the target needs at least one scan");
   Scenario sc;

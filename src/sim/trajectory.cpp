@@ -19,9 +19,11 @@ namespace {
 class PathPlanner {
  public:
   PathPlanner(const ClearanceGrid& grid, const TrajectoryConfig& config)
-      : grid_(grid), config_(config),
+      : grid_(grid),
+        config_(config),
         cost_(static_cast<std::size_t>(grid.nx) * grid.ny, std::numeric_limits<double>::infinity()),
-        parent_(cost_.size(), -1), closed_(cost_.size(), 0) {}
+        parent_(cost_.size(), -1),
+        closed_(cost_.size(), 0) {}
 
   /// Appends the straightened path from `from` to `to` (without `from`) to
   /// `route`; false when no path exists.
@@ -43,7 +45,8 @@ class PathPlanner {
 
  private:
   int index_of(const Point2& p) const {
-    const int i = static_cast<int>(std::floor(p.x() / grid_.cell)), j = static_cast<int>(std::floor(p.y() / grid_.cell));
+    const int i = static_cast<int>(std::floor(p.x() / grid_.cell)),
+              j = static_cast<int>(std::floor(p.y() / grid_.cell));
     return grid_.inside(i, j) ? j * grid_.nx + i : -1;
   }
   Point2 centre(int c) const { return {(c % grid_.nx + 0.5) * grid_.cell, (c / grid_.nx + 0.5) * grid_.cell}; }
@@ -106,7 +109,8 @@ class PathPlanner {
     return true;
   }
 
-  void straighten(const std::vector<Point2>& points, const std::vector<double>& clearance, std::vector<Point2>& route) const {
+  void straighten(const std::vector<Point2>& points, const std::vector<double>& clearance,
+                  std::vector<Point2>& route) const {
     const std::size_t n = points.size();
     std::size_t anchor = 0;
     while (anchor + 1 < n) {
@@ -145,7 +149,8 @@ class Route {
   Point2 at(double s) const {
     if (s <= 0.0) return points_.front();
     if (s >= length()) return points_.back();
-    const auto k = static_cast<std::size_t>(std::upper_bound(arc_.begin(), arc_.end(), s) - arc_.begin());  // arc_[k-1] <= s < arc_[k]
+    const auto k = static_cast<std::size_t>(std::upper_bound(arc_.begin(), arc_.end(), s) -
+                                            arc_.begin());  // arc_[k-1] <= s < arc_[k]
     const double span = arc_[k] - arc_[k - 1];
     const double t = span > 0.0 ? (s - arc_[k - 1]) / span : 0.0;
     return points_[k - 1] + t * (points_[k] - points_[k - 1]);
@@ -203,7 +208,9 @@ Trajectory drive_tour(const FloorPlan& plan, const TrajectoryConfig& config, std
       const Point2 here = goals[current];
       const std::size_t choices = std::min(config.goal_choices, open.size());
       std::partial_sort(open.begin(), open.begin() + static_cast<std::ptrdiff_t>(choices), open.end(),
-                        [&](std::size_t a, std::size_t b) { return (goals[a] - here).squaredNorm() < (goals[b] - here).squaredNorm(); });
+                        [&](std::size_t a, std::size_t b) {
+                          return (goals[a] - here).squaredNorm() < (goals[b] - here).squaredNorm();
+                        });
       const std::size_t next = open[std::uniform_int_distribution<std::size_t>(0, choices - 1)(rng)];
       visited[next] = true;
       std::vector<Point2> leg;

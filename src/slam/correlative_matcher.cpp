@@ -74,7 +74,8 @@ void CorrelativeMatcher::build_grids(std::span<const Point2> reference) {
     for (std::int32_t cx = 0; cx < cw; ++cx) {
       float m = 0.0f;
       for (std::int32_t v = std::max(0, sy); v < std::min(h_, sy + config_.block); ++v) {
-        m = std::max(m, scratch_[static_cast<std::size_t>(v) * static_cast<std::size_t>(cw) + static_cast<std::size_t>(cx)]);
+        m = std::max(
+            m, scratch_[static_cast<std::size_t>(v) * static_cast<std::size_t>(cw) + static_cast<std::size_t>(cx)]);
       }
       coarse_[static_cast<std::size_t>(sy + b) * static_cast<std::size_t>(cw) + static_cast<std::size_t>(cx)] = m;
     }
@@ -125,9 +126,11 @@ CorrelativeMatch CorrelativeMatcher::match(std::span<const Point2> reference, st
       for (std::int32_t dx0 = -reach; dx0 <= reach; dx0 += kLanes * B) {
         std::array<double, kLanes> sum{};
         for (std::size_t k = 0; k < n; ++k) {
-          for (std::int32_t g = 0; g < kLanes; ++g) sum[g] += coarse_at(base_x[row + k] + dx0 + g * B, base_y[row + k] + dy);
+          for (std::int32_t g = 0; g < kLanes; ++g)
+            sum[g] += coarse_at(base_x[row + k] + dx0 + g * B, base_y[row + k] + dy);
         }
-        for (std::int32_t g = 0; g < kLanes && dx0 + g * B <= reach; ++g) blocks.push_back({sum[g] * inv_n, h, dx0 + g * B, dy});
+        for (std::int32_t g = 0; g < kLanes && dx0 + g * B <= reach; ++g)
+          blocks.push_back({sum[g] * inv_n, h, dx0 + g * B, dy});
       }
     }
   }
@@ -145,7 +148,8 @@ CorrelativeMatch CorrelativeMatcher::match(std::span<const Point2> reference, st
         for (std::int32_t dx0 = blk.dx; dx0 < dx_end; dx0 += kLanes) {
           std::array<double, kLanes> sum{};
           for (std::size_t k = 0; k < n; ++k) {
-            for (std::int32_t g = 0; g < kLanes; ++g) sum[g] += fine_at(base_x[row + k] + dx0 + g, base_y[row + k] + dy);
+            for (std::int32_t g = 0; g < kLanes; ++g)
+              sum[g] += fine_at(base_x[row + k] + dx0 + g, base_y[row + k] + dy);
           }
           for (std::int32_t g = 0; g < kLanes && dx0 + g < dx_end; ++g) {
             const std::int32_t dx = dx0 + g;

@@ -69,10 +69,11 @@ ScanMatchResult PoseGraphSlam::add_scan(const LaserScan& scan) {
       const Pose2 motion = prev.local.between(r.laser_pose);
       const std::uint32_t id = graph_.add_node(graph_.pose(p) * motion);
       const double d = std::hypot(motion.x, motion.y);
-      graph_.add_edge({p, id, motion,
-                       diagonal_information(config_.edge_sigma_xy + config_.edge_sigma_xy_per_m * d,
-                                   (config_.edge_sigma_theta_deg + config_.edge_sigma_theta_per_m_deg * d) * kDeg),
-                       false});
+      graph_.add_edge(
+          {p, id, motion,
+           diagonal_information(config_.edge_sigma_xy + config_.edge_sigma_xy_per_m * d,
+                                (config_.edge_sigma_theta_deg + config_.edge_sigma_theta_per_m_deg * d) * kDeg),
+           false});
     }
     nodes_.push_back(std::move(node));
     stats_.nodes = nodes_.size();
@@ -101,7 +102,8 @@ void PoseGraphSlam::try_loop_closure(std::uint32_t i) {
   const auto j = static_cast<std::uint32_t>(best);
   // Reference: the candidate and its neighbours, in the candidate's frame.
   std::vector<Point2> reference;
-  const std::uint32_t lo = j >= config_.loop_context_nodes ? j - static_cast<std::uint32_t>(config_.loop_context_nodes) : 0;
+  const std::uint32_t lo =
+      j >= config_.loop_context_nodes ? j - static_cast<std::uint32_t>(config_.loop_context_nodes) : 0;
   const std::uint32_t hi = std::min<std::uint32_t>(i - 1, j + static_cast<std::uint32_t>(config_.loop_context_nodes));
   const Pose2& xj = graph_.pose(j);
   for (std::uint32_t k = lo; k <= hi; ++k) {
@@ -125,7 +127,8 @@ void PoseGraphSlam::try_loop_closure(std::uint32_t i) {
     ++stats_.loop_ambiguous;
     return;
   }
-  graph_.add_edge({j, i, m.pose, diagonal_information(config_.loop_sigma_xy, config_.loop_sigma_theta_deg * kDeg), true});
+  graph_.add_edge(
+      {j, i, m.pose, diagonal_information(config_.loop_sigma_xy, config_.loop_sigma_theta_deg * kDeg), true});
   ++stats_.loop_closures;
   last_closure_path_ = node.path;
   pending_optimization_ = true;

@@ -304,7 +304,8 @@ Pose2 ScanMatcher::align(const Pose2& guess, const Pose2& laser_step, ScanMatchR
     const double dtheta = delta(2) / L;
     // New pose: rotate by dtheta about c, then shift by (dx, dy).
     const double dc = std::cos(dtheta), ds = std::sin(dtheta);
-    const Pose2 step(c.x() + delta(0) - (dc * c.x() - ds * c.y()), c.y() + delta(1) - (ds * c.x() + dc * c.y()), dtheta);
+    const Pose2 step(c.x() + delta(0) - (dc * c.x() - ds * c.y()), c.y() + delta(1) - (ds * c.x() + dc * c.y()),
+                     dtheta);
     pose = step * pose;
     if (!coarse && std::hypot(delta(0), delta(1)) < config_.converged_translation &&
         std::abs(dtheta) < config_.converged_rotation) {
@@ -331,7 +332,8 @@ bool ScanMatcher::match(const Pose2& guess, const Pose2& laser_step, ScanMatchRe
 
 ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
   if (!finite_pose(scan.odometry)) {
-    throw Error("ScanMatcher::add_scan: scan at t=" + std::to_string(scan.timestamp) + " has a non-finite odometry pose");
+    throw Error("ScanMatcher::add_scan: scan at t=" + std::to_string(scan.timestamp) +
+                " has a non-finite odometry pose");
   }
   ScanMatchResult result;
   result.timestamp = scan.timestamp;
@@ -399,8 +401,7 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
   bool add = keyframes_.empty();
   if (!add) {
     const Pose2 since = keyframes_.back().laser_pose.between(result.laser_pose);
-    add = std::hypot(since.x, since.y) >= config_.keyframe_distance ||
-          std::abs(since.theta) >= config_.keyframe_angle;
+    add = std::hypot(since.x, since.y) >= config_.keyframe_distance || std::abs(since.theta) >= config_.keyframe_angle;
   }
   if (add) {
     add_keyframe(scan.timestamp, result.laser_pose, endpoints_, scan.angle_increment);

@@ -18,19 +18,19 @@ struct FeatureExtractorConfig {
   double max_range = 20.0;  ///< [m] usable range cap: farther returns are ignored
 
   // --- smooth segments of the scan
-  double segment_gap = 0.25;          ///< [m] consecutive endpoints farther apart start a new segment ...
+  double segment_gap = 0.25;            ///< [m] consecutive endpoints farther apart start a new segment ...
   double segment_gap_per_meter = 0.05;  ///< [m/m] ... plus this much per metre of range (beams spread)
   std::size_t min_segment_points = 5;   ///< segments with fewer endpoints are clutter and dropped
-  double tangent_half_window = 0.15;  ///< [m] arc length each side used for a point's tangent
+  double tangent_half_window = 0.15;    ///< [m] arc length each side used for a point's tangent
 
   // --- keypoints: fixed arc-length spacing along smooth segments (DESIGN.md section 8:
   // they repeat better from another viewpoint than corner points)
-  std::size_t max_keypoints = 10;  ///< |U_new|: at most this many keypoints per scan
-  double keypoint_spacing = 0.7;   ///< [m] arc length between keypoints along a segment
-  double keypoint_max_range = 10.0;  ///< [m] keypoints only where the sensor saw the wall this close
-  double normal_half_window = 0.4;   ///< [m] arc length each side fitted by the keypoint's normal
+  std::size_t max_keypoints = 10;     ///< |U_new|: at most this many keypoints per scan
+  double keypoint_spacing = 0.7;      ///< [m] arc length between keypoints along a segment
+  double keypoint_max_range = 10.0;   ///< [m] keypoints only where the sensor saw the wall this close
+  double normal_half_window = 0.4;    ///< [m] arc length each side fitted by the keypoint's normal
   double max_normal_residual = 0.02;  ///< [m] RMS off-line distance above which a spot is not smooth
-  double edge_margin = 0.2;  ///< [m] keypoints keep this arc length from a segment's ends
+  double edge_margin = 0.2;           ///< [m] keypoints keep this arc length from a segment's ends
 
   // --- descriptor: rings x sectors bins x components must make 120 (kDescriptorSize).
   // Bin (ring, sector) holds its components at index components * (ring * sectors + sector).
@@ -41,7 +41,7 @@ struct FeatureExtractorConfig {
   /// holding walls of crossed directions is then not mistaken for an empty
   /// one), e.g. 4 rings x 10 sectors x 3.
   bool occupancy_component = true;
-  double descriptor_radius = 2.0;      ///< [m] outer radius (2 m beat 4 m, DESIGN.md section 8)
+  double descriptor_radius = 2.0;         ///< [m] outer radius (2 m beat 4 m, DESIGN.md section 8)
   double descriptor_inner_radius = 0.35;  ///< [m] outer edge of the innermost radial bin; log spacing beyond
   /// Points fade out linearly over this outer share of the radius, so that a
   /// wall just at the rim does not flip in or out with a small shift.
@@ -59,7 +59,6 @@ struct FeatureExtractorConfig {
   /// Throws lshloc::Error naming the first field out of range.
   void validate() const;
 };
-
 
 /// A scan endpoint with the local surface direction there, in a map frame.
 struct SurfacePoint {
@@ -79,10 +78,10 @@ struct SurfacePoint {
 /// annotated with tangents: the extractor's input, and the form in which a
 /// caller keeps recent scans as descriptor context.
 struct ScanSurface {
-  Pose2 sensor_pose;  ///< laser pose in the map frame
-  std::vector<SurfacePoint> points;  ///< segment after segment, each in beam order
+  Pose2 sensor_pose;                       ///< laser pose in the map frame
+  std::vector<SurfacePoint> points;        ///< segment after segment, each in beam order
   std::vector<std::size_t> segment_begin;  ///< index of each segment's first point; ends at the next (or size())
-  std::vector<double> range;  ///< [m] range of each point from the sensor
+  std::vector<double> range;               ///< [m] range of each point from the sensor
 };
 
 /// `surface` moved by the rigid motion `T_new_old` (points, tangents and the

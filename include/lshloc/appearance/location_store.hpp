@@ -23,8 +23,8 @@ class LocationStore {
     return static_cast<std::uint32_t>(locations_.size() - 1);
   }
   std::uint32_t append(std::uint32_t submap, const Pose2& pose) {
-    return append(MapLocation{submap, static_cast<float>(pose.x), static_cast<float>(pose.y),
-                              static_cast<float>(pose.theta)});
+    return append(
+        MapLocation{submap, static_cast<float>(pose.x), static_cast<float>(pose.y), static_cast<float>(pose.theta)});
   }
 
   /// The location of `id`; throws lshloc::Error for an unknown id.

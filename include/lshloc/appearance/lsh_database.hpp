@@ -47,9 +47,9 @@ struct LshConfig {
 
 /// Sizes and work counters of the database.
 struct LshStats {
-  std::size_t entries = 0;    ///< inserted descriptors
-  std::size_t buckets = 0;    ///< non-empty buckets over all tables
-  std::size_t bytes = 0;      ///< heap bytes held (tables, bucket lists, projections)
+  std::size_t entries = 0;  ///< inserted descriptors
+  std::size_t buckets = 0;  ///< non-empty buckets over all tables
+  std::size_t bytes = 0;    ///< heap bytes held (tables, bucket lists, projections)
   /// Query counters of the database's own scratch (queries made with a
   /// caller's LshQuery are counted in that LshQuery).
   std::size_t queries = 0;
@@ -75,17 +75,17 @@ class LshQuery {
  private:
   friend class LshDatabase;
   Eigen::VectorXf projections_;
-  std::vector<std::uint32_t> tags_;                 ///< per table
+  std::vector<std::uint32_t> tags_;                              ///< per table
   std::vector<std::pair<std::uint32_t, std::uint32_t>> blocks_;  ///< per table: (table, slot index) hit
-  std::vector<std::uint32_t> slot_id_;     ///< counting hash: id per slot
-  std::vector<std::uint16_t> slot_count_;  ///< collisions per slot
-  std::vector<std::uint32_t> slot_stamp_;  ///< slot valid when equal to stamp_
-  std::vector<std::uint32_t> found_;       ///< slots in first-seen order
-  std::vector<std::uint32_t> ranked_;      ///< slots by collision count
-  std::vector<std::uint32_t> histogram_;   ///< ids per collision count, then rank offsets
-  std::vector<std::uint64_t> sketch_;            ///< the query's sign sketch
-  std::vector<std::uint32_t> hamming_;           ///< per ranked candidate
-  std::vector<std::uint32_t> sketch_histogram_;  ///< counting sort by Hamming distance
+  std::vector<std::uint32_t> slot_id_;                           ///< counting hash: id per slot
+  std::vector<std::uint16_t> slot_count_;                        ///< collisions per slot
+  std::vector<std::uint32_t> slot_stamp_;                        ///< slot valid when equal to stamp_
+  std::vector<std::uint32_t> found_;                             ///< slots in first-seen order
+  std::vector<std::uint32_t> ranked_;                            ///< slots by collision count
+  std::vector<std::uint32_t> histogram_;                         ///< ids per collision count, then rank offsets
+  std::vector<std::uint64_t> sketch_;                            ///< the query's sign sketch
+  std::vector<std::uint32_t> hamming_;                           ///< per ranked candidate
+  std::vector<std::uint32_t> sketch_histogram_;                  ///< counting sort by Hamming distance
   std::vector<std::uint32_t> reranked_;
   std::uint32_t stamp_ = 0;
   std::uint32_t mask_ = 0;
@@ -152,16 +152,16 @@ class LshDatabase {
   friend class LshQuery;
   static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
   struct Slot {
-    std::uint32_t tag = 0;       ///< 32-bit hash of the K-tuple
-    std::uint32_t offset = 0;    ///< first id of the bucket's block in the table's pool
-    std::uint32_t inserted = 0;  ///< ids ever pushed (0: empty slot); kept in [cap, 2 cap) once full
+    std::uint32_t tag = 0;         ///< 32-bit hash of the K-tuple
+    std::uint32_t offset = 0;      ///< first id of the bucket's block in the table's pool
+    std::uint32_t inserted = 0;    ///< ids ever pushed (0: empty slot); kept in [cap, 2 cap) once full
     std::uint32_t size_class = 0;  ///< the block holds 2^size_class ids
   };
   struct Table {
-    std::vector<Slot> slots;  ///< open addressing, linear probing, power-of-two size
-    std::vector<std::uint32_t> pool;  ///< the buckets' id blocks
+    std::vector<Slot> slots;                              ///< open addressing, linear probing, power-of-two size
+    std::vector<std::uint32_t> pool;                      ///< the buckets' id blocks
     std::vector<std::vector<std::uint32_t>> free_blocks;  ///< per size class: offsets of released blocks
-    std::size_t used = 0;     ///< non-empty slots
+    std::size_t used = 0;                                 ///< non-empty slots
     int bits = 0;
   };
 
@@ -188,9 +188,10 @@ class LshDatabase {
   std::uint32_t capacity_class_ = 0;
   std::uint64_t rng_state_ = 0;  ///< reservoir sampling
   std::size_t sketch_words_ = 0;
-  std::size_t sketch_ids_ = 0;  ///< ids 0..sketch_ids_-1 have a sketch slot
+  std::size_t sketch_ids_ = 0;           ///< ids 0..sketch_ids_-1 have a sketch slot
   std::vector<std::uint64_t> sketches_;  ///< sketch_words_ per id
-  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> sketch_a_;  ///< bucket capacity = 2^capacity_class_
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>
+      sketch_a_;  ///< bucket capacity = 2^capacity_class_
   Eigen::VectorXf insert_projections_;
   std::vector<std::uint32_t> insert_tags_;
   std::vector<std::size_t> insert_slots_;

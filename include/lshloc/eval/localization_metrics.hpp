@@ -9,11 +9,11 @@ namespace lshloc {
 
 /// What the localizer said about one target scan.
 struct ScanEstimate {
-  bool has_estimate = false;   ///< false before any hypothesis qualifies
-  std::uint32_t submap = 0;    ///< the submap it places the robot in
-  Pose2 pose;                  ///< the scan's pose in that submap
-  bool confident = false;      ///< the localizer's "localized" state
-  double score = 0.0;          ///< C/N of the best hypothesis
+  bool has_estimate = false;  ///< false before any hypothesis qualifies
+  std::uint32_t submap = 0;   ///< the submap it places the robot in
+  Pose2 pose;                 ///< the scan's pose in that submap
+  bool confident = false;     ///< the localizer's "localized" state
+  double score = 0.0;         ///< C/N of the best hypothesis
 };
 
 struct LocalizationMetricsConfig {
@@ -27,23 +27,23 @@ struct LocalizationMetricsConfig {
 struct LocalizationMetrics {
   std::size_t scans = 0;
   std::size_t truth_scans = 0;
-  std::optional<double> final_error_m;              ///< at the last truth scan; nullopt if wrong submap / none
+  std::optional<double> final_error_m;  ///< at the last truth scan; nullopt if wrong submap / none
   std::optional<double> final_heading_error_deg;
-  std::optional<std::size_t> localized_at;          ///< first index after which every truth scan is correct
-  std::optional<double> median_error_after_m;       ///< over truth scans from localized_at on
+  std::optional<std::size_t> localized_at;     ///< first index after which every truth scan is correct
+  std::optional<double> median_error_after_m;  ///< over truth scans from localized_at on
   /// Share of truth scans that are correct from the first correct one on (0 if
   /// none is): from localized_at on it is 1 by definition, so this measures how
   /// steady the estimate was once it first found the truth.
   double correct_fraction_after = 0.0;
-  std::optional<std::size_t> first_correct_at;      ///< first truth scan with error < success_error_m
-  bool success = false;                             ///< final_error_m < success_error_m
-  std::size_t confident_scans = 0;                  ///< truth scans with a confident estimate
-  std::size_t confident_wrong = 0;                  ///< ... whose submap is wrong or error > wrong_confident_m
-  std::vector<double> error_per_scan_m;             ///< +inf where wrong / none, NaN where no truth
+  std::optional<std::size_t> first_correct_at;  ///< first truth scan with error < success_error_m
+  bool success = false;                         ///< final_error_m < success_error_m
+  std::size_t confident_scans = 0;              ///< truth scans with a confident estimate
+  std::size_t confident_wrong = 0;              ///< ... whose submap is wrong or error > wrong_confident_m
+  std::vector<double> error_per_scan_m;         ///< +inf where wrong / none, NaN where no truth
 };
 
 LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estimates,
-                                          const std::vector<std::optional<Pose2>>& truth,
-                                          std::uint32_t true_submap, const LocalizationMetricsConfig& config = {});
+                                          const std::vector<std::optional<Pose2>>& truth, std::uint32_t true_submap,
+                                          const LocalizationMetricsConfig& config = {});
 
 }  // namespace lshloc

@@ -31,20 +31,20 @@ struct Submap {
 /// The target robot's run: raw scans with odometry, and ground truth where known.
 struct TargetRun {
   std::string building;
-  std::size_t start = 0;               ///< index of the first scan in the raw log
-  std::vector<LaserScan> scans;        ///< raw scans, in log order
+  std::size_t start = 0;                    ///< index of the first scan in the raw log
+  std::vector<LaserScan> scans;             ///< raw scans, in log order
   std::vector<std::optional<Pose2>> truth;  ///< ground-truth laser pose per scan, in the submap frame
   Pose2 laser_offset;
 };
 
 struct ScenarioConfig {
-  std::string building = "fr079";  ///< target building
-  std::size_t start = 2000;        ///< first raw scan of the target window
-  std::size_t length = 1000;       ///< raw scans in the target window
-  std::size_t submaps = 1;         ///< R: the target's building plus R-1 others
-  double guard_s = 60.0;           ///< [s] map scans this close to the window are left out
-  std::uint64_t seed = 0;          ///< 0: the fixed canonical order of other buildings; else a seeded shuffle
-  double truth_tolerance_s = 1e-3; ///< [s] time-stamp tolerance joining ground truth to raw scans
+  std::string building = "fr079";   ///< target building
+  std::size_t start = 2000;         ///< first raw scan of the target window
+  std::size_t length = 1000;        ///< raw scans in the target window
+  std::size_t submaps = 1;          ///< R: the target's building plus R-1 others
+  double guard_s = 60.0;            ///< [s] map scans this close to the window are left out
+  std::uint64_t seed = 0;           ///< 0: the fixed canonical order of other buildings; else a seeded shuffle
+  double truth_tolerance_s = 1e-3;  ///< [s] time-stamp tolerance joining ground truth to raw scans
 };
 
 struct Scenario {

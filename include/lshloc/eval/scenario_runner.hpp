@@ -22,11 +22,11 @@ struct ScenarioRunConfig {
 /// What one scenario run produced, scan by scan, with its costs.
 struct ScenarioRun {
   std::vector<LocalizationEstimate> estimates;  ///< per target scan
-  std::vector<double> cpu_s;       ///< [s] process CPU time spent on the target up to and including each scan
-  double map_build_s = 0.0;        ///< [s] wall time to feed every mapper scan
-  double localize_s = 0.0;         ///< [s] wall time of all target scans
-  double localize_cpu_s = 0.0;     ///< [s] process CPU time of all target scans
-  double log_duration_s = 0.0;     ///< [s] time the target's scans span in the log
+  std::vector<double> cpu_s;    ///< [s] process CPU time spent on the target up to and including each scan
+  double map_build_s = 0.0;     ///< [s] wall time to feed every mapper scan
+  double localize_s = 0.0;      ///< [s] wall time of all target scans
+  double localize_cpu_s = 0.0;  ///< [s] process CPU time of all target scans
+  double log_duration_s = 0.0;  ///< [s] time the target's scans span in the log
   GlobalMapStats map;
   LocalizerStats localizer;
   /// The newest surface data-points of iRANSAC placed by the final estimate,
@@ -76,6 +76,5 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
 /// The localizer's scan matcher takes the target's laser offset.
 ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress = {},
                          const LocalizerObserver& observer = {});
-
 
 }  // namespace lshloc

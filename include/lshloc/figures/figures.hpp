@@ -23,11 +23,11 @@ void plot_error_curves(const std::string& path, const std::string& title, const 
 /// Points, polylines and markers over a map (the paper's Figs. 5 and 6).
 struct MapFigure {
   std::string title;
-  std::vector<Point2> map_points;          ///< grey: the map (e.g. the target's submap)
-  std::vector<Point2> true_trajectory;     ///< green
+  std::vector<Point2> map_points;            ///< grey: the map (e.g. the target's submap)
+  std::vector<Point2> true_trajectory;       ///< green
   std::vector<Point2> estimated_trajectory;  ///< blue; estimates in a wrong submap are left out
-  std::vector<Point2> inlier_points;       ///< blue dots: local features that agree with the map
-  std::vector<Point2> outlier_points;      ///< red dots
+  std::vector<Point2> inlier_points;         ///< blue dots: local features that agree with the map
+  std::vector<Point2> outlier_points;        ///< red dots
 };
 
 void plot_map_figure(const std::string& path, const MapFigure& figure);

@@ -28,9 +28,9 @@ struct CarmenReaderConfig {
 struct CarmenRecord {
   enum class Type { kLaser, kOdometry, kParam };
   Type type = Type::kLaser;
-  std::string message;  ///< FLASER, ROBOTLASER1, ODOM or PARAM
-  LaserScan scan;       ///< when type == kLaser
-  OdometryReading odometry;  ///< when type == kOdometry
+  std::string message;                  ///< FLASER, ROBOTLASER1, ODOM or PARAM
+  LaserScan scan;                       ///< when type == kLaser
+  OdometryReading odometry;             ///< when type == kOdometry
   std::string param_name, param_value;  ///< when type == kParam
 };
 

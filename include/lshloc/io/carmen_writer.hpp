@@ -11,10 +11,10 @@
 namespace lshloc::io {
 
 struct CarmenWriterConfig {
-  int range_decimals = 3;       ///< digits after the point of ranges [m] (3: 1 mm)
-  int pose_decimals = 6;        ///< of x, y [m] and theta [rad]
-  int time_decimals = 6;        ///< of time stamps [s]
-  int compression_level = 3;    ///< gzip level for paths ending in .gz (1 fast .. 9 small)
+  int range_decimals = 3;           ///< digits after the point of ranges [m] (3: 1 mm)
+  int pose_decimals = 6;            ///< of x, y [m] and theta [rad]
+  int time_decimals = 6;            ///< of time stamps [s]
+  int compression_level = 3;        ///< gzip level for paths ending in .gz (1 fast .. 9 small)
   std::string hostname = "lshloc";  ///< the hostname field of each message
 };
 
@@ -55,8 +55,8 @@ class CarmenWriter {
 
   std::string path_;
   CarmenWriterConfig config_;
-  void* gz_ = nullptr;     // gzFile when compressing
-  void* file_ = nullptr;   // FILE* otherwise
+  void* gz_ = nullptr;    // gzFile when compressing
+  void* file_ = nullptr;  // FILE* otherwise
   std::string buffer_;
 };
 
@@ -68,6 +68,7 @@ void write_carmen_log(const std::string& path, std::span<const LaserScan> scans,
                       const Pose2& laser_offset = {}, const CarmenWriterConfig& config = {});
 
 /// Writes `timestamp x y theta` lines (the `*.gfs-poses-at-*-stamps.txt` format).
-void write_pose_file(const std::string& path, std::span<const StampedPose> poses, const CarmenWriterConfig& config = {});
+void write_pose_file(const std::string& path, std::span<const StampedPose> poses,
+                     const CarmenWriterConfig& config = {});
 
 }  // namespace lshloc::io

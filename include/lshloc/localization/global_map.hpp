@@ -22,17 +22,17 @@ struct GlobalMapConfig {
   PoseGridConfig occupancy{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 1};
   /// Negative evidence: a 2-D grid of cells that mapper rays saw free.
   PoseGridConfig free_space{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0};
-  double endpoint_spacing = 0.1;     ///< [m] endpoints closer than this along a scan are marked once
-  std::size_t free_ray_stride = 3;   ///< every this many beams marks its ray as free space
-  double free_ray_margin = 0.3;      ///< [m] at least this last part of a ray is not marked free (more at shallow angles)
+  double endpoint_spacing = 0.1;    ///< [m] endpoints closer than this along a scan are marked once
+  std::size_t free_ray_stride = 3;  ///< every this many beams marks its ray as free space
+  double free_ray_margin = 0.3;  ///< [m] at least this last part of a ray is not marked free (more at shallow angles)
   double free_ray_max_range = 12.0;  ///< [m] rays are marked free up to this range
   /// [m] how far a beam without a return is marked free. 0: not at all, as
   /// glass and dark surfaces return nothing too, and a free run through them
   /// turns rooms the mappers never saw into "seen free" (fr079: a target
   /// in such a room had its true pose contradicted by most of its points).
   double free_ray_no_return_range = 0.0;
-  std::size_t context_scans = 8;     ///< recent scans of a submap whose surface enters descriptors
-  double context_spacing = 0.3;      ///< [m] a scan joins the context after this much travel
+  std::size_t context_scans = 8;  ///< recent scans of a submap whose surface enters descriptors
+  double context_spacing = 0.3;   ///< [m] a scan joins the context after this much travel
 
   void validate() const;
 };
@@ -42,17 +42,19 @@ struct GlobalMapConfig {
 struct GlobalMapStats {
   std::size_t submaps = 0;
   std::size_t scans = 0;
-  std::size_t features = 0;           ///< map features (locations = database entries)
-  double extract_s = 0.0;             ///< [s] keypoints and descriptors
-  double database_insert_s = 0.0;     ///< [s] LSH inserts only
-  double grid_s = 0.0;                ///< [s] occupancy and free-space marking
+  std::size_t features = 0;        ///< map features (locations = database entries)
+  double extract_s = 0.0;          ///< [s] keypoints and descriptors
+  double database_insert_s = 0.0;  ///< [s] LSH inserts only
+  double grid_s = 0.0;             ///< [s] occupancy and free-space marking
   LshStats database;
   PoseGridStats occupancy;
   PoseGridStats free_space;
   std::size_t location_bytes = 0;
   /// [bytes] everything the global map holds per map feature.
   double bytes_per_feature() const;
-  double us_insert_per_feature() const { return features ? 1e6 * database_insert_s / static_cast<double>(features) : 0.0; }
+  double us_insert_per_feature() const {
+    return features ? 1e6 * database_insert_s / static_cast<double>(features) : 0.0;
+  }
   double us_update_per_feature() const {
     return features ? 1e6 * (extract_s + database_insert_s + grid_s) / static_cast<double>(features) : 0.0;
   }

@@ -45,7 +45,7 @@ struct LocalizerConfig {
                                  .order_rule = FeatureOrderRule::kRecentWindow,
                                  .recent_window = 8000};
   std::size_t candidates_per_feature = 100;  ///< k of each database query
-  double free_space_penalty = 1.0;  ///< c(p, x) for a local point in space the map saw free
+  double free_space_penalty = 1.0;           ///< c(p, x) for a local point in space the map saw free
   /// c(p, x) for a local surface point on a map return that has no surface
   /// normal and that map rays never crossed (PoseGridScorerConfig::
   /// surface_on_return): walls the mappers saw only from far away, as sparse
@@ -61,9 +61,9 @@ struct LocalizerConfig {
   /// (RESULTS.md, aces).
   double contested_penalty = 0.5;
   double free_space_agreement = 0.0;  ///< c(p, x) for a free-space point in space the map saw free
-  std::size_t context_scans = 8;    ///< recent local scans whose surface enters descriptors
-  double context_spacing = 0.3;     ///< [m] a scan joins the context after this much travel
-  double data_point_spacing = 0.1;  ///< [m] endpoints thinned along a scan before sampling data-points
+  std::size_t context_scans = 8;      ///< recent local scans whose surface enters descriptors
+  double context_spacing = 0.3;       ///< [m] a scan joins the context after this much travel
+  double data_point_spacing = 0.1;    ///< [m] endpoints thinned along a scan before sampling data-points
   /// Free-space data-points per surface data-point: points on local rays
   /// (`free_point_fraction` of the way to the endpoint, at least
   /// `free_point_margin` short of it) that must not land on map walls.
@@ -83,20 +83,18 @@ struct LocalizerConfig {
 /// seconds (cpu_time.hpp).
 struct LocalizerStats {
   std::size_t scans = 0;
-  std::size_t features = 0;       ///< local features extracted
-  std::size_t hypotheses = 0;     ///< hypotheses generated
-  std::size_t data_points = 0;    ///< data-points added to iRANSAC
-  double scan_matching_s = 0.0;   ///< [s]
-  double extract_s = 0.0;         ///< [s]
-  double query_s = 0.0;           ///< [s] database retrieval
-  double ransac_s = 0.0;          ///< [s] iRANSAC iterations (scoring)
+  std::size_t features = 0;      ///< local features extracted
+  std::size_t hypotheses = 0;    ///< hypotheses generated
+  std::size_t data_points = 0;   ///< data-points added to iRANSAC
+  double scan_matching_s = 0.0;  ///< [s]
+  double extract_s = 0.0;        ///< [s]
+  double query_s = 0.0;          ///< [s] database retrieval
+  double ransac_s = 0.0;         ///< [s] iRANSAC iterations (scoring)
   ReportPolicyStats report;
   IncrementalRansacStats ransac;
   ScanMatcherStats scan_matcher;
   double us_query_per_feature() const { return features ? 1e6 * query_s / static_cast<double>(features) : 0.0; }
-  double ns_per_score() const {
-    return ransac.scores ? 1e9 * ransac_s / static_cast<double>(ransac.scores) : 0.0;
-  }
+  double ns_per_score() const { return ransac.scores ? 1e9 * ransac_s / static_cast<double>(ransac.scores) : 0.0; }
 };
 
 /// The target robot's localizer (LSH-RANSAC's loop, docs/design.md 2.2):

@@ -21,10 +21,10 @@ namespace lshloc {
 /// When the localizer says "localized" (DESIGN.md: say it only when the
 /// evidence is strong; a confident answer should never be wrong).
 struct ConfidenceConfig {
-  std::uint32_t min_scored = 500;    ///< N of the best hypothesis at least this (about 10 scans of support)
-  double min_mean_score = 0.35;      ///< C/N of the best hypothesis at least this
-  double min_margin = 0.15;          ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
-  std::size_t stable_scans = 5;      ///< the best stayed in one place (1 m, 10 deg) this many scans
+  std::uint32_t min_scored = 500;  ///< N of the best hypothesis at least this (about 10 scans of support)
+  double min_mean_score = 0.35;    ///< C/N of the best hypothesis at least this
+  double min_margin = 0.15;        ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
+  std::size_t stable_scans = 5;    ///< the best stayed in one place (1 m, 10 deg) this many scans
   /// Hysteresis of the reported estimate: the best hypothesis near the last
   /// reported one (within `same_place_m`, `same_place_deg`) stays reported
   /// unless a hypothesis elsewhere beats its C/N by more than this.
@@ -64,7 +64,7 @@ struct ConfidenceConfig {
   /// where the mappers barely went) otherwise takes over on a small lead
   /// without ever being well supported itself (RESULTS.md, aces 1341).
   bool challenger_needs_support = true;
-  double same_place_m = 1.0;    ///< [m]
+  double same_place_m = 1.0;     ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
 };
 
@@ -77,8 +77,8 @@ struct ReportPolicyConfig {
   /// robot's current pose, so that a correct place keeps a hypothesis that
   /// follows the local map's drift even when the database proposes none.
   bool track_reported = true;
-  double track_step_m = 0.1;     ///< [m]
-  double track_step_deg = 1.0;   ///< [deg]
+  double track_step_m = 0.1;    ///< [m]
+  double track_step_deg = 1.0;  ///< [deg]
   /// Each scan the reported hypothesis is refined by a pattern search (moves
   /// of +-refine_step_m along x and y and +-refine_step_deg about the
   /// robot, halved when none helps, refine_rounds rounds) on refine_points
@@ -98,14 +98,14 @@ struct ReportPolicyConfig {
 /// The localizer's answer for one target scan.
 struct LocalizationEstimate {
   bool has_estimate = false;
-  bool localized = false;       ///< the confidence state
+  bool localized = false;  ///< the confidence state
   std::uint32_t submap = 0;
-  Pose2 pose;                   ///< the scan's laser pose in the submap frame
+  Pose2 pose;  ///< the scan's laser pose in the submap frame
   Pose2 T_submap_local;
-  double mean_score = 0.0;      ///< C/N of the best hypothesis
-  std::uint32_t scored = 0;     ///< N of the best hypothesis
-  double margin = 0.0;          ///< C/N lead over the best hypothesis elsewhere
-  Pose2 local_pose;             ///< the scan's laser pose in the local frame
+  double mean_score = 0.0;   ///< C/N of the best hypothesis
+  std::uint32_t scored = 0;  ///< N of the best hypothesis
+  double margin = 0.0;       ///< C/N lead over the best hypothesis elsewhere
+  Pose2 local_pose;          ///< the scan's laser pose in the local frame
 };
 
 /// What the report policy needs of the localizer's data-points: the scores
@@ -137,8 +137,8 @@ struct ReportPolicyStats {
 
 /// iRANSAC's settings that the policy reads.
 struct RansacPreference {
-  double preference_z = 2.0;       ///< best = argmax C/N - z/sqrt(N)
-  double min_score = 30.0;         ///< C_o: hypotheses below it are not candidates
+  double preference_z = 2.0;         ///< best = argmax C/N - z/sqrt(N)
+  double min_score = 30.0;           ///< C_o: hypotheses below it are not candidates
   std::size_t recent_window = 8000;  ///< data-points of the recent-points duel
 };
 

@@ -56,11 +56,11 @@ enum class PreemptionRank : std::uint8_t {
 };
 
 struct IncrementalRansacConfig {
-  std::size_t block_size = 10;                ///< B: the active set halves every B-th iteration
-  std::size_t new_features_per_scan = 10;     ///< |U_new|: add_scan() keeps a random subset this large
-  std::size_t new_hypotheses_per_scan = 1000; ///< |V_new|: add_scan() keeps the first this many
-  std::size_t iterations_per_scan = 10;       ///< iterations run() does per scan (= B: steady state 2|V_new|)
-  double min_score = 3.0;                     ///< C_o: best() ignores hypotheses with C_j below it
+  std::size_t block_size = 10;                 ///< B: the active set halves every B-th iteration
+  std::size_t new_features_per_scan = 10;      ///< |U_new|: add_scan() keeps a random subset this large
+  std::size_t new_hypotheses_per_scan = 1000;  ///< |V_new|: add_scan() keeps the first this many
+  std::size_t iterations_per_scan = 10;        ///< iterations run() does per scan (= B: steady state 2|V_new|)
+  double min_score = 3.0;                      ///< C_o: best() ignores hypotheses with C_j below it
   /// best() ranks by C_j/N_j - preference_z / sqrt(N_j): a lower confidence
   /// bound, so that a young hypothesis with a lucky streak does not outrank
   /// one with long support (per-point scores lie in [-1, 1]). 0 gives the
@@ -76,27 +76,27 @@ struct IncrementalRansacConfig {
   /// hypothesis right at 93-95% of viewpoints where the paper's kUniform
   /// managed 17-49% (docs/results/matching.md); without drift all are ~98-100%.
   FeatureOrderRule order_rule = FeatureOrderRule::kFreshFirst;
-  std::size_t recent_window = 200;            ///< [features] window of kRecentWindow / kFreshFirst
+  std::size_t recent_window = 200;  ///< [features] window of kRecentWindow / kFreshFirst
   PreemptionRank preemption_rank = PreemptionRank::kMeanScore;
-  std::uint64_t seed = 0x5eed0002;            ///< random insertion and feature sampling
+  std::uint64_t seed = 0x5eed0002;  ///< random insertion and feature sampling
 
   /// Throws lshloc::Error when a field is out of range.
   void validate() const;
 };
 
 struct IncrementalRansacStats {
-  std::size_t active_hypotheses = 0;     ///< |V| now
-  std::size_t active_hypotheses_max = 0; ///< largest |V| seen
-  std::size_t features = 0;              ///< |U| now
-  std::size_t iterations = 0;            ///< iterations done (those with features and hypotheses)
-  std::size_t scores = 0;                ///< feature-hypothesis pairs scored
+  std::size_t active_hypotheses = 0;      ///< |V| now
+  std::size_t active_hypotheses_max = 0;  ///< largest |V| seen
+  std::size_t features = 0;               ///< |U| now
+  std::size_t iterations = 0;             ///< iterations done (those with features and hypotheses)
+  std::size_t scores = 0;                 ///< feature-hypothesis pairs scored
   std::size_t hypotheses_added = 0;
-  std::size_t hypotheses_preempted = 0;  ///< cut by the preemption function
+  std::size_t hypotheses_preempted = 0;    ///< cut by the preemption function
   std::size_t hypotheses_over_budget = 0;  ///< dropped by add_scan() beyond |V_new|
   std::size_t features_over_budget = 0;    ///< dropped by add_scan() beyond |U_new|
-  double best_score = 0.0;        ///< C of best() (0 when none qualifies)
-  double best_mean_score = 0.0;   ///< C / N of best()
-  std::uint32_t best_scored = 0;  ///< N of best()
+  double best_score = 0.0;                 ///< C of best() (0 when none qualifies)
+  double best_mean_score = 0.0;            ///< C / N of best()
+  std::uint32_t best_scored = 0;           ///< N of best()
 };
 
 /// The active hypotheses as structure-of-arrays, the way scorers read them:
@@ -218,8 +218,8 @@ class IncrementalRansac {
   // U: features in arrival order, and a random permutation of their indices.
   std::vector<LocalPoint> features_;
   std::vector<std::uint32_t> permutation_;
-  std::size_t cursor_ = 0;       ///< kUniform: next position in permutation_
-  std::size_t fresh_next_ = 0;   ///< kFreshFirst: first feature not yet scored on arrival
+  std::size_t cursor_ = 0;      ///< kUniform: next position in permutation_
+  std::size_t fresh_next_ = 0;  ///< kFreshFirst: first feature not yet scored on arrival
   // V: the active hypotheses, structure-of-arrays, randomly permuted.
   std::vector<std::uint32_t> submap_;
   std::vector<float> tx_, ty_, cos_, sin_, theta_;
@@ -229,9 +229,9 @@ class IncrementalRansac {
   std::vector<Pose2> pose_;            ///< T_submap_local in double, for output
   std::uint64_t next_serial_ = 0;
   std::vector<float> scratch_;
-  std::vector<std::uint32_t> order_;   ///< preempt() scratch
-  std::vector<double> rank_;           ///< preempt() scratch
-  std::vector<std::uint8_t> keep_;     ///< preempt() scratch
+  std::vector<std::uint32_t> order_;  ///< preempt() scratch
+  std::vector<double> rank_;          ///< preempt() scratch
+  std::vector<std::uint8_t> keep_;    ///< preempt() scratch
   IncrementalRansacStats stats_;
 };
 

@@ -42,30 +42,30 @@ struct PoseGridConfig {
   /// then holds 2.3% of the dense grid's cells with heading tolerance 1
   /// (docs/results/matching.md); the paper's grid was finer still.
   double cell_size = 0.1;
-  int theta_bins = 36;       ///< heading bins over 2 pi (36: 10 degrees); 1 = a plain 2-D grid
-  int xy_tolerance = 0;      ///< [cells] neighbours on each side in x and y that also count
-  int theta_tolerance = 1;   ///< [bins] neighbours on each side in heading (wraps at +-pi)
+  int theta_bins = 36;      ///< heading bins over 2 pi (36: 10 degrees); 1 = a plain 2-D grid
+  int xy_tolerance = 0;     ///< [cells] neighbours on each side in x and y that also count
+  int theta_tolerance = 1;  ///< [bins] neighbours on each side in heading (wraps at +-pi)
   ToleranceMode tolerance_mode = ToleranceMode::kDilateAtInsert;
-  double max_load_factor = 0.5;       ///< used bins / capacity that triggers a doubling
+  double max_load_factor = 0.5;         ///< used bins / capacity that triggers a doubling
   std::size_t initial_capacity = 1024;  ///< [bins] rounded up to a power of two
-  std::uint64_t seed = 0x5eed0001;    ///< picks the universal hash function
+  std::uint64_t seed = 0x5eed0001;      ///< picks the universal hash function
 
   /// Throws lshloc::Error when a field is out of range.
   void validate() const;
 };
 
 struct PoseGridStats {
-  std::size_t bins_used = 0;       ///< cells stored (non-empty slots)
-  std::size_t capacity = 0;        ///< slots in the table
-  double load = 0.0;               ///< bins_used / capacity
-  std::size_t rehashes = 0;        ///< doublings so far
-  std::size_t memory_bytes = 0;    ///< bytes of the table itself
-  std::size_t marks = 0;           ///< mark() calls
-  std::size_t submaps = 0;         ///< submaps with at least one cell
+  std::size_t bins_used = 0;     ///< cells stored (non-empty slots)
+  std::size_t capacity = 0;      ///< slots in the table
+  double load = 0.0;             ///< bins_used / capacity
+  std::size_t rehashes = 0;      ///< doublings so far
+  std::size_t memory_bytes = 0;  ///< bytes of the table itself
+  std::size_t marks = 0;         ///< mark() calls
+  std::size_t submaps = 0;       ///< submaps with at least one cell
   /// The dense grid the table replaces: per submap, the bounding box of its
   /// cells (in cells) times theta_bins, summed over submaps.
   double dense_cells = 0.0;
-  double grid_fraction = 0.0;      ///< bins_used / dense_cells (the "< 3%" of DESIGN.md §4)
+  double grid_fraction = 0.0;  ///< bins_used / dense_cells (the "< 3%" of DESIGN.md §4)
   /// capacity / dense_cells: what memory really holds (the paper's 1e7 bins
   /// against 3.4e8 cells compares table size).
   double table_fraction = 0.0;
@@ -107,8 +107,7 @@ class PoseGridHashMap {
 
   /// ORs `flags` (non-zero) into the cell of (x, y, theta) of `submap`, and in
   /// kDilateAtInsert mode into every cell of its tolerance window.
-  void mark(std::uint32_t submap, double x, double y, double theta,
-            CellFlags flags = cell_flags::kOccupied);
+  void mark(std::uint32_t submap, double x, double y, double theta, CellFlags flags = cell_flags::kOccupied);
   /// mark() with the occupied flag: a map feature / endpoint at this pose.
   void insert(std::uint32_t submap, double x, double y, double theta) { mark(submap, x, y, theta); }
 

@@ -73,12 +73,11 @@ class PoseGridScorer {
   template <class Select, class Value>
   void lookup_free_space(const LocalPoint& x, const HypothesisBatch& v, float* scores, Select select, Value value);
 
-
   const PoseGridHashMap& grid_;
   const PoseGridHashMap* free_space_ = nullptr;
   PoseGridScorerConfig config_;
-  float value_[4];  ///< score by (flags & 3)
-  std::vector<std::uint64_t> xy_;     ///< (submap, ix, iy) key of each hypothesis' cell
+  float value_[4];                   ///< score by (flags & 3)
+  std::vector<std::uint64_t> xy_;    ///< (submap, ix, iy) key of each hypothesis' cell
   std::vector<std::uint32_t> home_;  ///< its home slot (tables stay below 2^32 slots)
   std::vector<std::int32_t> ix_, iy_, it_;
   std::vector<CellFlags> flags_;

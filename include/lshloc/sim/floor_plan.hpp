@@ -48,9 +48,9 @@ struct Door {
 /// the distance from each cell centre to the nearest obstacle (walls,
 /// pillars, furniture, outside), quantized to `step` and capped at 255 steps.
 struct ClearanceGrid {
-  double cell = 0.1;    ///< [m] cell side
-  double step = 0.02;   ///< [m] per stored unit
-  int nx = 0, ny = 0;   ///< cells along x and y; cell (i, j) covers [i, i+1) x [j, j+1) cells from (0, 0)
+  double cell = 0.1;                ///< [m] cell side
+  double step = 0.02;               ///< [m] per stored unit
+  int nx = 0, ny = 0;               ///< cells along x and y; cell (i, j) covers [i, i+1) x [j, j+1) cells from (0, 0)
   std::vector<std::uint8_t> units;  ///< row-major (j * nx + i)
 
   bool inside(int i, int j) const { return i >= 0 && j >= 0 && i < nx && j < ny; }
@@ -63,26 +63,26 @@ struct ClearanceGrid {
 };
 
 struct FloorPlanConfig {
-  std::uint64_t seed = 1;             ///< every random choice of the plan derives from it
-  double min_size = 30.0;             ///< [m] shortest allowed building side
-  double max_size = 80.0;             ///< [m] longest allowed building side
-  double l_shape_probability = 0.35;  ///< chance that one corner block is cut away (L-shaped outline)
-  double corridor_split_min = 16.0;   ///< [m] blocks with both sides at least this long get a corridor through them
-  double corridor_min_width = 1.8;    ///< [m]
-  double corridor_max_width = 3.2;    ///< [m]
-  double room_min = 2.8;              ///< [m] shortest room side
-  double room_max = 7.5;              ///< [m] rooms longer than this are split further
-  double hall_probability = 0.08;     ///< chance that a block of hall size stays one open hall
-  int max_halls = 3;                  ///< at most this many halls per building
-  double door_min_width = 0.9;        ///< [m]
-  double door_max_width = 1.4;        ///< [m]
-  double extra_door_probability = 0.2;  ///< chance of a second door between already connected neighbours
-  double pillar_spacing_min = 3.5;    ///< [m] pillar grid pitch in halls
-  double pillar_spacing_max = 6.0;    ///< [m]
-  double clutter_per_room = 1.5;      ///< mean furniture boxes per room
+  std::uint64_t seed = 1;                ///< every random choice of the plan derives from it
+  double min_size = 30.0;                ///< [m] shortest allowed building side
+  double max_size = 80.0;                ///< [m] longest allowed building side
+  double l_shape_probability = 0.35;     ///< chance that one corner block is cut away (L-shaped outline)
+  double corridor_split_min = 16.0;      ///< [m] blocks with both sides at least this long get a corridor through them
+  double corridor_min_width = 1.8;       ///< [m]
+  double corridor_max_width = 3.2;       ///< [m]
+  double room_min = 2.8;                 ///< [m] shortest room side
+  double room_max = 7.5;                 ///< [m] rooms longer than this are split further
+  double hall_probability = 0.08;        ///< chance that a block of hall size stays one open hall
+  int max_halls = 3;                     ///< at most this many halls per building
+  double door_min_width = 0.9;           ///< [m]
+  double door_max_width = 1.4;           ///< [m]
+  double extra_door_probability = 0.2;   ///< chance of a second door between already connected neighbours
+  double pillar_spacing_min = 3.5;       ///< [m] pillar grid pitch in halls
+  double pillar_spacing_max = 6.0;       ///< [m]
+  double clutter_per_room = 1.5;         ///< mean furniture boxes per room
   double corridor_clutter_per_m = 0.06;  ///< mean cabinets per metre of corridor
-  double niches_per_m = 0.04;         ///< mean niches (bays into a room) per metre of corridor
-  double layout_cell = 0.1;           ///< [m] resolution of the layout raster and of the clearance grid
+  double niches_per_m = 0.04;            ///< mean niches (bays into a room) per metre of corridor
+  double layout_cell = 0.1;              ///< [m] resolution of the layout raster and of the clearance grid
 };
 
 /// A generated floor plan. The building lies in [0, width] x [0, height]; all

@@ -13,11 +13,11 @@
 namespace lshloc::sim {
 
 struct LaserConfig {
-  std::size_t beams = 180;              ///< beams per scan
-  double fov = std::numbers::pi;        ///< [rad] field of view; at pi the beams follow the FLASER layout
-  double max_range = 30.0;              ///< [m] nothing within it: the beam reads max_range (no return)
-  double range_noise = 0.01;            ///< [m] standard deviation of the Gaussian range error
-  double dropout_probability = 0.005;   ///< chance that a beam returns nothing (reads max_range)
+  std::size_t beams = 180;             ///< beams per scan
+  double fov = std::numbers::pi;       ///< [rad] field of view; at pi the beams follow the FLASER layout
+  double max_range = 30.0;             ///< [m] nothing within it: the beam reads max_range (no return)
+  double range_noise = 0.01;           ///< [m] standard deviation of the Gaussian range error
+  double dropout_probability = 0.005;  ///< chance that a beam returns nothing (reads max_range)
 };
 
 /// Sets the scan's beam layout and max range for `config`, and sizes its
@@ -38,13 +38,13 @@ void simulate_ranges(const RayCaster& caster, const Pose2& laser_pose, const Las
 /// per run) grow linearly: a wrong wheel radius (scale) and unequal wheels
 /// (heading drift per metre).
 struct OdometryNoiseConfig {
-  double translation_noise = 0.02;     ///< [m/sqrt(m)] along-track std dev after 1 m
-  double lateral_noise = 0.01;         ///< [m/sqrt(m)] cross-track std dev after 1 m
-  double rotation_noise = 0.03;        ///< [rad/sqrt(rad)] heading std dev after turning 1 rad
-  double rotation_per_metre = 0.01;    ///< [rad/sqrt(m)] heading std dev after driving 1 m straight
-  double scale_bias = 0.01;            ///< std dev of the run's translation scale error (0.01 = 1 %)
-  double rotation_scale_bias = 0.02;   ///< std dev of the run's rotation scale error
-  double heading_drift_bias = 0.002;   ///< [rad/m] std dev of the run's heading drift per metre
+  double translation_noise = 0.02;    ///< [m/sqrt(m)] along-track std dev after 1 m
+  double lateral_noise = 0.01;        ///< [m/sqrt(m)] cross-track std dev after 1 m
+  double rotation_noise = 0.03;       ///< [rad/sqrt(rad)] heading std dev after turning 1 rad
+  double rotation_per_metre = 0.01;   ///< [rad/sqrt(m)] heading std dev after driving 1 m straight
+  double scale_bias = 0.01;           ///< std dev of the run's translation scale error (0.01 = 1 %)
+  double rotation_scale_bias = 0.02;  ///< std dev of the run's rotation scale error
+  double heading_drift_bias = 0.002;  ///< [rad/m] std dev of the run's heading drift per metre
 };
 
 /// Odometry poses for a sequence of true robot poses: the odometry frame

@@ -30,9 +30,9 @@ namespace lshloc::sim {
 std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t stream);
 
 struct BuildingGeneratorConfig {
-  std::string name;          ///< empty: "sim-<plan.seed>"
-  FloorPlanConfig plan;      ///< the layout and its seed
-  RayCasterConfig caster;    ///< bucketing of the segments for the laser
+  std::string name;        ///< empty: "sim-<plan.seed>"
+  FloorPlanConfig plan;    ///< the layout and its seed
+  RayCasterConfig caster;  ///< bucketing of the segments for the laser
 };
 
 /// A generated building: its floor plan and a ray caster over its segments.
@@ -47,13 +47,13 @@ struct SyntheticBuilding {
 SyntheticBuilding generate_building(const BuildingGeneratorConfig& config);
 
 struct SimulationConfig {
-  std::uint64_t seed = 1;        ///< the robot's tour, laser noise and odometry errors derive from it
-  std::size_t scans = 2000;      ///< scans to record (one per trajectory.period)
-  double start_time = 1000.0;    ///< [s] time stamp of the first scan
-  bool with_raw = true;          ///< fill raw_scans (odometry poses)
-  bool with_corrected = true;    ///< fill corrected_scans and truth (true poses)
-  TrajectoryConfig trajectory;   ///< speed 0.5 m/s, 0.2 s per scan by default
-  LaserConfig laser;             ///< 180 beams over 180 degrees, 30 m by default
+  std::uint64_t seed = 1;       ///< the robot's tour, laser noise and odometry errors derive from it
+  std::size_t scans = 2000;     ///< scans to record (one per trajectory.period)
+  double start_time = 1000.0;   ///< [s] time stamp of the first scan
+  bool with_raw = true;         ///< fill raw_scans (odometry poses)
+  bool with_corrected = true;   ///< fill corrected_scans and truth (true poses)
+  TrajectoryConfig trajectory;  ///< speed 0.5 m/s, 0.2 s per scan by default
+  LaserConfig laser;            ///< 180 beams over 180 degrees, 30 m by default
   OdometryNoiseConfig odometry;
 };
 
@@ -61,8 +61,8 @@ struct SimulationConfig {
 struct SimulationStats {
   std::size_t scans = 0;
   std::size_t rays = 0;
-  double path_length = 0.0;      ///< [m]
-  double rotation = 0.0;         ///< [rad] total absolute heading change
+  double path_length = 0.0;  ///< [m]
+  double rotation = 0.0;     ///< [rad] total absolute heading change
   std::size_t goals_reached = 0;
   double odometry_final_error = 0.0;  ///< [m] position error of the last odometry pose, after aligning the first
   double seconds_trajectory = 0.0;    ///< planning and driving the tour

@@ -14,13 +14,13 @@
 namespace lshloc::sim {
 
 struct SyntheticScenarioConfig {
-  std::uint64_t seed = 1;             ///< run seed: building k is run_building(seed, k)
-  std::size_t buildings = 4;          ///< submaps in the global map
-  std::size_t target_building = 0;    ///< which of them the target tours
-  std::size_t map_scans = 1500;       ///< scans each mapper robot records
-  std::size_t target_scans = 300;     ///< scans of the target's run, in the middle of its building's tour
-  double guard_s = 30.0;              ///< [s] map scans this close to the target's window are left out
-  std::uint64_t target_seed = 0;      ///< 0: the target building's own simulation seed
+  std::uint64_t seed = 1;           ///< run seed: building k is run_building(seed, k)
+  std::size_t buildings = 4;        ///< submaps in the global map
+  std::size_t target_building = 0;  ///< which of them the target tours
+  std::size_t map_scans = 1500;     ///< scans each mapper robot records
+  std::size_t target_scans = 300;   ///< scans of the target's run, in the middle of its building's tour
+  double guard_s = 30.0;            ///< [s] map scans this close to the target's window are left out
+  std::uint64_t target_seed = 0;    ///< 0: the target building's own simulation seed
 };
 
 /// One synthetic building as a mapper robot records it (corrected scans only).

@@ -21,12 +21,12 @@ struct TrajectoryConfig {
 
 /// The robot's true poses, one per period, and how it got there.
 struct Trajectory {
-  std::vector<Pose2> poses;         ///< robot pose in the building frame at each scan
-  std::vector<Point2> route;        ///< the planned polyline the robot's position follows
-  double length = 0.0;              ///< [m] distance driven
-  double rotation = 0.0;            ///< [rad] total absolute heading change
-  std::size_t goals_reached = 0;    ///< waypoints reached
-  std::size_t goals_unreachable = 0;///< waypoints the planner found no path to (skipped)
+  std::vector<Pose2> poses;           ///< robot pose in the building frame at each scan
+  std::vector<Point2> route;          ///< the planned polyline the robot's position follows
+  double length = 0.0;                ///< [m] distance driven
+  double rotation = 0.0;              ///< [rad] total absolute heading change
+  std::size_t goals_reached = 0;      ///< waypoints reached
+  std::size_t goals_unreachable = 0;  ///< waypoints the planner found no path to (skipped)
 };
 
 /// Drives a tour of `count` poses: from a random waypoint to one of the

@@ -16,20 +16,20 @@
 namespace lshloc {
 
 struct CorrelativeMatcherConfig {
-  double cell = 0.05;              ///< [m] likelihood grid cell = finest translation step
-  double sigma = 0.08;             ///< [m] blur of the likelihood around each reference point
-  int block = 6;                   ///< [cells] coarse translation step of the branch and bound
-  double angle_step_deg = 0.5;     ///< [deg] heading step
+  double cell = 0.05;                  ///< [m] likelihood grid cell = finest translation step
+  double sigma = 0.08;                 ///< [m] blur of the likelihood around each reference point
+  int block = 6;                       ///< [cells] coarse translation step of the branch and bound
+  double angle_step_deg = 0.5;         ///< [deg] heading step
   std::size_t max_query_points = 150;  ///< query points used (evenly subsampled)
-  double runner_up_distance = 1.0;  ///< [m] the runner-up is the best pose at least this far from the best
+  double runner_up_distance = 1.0;     ///< [m] the runner-up is the best pose at least this far from the best
   void validate() const;
 };
 
 struct CorrelativeMatch {
-  bool found = false;       ///< false with no reference or query points
-  Pose2 pose;               ///< the query frame's pose in the reference frame
-  double score = 0.0;       ///< mean likelihood of the query points at `pose`, in [0, 1]
-  double runner_up = 0.0;   ///< the best score of a pose runner_up_distance or more away
+  bool found = false;         ///< false with no reference or query points
+  Pose2 pose;                 ///< the query frame's pose in the reference frame
+  double score = 0.0;         ///< mean likelihood of the query points at `pose`, in [0, 1]
+  double runner_up = 0.0;     ///< the best score of a pose runner_up_distance or more away
   std::size_t evaluated = 0;  ///< poses scored at full resolution
 };
 

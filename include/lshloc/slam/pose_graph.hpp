@@ -28,17 +28,17 @@ Eigen::Matrix3d diagonal_information(double sigma_xy, double sigma_theta);
 struct PoseGraphEdge {
   std::uint32_t from = 0;
   std::uint32_t to = 0;
-  Pose2 measurement;                                    ///< expected from.between(to)
+  Pose2 measurement;                                          ///< expected from.between(to)
   Eigen::Matrix3d information = Eigen::Matrix3d::Identity();  ///< inverse covariance of (dx, dy, dtheta)
-  bool robust = false;                                  ///< Cauchy-weighted (loop closures)
+  bool robust = false;                                        ///< Cauchy-weighted (loop closures)
 };
 
 struct PoseGraphStats {
   std::size_t nodes = 0;
   std::size_t edges = 0;
   std::size_t optimizations = 0;
-  std::size_t iterations = 0;   ///< Gauss-Newton iterations, summed
-  double last_chi2 = 0.0;       ///< weighted squared error after the last optimize()
+  std::size_t iterations = 0;  ///< Gauss-Newton iterations, summed
+  double last_chi2 = 0.0;      ///< weighted squared error after the last optimize()
 };
 
 class PoseGraph {

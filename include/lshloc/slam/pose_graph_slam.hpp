@@ -28,22 +28,22 @@ struct PoseGraphSlamConfig {
   double node_voxel = 0.05;    ///< [m] a node's points are thinned to one per cell of this size
   /// Odometry edges: standard deviations of the matcher's motion between
   /// consecutive nodes: base + per metre travelled.
-  double edge_sigma_xy = 0.01;          ///< [m]
-  double edge_sigma_xy_per_m = 0.01;    ///< [m/m]
-  double edge_sigma_theta_deg = 0.2;    ///< [deg]
+  double edge_sigma_xy = 0.01;              ///< [m]
+  double edge_sigma_xy_per_m = 0.01;        ///< [m/m]
+  double edge_sigma_theta_deg = 0.2;        ///< [deg]
   double edge_sigma_theta_per_m_deg = 0.2;  ///< [deg/m]
   /// Loop closure.
   bool loop_closure = true;
-  double loop_min_travel = 10.0;     ///< [m] of path between the two nodes at least
-  double loop_window = 1.0;          ///< [m] search half-width right after a closure ...
-  double loop_window_per_m = 0.05;   ///< [m/m] ... growing with the travel since the last one
-  double loop_max_window = 8.0;      ///< [m]
-  double loop_window_deg = 12.0;     ///< [deg] heading half-width
+  double loop_min_travel = 10.0;       ///< [m] of path between the two nodes at least
+  double loop_window = 1.0;            ///< [m] search half-width right after a closure ...
+  double loop_window_per_m = 0.05;     ///< [m/m] ... growing with the travel since the last one
+  double loop_max_window = 8.0;        ///< [m]
+  double loop_window_deg = 12.0;       ///< [deg] heading half-width
   std::size_t loop_context_nodes = 6;  ///< the candidate's neighbours on each side join its reference points
-  double loop_min_score = 0.45;      ///< mean likelihood the closure needs
-  double loop_max_runner_up = 0.85;  ///< runner-up (1 m away or more) / best at most this: unique
-  double loop_sigma_xy = 0.05;       ///< [m] of a closure edge
-  double loop_sigma_theta_deg = 1.0; ///< [deg]
+  double loop_min_score = 0.45;        ///< mean likelihood the closure needs
+  double loop_max_runner_up = 0.85;    ///< runner-up (1 m away or more) / best at most this: unique
+  double loop_sigma_xy = 0.05;         ///< [m] of a closure edge
+  double loop_sigma_theta_deg = 1.0;   ///< [deg]
   /// Re-optimize at once when a closure disagrees with the graph by more
   /// than this [m]; smaller disagreements wait for the next large one or finish().
   double optimize_above = 0.05;

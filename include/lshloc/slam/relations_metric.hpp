@@ -22,8 +22,8 @@ struct Relation {
 /// translation of reference^-1 * estimate has the same norm), rotational error
 /// = absolute wrapped heading difference.
 struct RelationsError {
-  std::size_t relations = 0;  ///< relations given
-  std::size_t matched = 0;    ///< relations whose t1 and t2 both found a pose
+  std::size_t relations = 0;      ///< relations given
+  std::size_t matched = 0;        ///< relations whose t1 and t2 both found a pose
   double mean_translation = 0.0;  ///< [m] over matched relations (0 when none)
   double mean_rotation = 0.0;     ///< [rad] over matched relations
   double max_translation = 0.0;   ///< [m]

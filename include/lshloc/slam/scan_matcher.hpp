@@ -33,25 +33,25 @@ struct ScanMatcherConfig {
   /// Which keyframe's point a map_voxel cell keeps: the oldest (a stable
   /// reference: drift grows only when the window moves on) or the newest.
   bool keep_oldest_map_points = true;
-  double normal_radius = 0.25;        ///< [m] neighbours along the scan within this (or within
-                                      ///< normal_beam_gaps beam spacings at the point's range) fit its line
-  double normal_beam_gaps = 3.0;      ///< [-] so that sparse far walls (1 deg beams at 15 m) still get lines
+  double normal_radius = 0.25;            ///< [m] neighbours along the scan within this (or within
+                                          ///< normal_beam_gaps beam spacings at the point's range) fit its line
+  double normal_beam_gaps = 3.0;          ///< [-] so that sparse far walls (1 deg beams at 15 m) still get lines
   std::size_t normal_max_neighbours = 6;  ///< [-] neighbours each side at most (bounds the work per point)
   /// Fewer points (itself included): it gets no normal, is not a map point.
   /// (The localizer's local map uses 3, LocalizerConfig::scan_matcher.)
   std::size_t normal_min_points = 4;
-  double max_line_flatness = 0.1;     ///< [-] max eigenvalue ratio (small/large) for a line point
+  double max_line_flatness = 0.1;  ///< [-] max eigenvalue ratio (small/large) for a line point
 
   // --- ICP (point-to-line, Gauss-Newton) ---
-  double coarse_correspondence = 1.0;  ///< [m] max point-to-map-point distance in the first iterations
-  double fine_correspondence = 0.3;    ///< [m] ... in the final iterations
-  std::size_t coarse_iterations = 6;   ///< iterations run with the coarse distance
-  std::size_t max_iterations = 50;     ///< total iteration cap
-  double robust_scale = 0.05;          ///< [m] Cauchy kernel scale on point-to-line residuals
+  double coarse_correspondence = 1.0;   ///< [m] max point-to-map-point distance in the first iterations
+  double fine_correspondence = 0.3;     ///< [m] ... in the final iterations
+  std::size_t coarse_iterations = 6;    ///< iterations run with the coarse distance
+  std::size_t max_iterations = 50;      ///< total iteration cap
+  double robust_scale = 0.05;           ///< [m] Cauchy kernel scale on point-to-line residuals
   double converged_translation = 1e-3;  ///< [m] step below which ICP stops
   double converged_rotation = 2e-4;     ///< [rad] step below which ICP stops
-  double rotation_length = 2.0;  ///< [m] lever arm that makes rotation comparable to translation in the
-                                 ///< degeneracy test (a rotation of 1 rad counts as this many metres)
+  double rotation_length = 2.0;         ///< [m] lever arm that makes rotation comparable to translation in the
+                                        ///< degeneracy test (a rotation of 1 rad counts as this many metres)
 
   // --- odometry prior ---
   /// The odometry increment can enter ICP as a prior, so that where the scan
@@ -60,10 +60,10 @@ struct ScanMatcherConfig {
   /// docs/results/local-map.md). Its standard deviations per scan step:
   bool odometry_prior = false;
   double point_sigma = 0.05;  ///< [m] std dev of one point-to-line residual (inflated: neighbours correlate)
-  double odometry_sigma_translation = 0.02;  ///< [m] per step, plus the two terms below
-  double odometry_sigma_per_meter = 0.1;     ///< [m/m] grows with the distance travelled in the step
-  double odometry_sigma_rotation = 0.01;     ///< [rad] per step, plus the two terms below
-  double odometry_sigma_rotation_per_rad = 0.1;    ///< [rad/rad] grows with the step's rotation
+  double odometry_sigma_translation = 0.02;         ///< [m] per step, plus the two terms below
+  double odometry_sigma_per_meter = 0.1;            ///< [m/m] grows with the distance travelled in the step
+  double odometry_sigma_rotation = 0.01;            ///< [rad] per step, plus the two terms below
+  double odometry_sigma_rotation_per_rad = 0.1;     ///< [rad/rad] grows with the step's rotation
   double odometry_sigma_rotation_per_meter = 0.02;  ///< [rad/m] grows with the step's distance
 
   // --- robustness ---
@@ -73,9 +73,9 @@ struct ScanMatcherConfig {
   /// below this: ICP does not move along it, so the odometry guess is kept
   /// there (the axis of a long featureless corridor).
   double degeneracy_threshold = 0.03;
-  double inlier_distance = 0.08;  ///< [m] point-to-line residual that counts as an inlier for quality
-  double min_quality = 0.3;       ///< [0,1] inlier share below which the match is rejected
-  std::size_t min_correspondences = 20;  ///< fewer: the match is rejected
+  double inlier_distance = 0.08;            ///< [m] point-to-line residual that counts as an inlier for quality
+  double min_quality = 0.3;                 ///< [0,1] inlier share below which the match is rejected
+  std::size_t min_correspondences = 20;     ///< fewer: the match is rejected
   double max_correction_translation = 0.5;  ///< [m] larger change of the odometry guess: rejected
   double max_correction_rotation = 0.35;    ///< [rad] (about 20 deg) larger change: rejected
   /// [m, rad] where the constant-velocity prediction differs from the
@@ -191,7 +191,7 @@ class ScanMatcher {
   std::deque<Keyframe> keyframes_;
 
   // Local map: points bucketed by a dense grid over their bounding box.
-  std::vector<MapPoint> map_points_;    ///< sorted by grid cell
+  std::vector<MapPoint> map_points_;       ///< sorted by grid cell
   std::vector<std::uint32_t> cell_start_;  ///< size cells+1: points of cell c are [start[c], start[c+1])
   double grid_cell_ = 0.5;                 ///< [m]
   double grid_x0_ = 0.0, grid_y0_ = 0.0;   ///< [m] corner of cell (0, 0)
