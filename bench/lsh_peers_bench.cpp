@@ -10,7 +10,7 @@
 // --copy-noise per dimension, about 0.55 in distance at 0.05, and its own
 // submap id, so it can only be a distractor) until the largest size.
 // Queries: the target features of those two windows at their true poses
-// whose true location has a map feature within 0.5 m (DESIGN.md section 5).
+// whose true location has a map feature within 0.5 m (docs/design.md section 6).
 //
 // Each index is fed the same stream one entry at a time, with one query after
 // every `--query-every` inserts (interleaved; timed with the inserts' own

@@ -2,7 +2,7 @@
 """How much of a target window the map's robots drove: for each ground-truth
 pose of the window (raw scans START .. START+LENGTH-1 of BUILDING), the
 distance to the nearest corrected pose that the protocol keeps in the map
-(outside the window and GUARD seconds around it), as DESIGN.md section 5
+(outside the window and GUARD seconds around it), as docs/design.md section 6
 splits a log. Reads the raw log's scan time stamps and the poses file.
 
     scripts/window_coverage.py aces 3000 [--length 1000] [--guard 60] [--data ../shared/data]

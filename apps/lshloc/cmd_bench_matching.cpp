@@ -1,5 +1,5 @@
-// `lshloc bench matching`: the map-matching cost at steady state (DESIGN.md
-// §5 "Timing", §6). A pose grid is filled with a map (synthetic walls, or
+// `lshloc bench matching`: the map-matching cost at steady state (docs/design.md
+// section 6, speed). A pose grid is filled with a map (synthetic walls, or
 // every scan endpoint of a corrected log with --map), then a simulated target
 // robot feeds iRANSAC |U_new| local features and |V_new| hypotheses per
 // viewpoint (a share of them from true correspondences, the rest from random

@@ -1,4 +1,4 @@
-// `lshloc eval`: one scenario of DESIGN.md section 5 with ground truth, as
+// `lshloc eval`: one scenario of docs/design.md section 6 with ground truth, as
 // one JSON line (and figures with --plot).
 #include <unistd.h>
 
@@ -165,7 +165,7 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
   auto opt = std::make_shared<EvalOptions>();
   auto* cmd = app.add_subcommand(
       "eval",
-      "Run one scenario of the evaluation protocol (DESIGN.md section 5): a global map of R buildings\n"
+      "Run one scenario of the evaluation protocol (docs/design.md section 6): a global map of R buildings\n"
       "(the target's own built from its corrected scans outside the window and a guard time, plus R-1\n"
       "others), and the target's raw scans in the window localized from scratch. Prints one JSON line.");
   cmd->add_option("--building", opt->scenario.building, "target building (fr079, fr101, intel, aces, mit-csail, ...)")

@@ -1,5 +1,5 @@
 // `lshloc recall`: place recall@k of the appearance database on a scenario
-// (DESIGN.md section 5, "Descriptor + database quality").
+// (docs/design.md section 6, "Descriptor + database quality").
 //
 // Map side: every scan of every submap, placed at its map pose, gives
 // features; each goes to the location store and the LSH database. Target
@@ -18,7 +18,7 @@
 #include "commands.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/eval/place_recall.hpp"
-#include "lshloc/io/config_json.hpp"
+#include "lshloc/eval/run_config_json.hpp"
 
 namespace lshloc::app {
 
@@ -27,44 +27,8 @@ namespace {
 struct RecallOptions : PlaceRecallConfig {
   ScenarioConfig scenario;
   bool json = false;
-  std::string config_file;
   bool print_config = false;
 };
-
-}  // namespace
-}  // namespace lshloc::app
-
-namespace lshloc {
-
-void to_json(nlohmann::json& j, const DescriptorContextConfig& c) {
-  j = {{"scans", c.scans}, {"min_step", c.min_step}, {"min_turn", c.min_turn}, {"max_distance", c.max_distance}};
-}
-void from_json(const nlohmann::json& j, DescriptorContextConfig& c) {
-  j.at("scans").get_to(c.scans), j.at("min_step").get_to(c.min_step), j.at("min_turn").get_to(c.min_turn),
-      j.at("max_distance").get_to(c.max_distance);
-}
-void to_json(nlohmann::json& j, const PlaceRecallConfig& c) {
-  j = {{"k", c.k},
-       {"exact", c.exact},
-       {"match_distance", c.match_distance},
-       {"match_angle_deg", c.match_angle_deg},
-       {"thin_cell", c.thin_cell},
-       {"thin_angle", c.thin_angle},
-       {"extractor", c.extractor},
-       {"context", c.context},
-       {"lsh", c.lsh}};
-}
-void from_json(const nlohmann::json& j, PlaceRecallConfig& c) {
-  j.at("k").get_to(c.k), j.at("exact").get_to(c.exact), j.at("match_distance").get_to(c.match_distance),
-      j.at("match_angle_deg").get_to(c.match_angle_deg), j.at("thin_cell").get_to(c.thin_cell),
-      j.at("thin_angle").get_to(c.thin_angle), j.at("extractor").get_to(c.extractor), j.at("context").get_to(c.context),
-      j.at("lsh").get_to(c.lsh);
-}
-
-}  // namespace lshloc
-
-namespace lshloc::app {
-namespace {
 
 nlohmann::json run_recall(const GlobalOptions& global, const RecallOptions& opt) {
   const io::DatasetCatalog catalog(global.resolved_data_dir());
@@ -134,23 +98,18 @@ void add_recall_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_flag("!--no-exact", opt->exact, "skip the brute-force exact-L2 baseline");
   cmd->add_option("--thin", opt->thin_cell, "[m] insert one map feature per (x, y, theta) cell of this size (0: all)")
       ->capture_default_str();
-  cmd->add_option("--config", opt->config_file,
-                  "JSON file of settings (the shape --print-config writes; any subset): extractor, lsh, context, "
-                  "match radii");
+  // Applied while parsing, so that the flags above, applied after, win over the file.
+  cmd->add_option_function<std::string>(
+         "--config",
+         [opt](const std::string& path) {
+           io::apply_config_patch(io::read_json_file(path), static_cast<PlaceRecallConfig&>(*opt), path);
+         },
+         "JSON file of settings (the shape --print-config writes; any subset): extractor, lsh, context, match radii")
+      ->trigger_on_parse();
   cmd->add_flag("--print-config", opt->print_config, "print the effective settings as JSON and exit");
-  cmd->callback([&global, opt, cmd] {
-    PlaceRecallConfig& config = *opt;
-    const PlaceRecallConfig from_flags = config;
-    if (!opt->config_file.empty()) {
-      config = PlaceRecallConfig{};
-      io::apply_config_patch(io::read_json_file(opt->config_file), config, opt->config_file);
-      // Flags given on the command line win over the file.
-      if (cmd->count("--k") != 0) config.k = from_flags.k;
-      if (cmd->count("--no-exact") != 0) config.exact = from_flags.exact;
-      if (cmd->count("--thin") != 0) config.thin_cell = from_flags.thin_cell;
-    }
+  cmd->callback([&global, opt] {
     if (opt->print_config) {
-      std::printf("%s\n", nlohmann::json(config).dump(2).c_str());
+      std::printf("%s\n", nlohmann::json(static_cast<const PlaceRecallConfig&>(*opt)).dump(2).c_str());
       return;
     }
     const nlohmann::json out = run_recall(global, *opt);

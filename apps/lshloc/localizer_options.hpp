@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lshloc/eval/scenario_runner.hpp"
-#include "lshloc/io/config_json.hpp"
+#include "lshloc/eval/run_config_json.hpp"
 
 namespace lshloc::app {
 
@@ -19,20 +19,6 @@ struct LocalizerOptions {
   ScenarioRunConfig config;
   bool print_config = false;
 };
-
-inline nlohmann::json run_config_json(const ScenarioRunConfig& c) {
-  return {{"map", c.map}, {"localizer", c.localizer}, {"map_share_before_target", c.map_share_before_target}};
-}
-
-/// Applies a JSON document of run_config_json's shape (any subset) onto `c`.
-inline void apply_run_config(const nlohmann::json& patch, ScenarioRunConfig& c, const std::string& source) {
-  nlohmann::json merged = run_config_json(c);
-  io::check_config_patch(patch, merged, source);
-  merged.merge_patch(patch);
-  c.map = io::config_from_json<GlobalMapConfig>(merged.at("map"), source);
-  c.localizer = io::config_from_json<LocalizerConfig>(merged.at("localizer"), source);
-  c.map_share_before_target = merged.at("map_share_before_target").get<double>();
-}
 
 /// A CLI11 option for an enum field, by the names its JSON uses.
 template <class Enum>
@@ -50,7 +36,8 @@ CLI::Option* add_enum_option(CLI::App& cmd, const std::string& name, Enum& value
 inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool research_flags = false) {
   const std::string group = "Settings";
   cmd.add_option_function<std::string>(
-         "--config", [&o](const std::string& path) { apply_run_config(io::read_json_file(path), o.config, path); },
+         "--config",
+         [&o](const std::string& path) { io::apply_config_patch(io::read_json_file(path), o.config, path); },
          "JSON file of settings (the shape --print-config writes; any subset): every field of the global map "
          "and the localizer, under its C++ name")
       ->trigger_on_parse()
@@ -83,7 +70,7 @@ inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) {
 /// command then stops).
 inline bool print_config_if_asked(const LocalizerOptions& o) {
   if (!o.print_config) return false;
-  std::printf("%s\n", run_config_json(make_run_config(o)).dump(2).c_str());
+  std::printf("%s\n", nlohmann::json(make_run_config(o)).dump(2).c_str());
   return true;
 }
 

@@ -10,7 +10,7 @@
 
 namespace lshloc::app {
 
-/// The metrics of DESIGN.md section 5 and the run's costs, as `lshloc eval` prints them.
+/// The metrics of docs/design.md section 6 and the run's costs, as `lshloc eval` prints them.
 nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m);
 
 /// The localizer's cost over the run: ms_per_scan, realtime_factor and

@@ -67,16 +67,7 @@ void from_json(const nlohmann::json& j, PreemptionRank& v) { enum_from_json(j, v
 void to_json(nlohmann::json& j, HypothesisSource v) { enum_to_json(j, v, kHypothesisSourceNames); }
 void from_json(const nlohmann::json& j, HypothesisSource& v) { enum_from_json(j, v, kHypothesisSourceNames); }
 
-// Field lists: every member under its C++ name (a field added to a struct
-// must be added here too; the round-trip test compares every field).
-#define LSHLOC_JSON_FIELDS(Type, ...)                                            \
-  void to_json(nlohmann::json& nlohmann_json_j, const Type& nlohmann_json_t) {   \
-    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_TO, __VA_ARGS__))     \
-  }                                                                              \
-  void from_json(const nlohmann::json& nlohmann_json_j, Type& nlohmann_json_t) { \
-    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_FROM, __VA_ARGS__))   \
-  }
-
+// Every member under its C++ name: a field added to a struct must be added here too.
 LSHLOC_JSON_FIELDS(FeatureExtractorConfig, min_range, max_range, segment_gap, segment_gap_per_meter, min_segment_points,
                    tangent_half_window, max_keypoints, keypoint_spacing, keypoint_max_range, normal_half_window,
                    max_normal_residual, edge_margin, rings, sectors, occupancy_component, descriptor_radius,
@@ -115,8 +106,6 @@ LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_p
                    return_support, contested_penalty, free_space_agreement, context_scans, context_spacing,
                    data_point_spacing, free_points_per_surface_point, free_point_fraction, free_point_margin,
                    hypothesis_source, report, seed)
-
-#undef LSHLOC_JSON_FIELDS
 
 }  // namespace lshloc
 

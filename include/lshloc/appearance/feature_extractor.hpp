@@ -11,7 +11,7 @@
 namespace lshloc {
 
 /// Settings of the laser keypoint extractor and its generalized shape
-/// context (GSC) descriptor (DESIGN.md sections 2 and 8).
+/// context (GSC) descriptor (docs/design.md section 2).
 struct FeatureExtractorConfig {
   // --- which scan points are used
   double min_range = 0.05;  ///< [m] nearer returns are ignored (robot body, noise)
@@ -23,8 +23,8 @@ struct FeatureExtractorConfig {
   std::size_t min_segment_points = 5;   ///< segments with fewer endpoints are clutter and dropped
   double tangent_half_window = 0.15;    ///< [m] arc length each side used for a point's tangent
 
-  // --- keypoints: fixed arc-length spacing along smooth segments (DESIGN.md section 8:
-  // they repeat better from another viewpoint than corner points)
+  // --- keypoints: fixed arc-length spacing along smooth segments (they repeat
+  // better from another viewpoint than corner points; docs/results/appearance.md)
   std::size_t max_keypoints = 10;     ///< |U_new|: at most this many keypoints per scan
   double keypoint_spacing = 0.7;      ///< [m] arc length between keypoints along a segment
   double keypoint_max_range = 10.0;   ///< [m] keypoints only where the sensor saw the wall this close
@@ -41,7 +41,7 @@ struct FeatureExtractorConfig {
   /// holding walls of crossed directions is then not mistaken for an empty
   /// one), e.g. 4 rings x 10 sectors x 3.
   bool occupancy_component = true;
-  double descriptor_radius = 2.0;         ///< [m] outer radius (2 m beat 4 m, DESIGN.md section 8)
+  double descriptor_radius = 2.0;         ///< [m] outer radius (2 m recalled places better than 4 m)
   double descriptor_inner_radius = 0.35;  ///< [m] outer edge of the innermost radial bin; log spacing beyond
   /// Points fade out linearly over this outer share of the radius, so that a
   /// wall just at the rim does not flip in or out with a small shift.

@@ -10,8 +10,8 @@
 namespace lshloc {
 
 /// Where every map feature lies: an append-only list of MapLocation whose
-/// index is the location id the appearance database stores (DESIGN.md
-/// section 3, step 2). 16 bytes per feature. Not thread-safe for concurrent
+/// index is the location id the appearance database stores (docs/design.md
+/// section 3). 16 bytes per feature. Not thread-safe for concurrent
 /// append; concurrent reads of existing ids are safe while nobody appends.
 class LocationStore {
  public:

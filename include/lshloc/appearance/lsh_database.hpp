@@ -15,7 +15,7 @@ enum class FullBucket {
   kKeepNewest,  ///< overwrites its oldest id (favours recently mapped places)
 };
 
-/// Settings of the E2LSH appearance database (DESIGN.md section 4, paper
+/// Settings of the E2LSH appearance database (docs/design.md section 2, paper
 /// section IV-A). Descriptors are L2-normalized, so distances lie in [0, 2];
 /// w is in those units.
 struct LshConfig {

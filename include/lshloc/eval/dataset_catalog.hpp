@@ -57,7 +57,7 @@ class DatasetCatalog {
 /// for any other building directory (e.g. one io::write_building_recording made).
 BuildingRecording load_building(const BuildingFiles& files, bool with_raw, const CarmenReaderConfig& reader = {});
 
-/// Loads the scenario of DESIGN.md section 5 from the catalog: the target's
+/// Loads the scenario of docs/design.md section 6 from the catalog: the target's
 /// building split around the window, plus config.submaps - 1 other buildings.
 Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& config,
                        const CarmenReaderConfig& reader = {});

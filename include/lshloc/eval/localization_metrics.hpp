@@ -17,11 +17,11 @@ struct ScanEstimate {
 };
 
 struct LocalizationMetricsConfig {
-  double success_error_m = 1.0;    ///< [m] "correct" threshold (DESIGN.md section 5)
+  double success_error_m = 1.0;    ///< [m] "correct" threshold (docs/design.md section 6)
   double wrong_confident_m = 2.0;  ///< [m] a confident estimate farther than this is wrong
 };
 
-/// The metrics of DESIGN.md section 5 for one scenario. Errors are measured
+/// The metrics of docs/design.md section 6 for one scenario. Errors are measured
 /// only at scans with ground truth; an estimate in a wrong submap (or none)
 /// counts as an infinite error.
 struct LocalizationMetrics {

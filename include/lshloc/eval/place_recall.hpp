@@ -8,7 +8,7 @@
 
 namespace lshloc {
 
-/// Settings of the place-recall evaluation (DESIGN.md section 5,
+/// Settings of the place-recall evaluation (docs/design.md section 6,
 /// "Descriptor + database quality").
 struct PlaceRecallConfig {
   std::size_t k = 100;            ///< locations retrieved per query (recall_at_k)

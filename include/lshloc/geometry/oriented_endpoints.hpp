@@ -1,7 +1,7 @@
 #pragma once
 // Scan endpoints with a heading: the surface normal estimated from the
 // neighbouring endpoints. These are the oriented points a pose grid can be
-// filled with (every endpoint, DESIGN.md §4) and the data-points iRANSAC can
+// filled with (every endpoint, docs/design.md section 2) and the data-points iRANSAC can
 // score.
 #include <vector>
 

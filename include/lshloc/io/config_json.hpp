@@ -20,6 +20,17 @@
 #include "lshloc/slam/pose_graph_slam.hpp"
 #include "lshloc/slam/scan_matcher.hpp"
 
+/// Defines (not inline) to_json and from_json of a config struct from the
+/// list of its members, each under its C++ name: for a .cpp file, after the
+/// functions were declared in a header.
+#define LSHLOC_JSON_FIELDS(Type, ...)                                            \
+  void to_json(nlohmann::json& nlohmann_json_j, const Type& nlohmann_json_t) {   \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_TO, __VA_ARGS__))     \
+  }                                                                              \
+  void from_json(const nlohmann::json& nlohmann_json_j, Type& nlohmann_json_t) { \
+    NLOHMANN_JSON_EXPAND(NLOHMANN_JSON_PASTE(NLOHMANN_JSON_FROM, __VA_ARGS__))   \
+  }
+
 namespace lshloc {
 
 void to_json(nlohmann::json& j, const Pose2& p);

@@ -18,7 +18,7 @@
 
 namespace lshloc {
 
-/// When the localizer says "localized" (DESIGN.md: say it only when the
+/// When the localizer says "localized" (docs/design.md section 2.3: say it only when the
 /// evidence is strong; a confident answer should never be wrong).
 struct ConfidenceConfig {
   std::uint32_t min_scored = 500;  ///< N of the best hypothesis at least this (about 10 scans of support)

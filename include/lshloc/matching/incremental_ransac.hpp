@@ -1,6 +1,6 @@
 #pragma once
 // Incremental preemptive RANSAC (iRANSAC; paper §III-B/C and §IV-B,
-// DESIGN.md §4). The feature set U (local data-points) and the hypothesis set
+// docs/design.md section 2). The feature set U (local data-points) and the hypothesis set
 // V grow while the robot moves; each iteration scores one feature against
 // every active hypothesis and the preemption function halves the active set
 // every B-th iteration, so the work per scan stays constant however long the
@@ -23,7 +23,7 @@ namespace lshloc {
 struct LocalPoint {
   /// What the point says about the world: a surface (a scan endpoint with
   /// its normal) or free space (a point a local ray passed through, which
-  /// must not lie on a map wall: negative evidence, DESIGN.md section 8).
+  /// must not lie on a map wall: negative evidence, docs/design.md section 2.4).
   enum class Kind : std::uint8_t { kSurface, kFreeSpace };
   float x = 0.0f;      ///< [m]
   float y = 0.0f;      ///< [m]

@@ -1,5 +1,5 @@
 #pragma once
-// Universal-hash pose grid (DESIGN.md §4 "Hash map (UH grid)", paper §IV-A):
+// Universal-hash pose grid (docs/design.md section 3, paper §IV-A):
 // the cells of every submap's (x, y, theta) grid that hold something live in
 // ONE 1-D open-addressing table, keyed by a universal hash of
 // (submap, ix, iy, itheta). Memory grows with the cells used, not with the
@@ -65,7 +65,7 @@ struct PoseGridStats {
   /// The dense grid the table replaces: per submap, the bounding box of its
   /// cells (in cells) times theta_bins, summed over submaps.
   double dense_cells = 0.0;
-  double grid_fraction = 0.0;  ///< bins_used / dense_cells (the "< 3%" of DESIGN.md §4)
+  double grid_fraction = 0.0;  ///< bins_used / dense_cells (a few percent: docs/design.md section 3)
   /// capacity / dense_cells: what memory really holds (the paper's 1e7 bins
   /// against 3.4e8 cells compares table size).
   double table_fraction = 0.0;

@@ -1,6 +1,6 @@
 #pragma once
-// The iRANSAC score c(p, x) against the universal-hash pose grid (DESIGN.md
-// §4): the local point x, moved by hypothesis p into submap r, scores `hit`
+// The iRANSAC score c(p, x) against the universal-hash pose grid (docs/design.md
+// section 2.4): the local point x, moved by hypothesis p into submap r, scores `hit`
 // when its cell (with the grid's tolerance) holds a map feature of r, `free`
 // when the cell is only known free (negative evidence), else `unknown`.
 #include <cstdint>

@@ -1,5 +1,5 @@
 #pragma once
-// Scenarios over synthetic buildings (DESIGN.md section 5 with simulated
+// Scenarios over synthetic buildings (docs/design.md section 6 with simulated
 // data): mapper robots record each building once. The target's building is
 // split as a real log is: the middle window of one long tour is the target's
 // run (drifting odometry, ground truth at every scan), the rest outside a

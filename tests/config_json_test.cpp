@@ -1,0 +1,104 @@
+// Config structs as JSON: a round trip keeps every value, a partial document
+// changes only what it names (nested defaults kept, e.g. the localizer's own
+// scan-matcher settings), and mistakes are errors naming the source and key.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/eval/run_config_json.hpp"
+#include "lshloc/io/config_json.hpp"
+
+namespace lshloc {
+namespace {
+
+std::string error_of(const nlohmann::json& patch) {
+  ScenarioRunConfig c;
+  try {
+    io::apply_config_patch(patch, c, "cfg.json");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ConfigJson, RoundTripKeepsEveryValue) {
+  ScenarioRunConfig c;
+  c.map.occupancy.cell_size = 0.3;
+  c.map.database.full_bucket = FullBucket::kKeepNewest;
+  c.localizer.ransac.order_rule = FeatureOrderRule::kUniform;
+  c.localizer.report.confidence.duel_z = 2.5;
+  c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
+  c.localizer.hypothesis_source = HypothesisSource::kRandomMapFeatures;
+  c.map_share_before_target = 0.5;
+  const nlohmann::json j = c;
+  const ScenarioRunConfig back = j.get<ScenarioRunConfig>();
+  EXPECT_EQ(nlohmann::json(back), j);
+  EXPECT_EQ(back.map.occupancy.cell_size, 0.3);
+  EXPECT_EQ(back.map.database.full_bucket, FullBucket::kKeepNewest);
+  EXPECT_EQ(back.localizer.ransac.order_rule, FeatureOrderRule::kUniform);
+  EXPECT_EQ(back.localizer.report.confidence.duel_z, 2.5);
+  EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);
+  EXPECT_EQ(back.localizer.hypothesis_source, HypothesisSource::kRandomMapFeatures);
+  EXPECT_EQ(j["localizer"]["ransac"]["order_rule"], "uniform");
+}
+
+TEST(ConfigJson, APatchChangesOnlyWhatItNames) {
+  ScenarioRunConfig c;
+  const ScenarioRunConfig defaults;
+  io::apply_config_patch(nlohmann::json::parse(R"({"localizer": {"scan_matcher": {"max_range": 20},
+                                                                  "ransac": {"order_rule": "fresh"}}})"),
+                         c, "cfg.json");
+  EXPECT_EQ(c.localizer.scan_matcher.max_range, 20.0);
+  EXPECT_EQ(c.localizer.ransac.order_rule, FeatureOrderRule::kFreshFirst);
+  // The localizer's own matcher setting (not ScanMatcherConfig's default) stays.
+  EXPECT_EQ(c.localizer.scan_matcher.scan_voxel, defaults.localizer.scan_matcher.scan_voxel);
+  EXPECT_NE(c.localizer.scan_matcher.scan_voxel, ScanMatcherConfig{}.scan_voxel);
+  EXPECT_EQ(c.localizer.ransac.recent_window, defaults.localizer.ransac.recent_window);
+  nlohmann::json expected = defaults;
+  expected["localizer"]["scan_matcher"]["max_range"] = 20.0;
+  expected["localizer"]["ransac"]["order_rule"] = "fresh";
+  EXPECT_EQ(nlohmann::json(c), expected);
+}
+
+TEST(ConfigJson, MistakesNameTheSourceAndTheKey) {
+  EXPECT_NE(error_of({{"localizer", {{"ransac", {{"blok_size", 3}}}}}})
+                .find("cfg.json: localizer.ransac.blok_size: "
+                      "unknown setting"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"localizer", {{"ransac", {{"block_size", -3}}}}}})
+                .find("cfg.json: localizer.ransac.block_size: expected a non-negative integer, got -3"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"map", {{"occupancy", {{"cell_size", "0.2"}}}}}})
+                .find("cfg.json: map.occupancy.cell_size: expected a number"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"map", 3}}).find("cfg.json: map: expected an object"), std::string::npos);
+  const std::string bad_enum = error_of({{"localizer", {{"ransac", {{"order_rule", "newest"}}}}}});
+  EXPECT_NE(bad_enum.find("cfg.json"), std::string::npos);
+  EXPECT_NE(bad_enum.find("\"uniform\", \"recent\", \"fresh\""), std::string::npos) << bad_enum;
+  // A float where an integer is expected is a mistake too, not a silent cut.
+  EXPECT_NE(error_of({{"localizer", {{"candidates_per_feature", 2.5}}}}).find("expected a non-negative integer"),
+            std::string::npos);
+}
+
+TEST(ConfigJson, ReadingAFileNamesItOnSyntaxErrors) {
+  const std::string path = testing::TempDir() + "/lshloc_bad_config.json";
+  {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("{\"map\": {\n  \"occupancy\": ,\n}}\n", f);
+    std::fclose(f);
+  }
+  try {
+    io::read_json_file(path);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path), std::string::npos) << what;
+    EXPECT_NE(what.find("line 2"), std::string::npos) << what;
+  }
+  EXPECT_THROW(io::read_json_file(path + ".missing"), Error);
+}
+
+}  // namespace
+}  // namespace lshloc
