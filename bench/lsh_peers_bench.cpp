@@ -285,13 +285,11 @@ int main(int argc, char** argv) try {
       opt.lsh.sketch_bits = std::stoul(next());
     else if (a == "--lsh-sketch-weight")
       opt.lsh.sketch_collision_weight = std::stoul(next());
-    else if (a == "--lsh-keep-newest")
-      opt.lsh.full_bucket = lshloc::FullBucket::kKeepNewest;
     else
       throw lshloc::Error("unknown option " + a +
                           " (known: --sizes, --only, --query-every, --hnsw-ef, --hnsw-ef-construction, "
                           "--flann-checks, --data, --lsh-k, --lsh-l, --lsh-w, --lsh-cap, --lsh-max-candidates, "
-                          "--lsh-sketch, --lsh-sketch-weight, --lsh-keep-newest)");
+                          "--lsh-sketch, --lsh-sketch-weight)");
   }
   std::sort(opt.sizes.begin(), opt.sizes.end());
   const std::size_t total = opt.sizes.back();

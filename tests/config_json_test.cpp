@@ -25,7 +25,7 @@ std::string error_of(const nlohmann::json& patch) {
 TEST(ConfigJson, RoundTripKeepsEveryValue) {
   ScenarioRunConfig c;
   c.map.occupancy.cell_size = 0.3;
-  c.map.database.full_bucket = FullBucket::kKeepNewest;
+  c.map.database.bucket_capacity = 32;
   c.localizer.ransac.order_rule = FeatureOrderRule::kUniform;
   c.localizer.report.confidence.duel_z = 2.5;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
@@ -35,7 +35,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   const ScenarioRunConfig back = j.get<ScenarioRunConfig>();
   EXPECT_EQ(nlohmann::json(back), j);
   EXPECT_EQ(back.map.occupancy.cell_size, 0.3);
-  EXPECT_EQ(back.map.database.full_bucket, FullBucket::kKeepNewest);
+  EXPECT_EQ(back.map.database.bucket_capacity, 32u);
   EXPECT_EQ(back.localizer.ransac.order_rule, FeatureOrderRule::kUniform);
   EXPECT_EQ(back.localizer.report.confidence.duel_z, 2.5);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);

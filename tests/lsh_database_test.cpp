@@ -141,27 +141,6 @@ TEST(LshDatabase, SketchRankingPutsTheTrueMatchAboveLookAlikes) {
   EXPECT_GE(first[1], kPlaces * 7 / 10);
 }
 
-TEST(LshDatabase, HotBucketKeepingNewestReturnsOnlyItsNewestEntries) {
-  LshConfig cfg;
-  cfg.full_bucket = FullBucket::kKeepNewest;
-  cfg.sketch_bits = 0;  // measure the buckets' memory alone
-  cfg.bucket_capacity = 8;
-  cfg.L = 3;
-  cfg.max_candidates = 1000;
-  LshDatabase db(cfg);
-  const Descriptor same = clustered(1, 1, 0.0, 1)[0];
-  for (std::uint32_t i = 0; i < 500; ++i) db.insert(same, i);
-  std::vector<std::uint32_t> got;
-  db.query(same, 100, got);
-  // 500 ids fell in each table's bucket, which keeps (and returns) the newest 8.
-  ASSERT_EQ(got.size(), 8u);
-  for (auto id : got) EXPECT_GE(id, 492u);
-  EXPECT_EQ(db.stats().candidates_touched, 24u);
-  EXPECT_EQ(db.stats().buckets, 3u);
-  // Memory stays bounded: the pools hold 8 ids per table, not 500.
-  EXPECT_LT(db.stats().bytes, LshDatabase(cfg).stats().bytes + 3 * 8 * sizeof(std::uint32_t) + 3 * 16 * 64);
-}
-
 TEST(LshDatabase, HotBucketSamplingKeepsOldAndNewEntries) {
   LshConfig cfg;
   cfg.bucket_capacity = 64;
@@ -182,7 +161,6 @@ TEST(LshDatabase, HotBucketSamplingKeepsOldAndNewEntries) {
 
 TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
   LshConfig cfg;
-  cfg.full_bucket = FullBucket::kKeepNewest;
   cfg.bucket_capacity = 100;  // rounded up to 128
   cfg.L = 10;
   cfg.max_candidates = 250;
@@ -192,8 +170,11 @@ TEST(LshDatabase, MaxCandidatesBoundsTheWork) {
   std::vector<std::uint32_t> got;
   db.query(same, 1000, got);
   EXPECT_EQ(db.stats().candidates_touched, 250u);
-  ASSERT_EQ(got.size(), 128u);  // the newest 128: 872..999
-  EXPECT_EQ(*std::min_element(got.begin(), got.end()), 872u);
+  // Two tables' buckets read (128 + 122 entries), each a sample of 0..999.
+  EXPECT_GE(got.size(), 128u);
+  EXPECT_LE(got.size(), 250u);
+  EXPECT_EQ(std::set<std::uint32_t>(got.begin(), got.end()).size(), got.size());
+  EXPECT_LT(*std::max_element(got.begin(), got.end()), 1000u);
 }
 
 TEST(LshDatabase, SameSeedSameAnswersOtherSeedOtherTables) {

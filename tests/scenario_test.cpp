@@ -69,7 +69,9 @@ TEST(Scenario, SplitsAroundTheWindowWithAGuard) {
 TEST(Scenario, BuildingsWithoutCorrectedLogsAreMappedBySlam) {
   // A simulated building whose recording has raw scans only: the submap's
   // poses must come from SLAM, far closer to the truth than its odometry.
-  const sim::RunBuilding rb = sim::run_building(5, 0, sim::SimulationConfig{.scans = 1500});
+  sim::SimulationConfig simulation;
+  simulation.scans = 1500;
+  const sim::RunBuilding rb = sim::run_building(5, 0, simulation);
   const sim::SyntheticBuilding building = sim::generate_building(rb.building);
   BuildingRecording rec = sim::simulate_recording(building, rb.simulation);
   const std::vector<LaserScan> corrected = rec.corrected_scans;

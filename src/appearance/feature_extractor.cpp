@@ -16,10 +16,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-void require(bool ok, const char* field, const std::string& expected) {
-  if (!ok) throw Error(std::string("FeatureExtractorConfig.") + field + ": expected " + expected);
-}
-
 /// Index of the last point of segment `seg` plus one.
 std::size_t segment_end(const ScanSurface& s, std::size_t seg) {
   return seg + 1 < s.segment_begin.size() ? s.segment_begin[seg + 1] : s.points.size();
@@ -38,24 +34,28 @@ ScanSurface transformed(const ScanSurface& surface, const Pose2& T_new_old) {
 }
 
 void FeatureExtractorConfig::validate() const {
-  require(min_range >= 0.0 && max_range > min_range, "min_range/max_range", "0 <= min_range < max_range");
-  require(segment_gap > 0.0 && segment_gap_per_meter >= 0.0, "segment_gap", "> 0 (per metre >= 0)");
-  require(min_segment_points >= 2, "min_segment_points", ">= 2");
-  require(tangent_half_window > 0.0, "tangent_half_window", "> 0 m");
-  require(max_keypoints >= 1, "max_keypoints", ">= 1");
-  require(keypoint_spacing > 0.0, "keypoint_spacing", "> 0 m");
-  require(keypoint_max_range > 0.0, "keypoint_max_range", "> 0 m");
-  require(normal_half_window > 0.0, "normal_half_window", "> 0 m");
-  require(max_normal_residual > 0.0, "max_normal_residual", "> 0 m");
-  require(edge_margin >= 0.0, "edge_margin", ">= 0 m");
-  require(descriptor_radius > 0.0, "descriptor_radius", "> 0 m");
-  require(descriptor_inner_radius > 0.0 && descriptor_inner_radius < descriptor_radius, "descriptor_inner_radius",
-          "in (0, descriptor_radius)");
+  require(min_range >= 0.0 && max_range > min_range, "FeatureExtractorConfig.max_range", "0 <= min_range < max_range",
+          max_range);
+  require(segment_gap > 0.0 && segment_gap_per_meter >= 0.0, "FeatureExtractorConfig.segment_gap",
+          "> 0 (per metre >= 0)", segment_gap);
+  require(min_segment_points >= 2, "FeatureExtractorConfig.min_segment_points", ">= 2", min_segment_points);
+  require(tangent_half_window > 0.0, "FeatureExtractorConfig.tangent_half_window", "> 0 m", tangent_half_window);
+  require(max_keypoints >= 1, "FeatureExtractorConfig.max_keypoints", ">= 1", max_keypoints);
+  require(keypoint_spacing > 0.0, "FeatureExtractorConfig.keypoint_spacing", "> 0 m", keypoint_spacing);
+  require(keypoint_max_range > 0.0, "FeatureExtractorConfig.keypoint_max_range", "> 0 m", keypoint_max_range);
+  require(normal_half_window > 0.0, "FeatureExtractorConfig.normal_half_window", "> 0 m", normal_half_window);
+  require(max_normal_residual > 0.0, "FeatureExtractorConfig.max_normal_residual", "> 0 m", max_normal_residual);
+  require(edge_margin >= 0.0, "FeatureExtractorConfig.edge_margin", ">= 0 m", edge_margin);
+  require(descriptor_radius > 0.0, "FeatureExtractorConfig.descriptor_radius", "> 0 m", descriptor_radius);
+  require(descriptor_inner_radius > 0.0 && descriptor_inner_radius < descriptor_radius,
+          "FeatureExtractorConfig.descriptor_inner_radius", "in (0, descriptor_radius)", descriptor_inner_radius);
   require(rings >= 2 && sectors >= 2 && rings * sectors * (occupancy_component ? 3 : 2) == kDescriptorSize,
-          "rings/sectors", "rings x sectors x components (2, or 3 with occupancy_component) = 120, at least 2 each");
-  require(rim_taper >= 0.0 && rim_taper <= 1.0, "rim_taper", "in [0, 1]");
-  require(bin_power > 0.0 && bin_power <= 1.0, "bin_power", "in (0, 1]");
-  require(min_descriptor_support >= 0.0, "min_descriptor_support", ">= 0 m");
+          "FeatureExtractorConfig.rings/sectors",
+          "rings x sectors x components (2, or 3 with occupancy_component) = 120, at least 2 each");
+  require(rim_taper >= 0.0 && rim_taper <= 1.0, "FeatureExtractorConfig.rim_taper", "in [0, 1]", rim_taper);
+  require(bin_power > 0.0 && bin_power <= 1.0, "FeatureExtractorConfig.bin_power", "in (0, 1]", bin_power);
+  require(min_descriptor_support >= 0.0, "FeatureExtractorConfig.min_descriptor_support", ">= 0 m",
+          min_descriptor_support);
 }
 
 FeatureExtractor::FeatureExtractor(FeatureExtractorConfig config) : config_(config) { config_.validate(); }
@@ -143,9 +143,7 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
       const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
       const double r = std::sqrt(d2);
       // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
-      const double u = r < inner           ? r / inner
-                       : config_.log_rings ? 1.0 + (kRings - 1) * std::log(r / inner) / log_span
-                                           : 1.0 + (kRings - 1) * (r - inner) / (radius - inner);
+      const double u = r < inner ? r / inner : 1.0 + (kRings - 1) * std::log(r / inner) / log_span;
       const double taper = std::min(1.0, (radius - r) / taper_width);
       const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
       // Soft binning between the two nearest bin centres in each dimension, so
@@ -260,12 +258,13 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
       structure.push_back(support.across);
     }
   }
-  // Too many: keep the most structured ones, or an evenly spread subset; in
-  // scan order either way (deterministic and independent of the frame).
+  // Too many: keep the most structured ones (most surface across the
+  // keypoint's own wall inside the disc: corners, doors, openings), in scan
+  // order (deterministic and independent of the frame).
   std::vector<Feature> out;
   if (candidates.size() <= config_.max_keypoints) {
     out = std::move(candidates);
-  } else if (config_.prefer_structure) {
+  } else {
     std::vector<std::size_t> order(candidates.size());
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
     std::stable_sort(order.begin(), order.end(),
@@ -273,11 +272,6 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
     order.resize(config_.max_keypoints);
     std::sort(order.begin(), order.end());
     for (std::size_t i : order) out.push_back(candidates[i]);
-  } else {
-    out.reserve(config_.max_keypoints);
-    const double step = static_cast<double>(candidates.size()) / static_cast<double>(config_.max_keypoints);
-    for (std::size_t i = 0; i < config_.max_keypoints; ++i)
-      out.push_back(candidates[static_cast<std::size_t>((static_cast<double>(i) + 0.5) * step)]);
   }
   stats_.features += out.size();
   return out;

@@ -13,10 +13,6 @@ namespace lshloc {
 
 namespace {
 
-void require(bool ok, const char* field, const std::string& expected) {
-  if (!ok) throw Error(std::string("LshConfig.") + field + ": expected " + expected);
-}
-
 std::uint64_t mix64(std::uint64_t x) {
   x ^= x >> 30;
   x *= 0xBF58476D1CE4E5B9ULL;
@@ -29,14 +25,18 @@ std::uint64_t mix64(std::uint64_t x) {
 }  // namespace
 
 void LshConfig::validate() const {
-  require(K >= 1 && K <= 64, "K", "1..64 projections per table");
-  require(L >= 1 && L <= 256, "L", "1..256 tables");
-  require(std::isfinite(w) && w > 0.0, "w", "a bucket width > 0");
-  require(bucket_capacity >= 1 && bucket_capacity <= (1u << 16), "bucket_capacity", "1..65536");
-  require(max_candidates >= 1 && max_candidates <= (1u << 24), "max_candidates", "1..2^24");
-  require(sketch_bits % 64 == 0 && sketch_bits <= 1024, "sketch_bits", "0 or a multiple of 64 up to 1024");
-  require(sketch_collision_weight <= 64, "sketch_collision_weight", "0..64 bits per table");
-  require(initial_slots >= 1 && initial_slots <= (std::size_t{1} << 30), "initial_slots", "1..2^30");
+  require(K >= 1 && K <= 64, "LshConfig.K", "1..64 projections per table", K);
+  require(L >= 1 && L <= 256, "LshConfig.L", "1..256 tables", L);
+  require(std::isfinite(w) && w > 0.0, "LshConfig.w", "a bucket width > 0", w);
+  require(bucket_capacity >= 1 && bucket_capacity <= (1u << 16), "LshConfig.bucket_capacity", "1..65536",
+          bucket_capacity);
+  require(max_candidates >= 1 && max_candidates <= (1u << 24), "LshConfig.max_candidates", "1..2^24", max_candidates);
+  require(sketch_bits % 64 == 0 && sketch_bits <= 1024, "LshConfig.sketch_bits", "0 or a multiple of 64 up to 1024",
+          sketch_bits);
+  require(sketch_collision_weight <= 64, "LshConfig.sketch_collision_weight", "0..64 bits per table",
+          sketch_collision_weight);
+  require(initial_slots >= 1 && initial_slots <= (std::size_t{1} << 30), "LshConfig.initial_slots", "1..2^30",
+          initial_slots);
 }
 
 LshQuery::LshQuery(const LshDatabase& db) {
@@ -160,10 +160,6 @@ void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) {
   if (slot.inserted < cap) {
     t.pool[slot.offset + slot.inserted] = id;
     slot.inserted += 1;
-  } else if (config_.full_bucket == FullBucket::kKeepNewest) {
-    t.pool[slot.offset + (slot.inserted & (cap - 1))] = id;  // overwrite the oldest
-    slot.inserted += 1;
-    if (slot.inserted == 2 * cap) slot.inserted = cap;  // same position modulo cap, never wraps
   } else {
     // Reservoir sampling: the bucket stays a uniform sample of all its ids.
     rng_state_ = mix64(rng_state_ + 0x9E3779B97F4A7C15ULL);

@@ -6,15 +6,19 @@ namespace lshloc {
 
 std::vector<Point2> LaserScan::endpoints(double min_range, double max_use_range) const {
   std::vector<Point2> out;
+  endpoints(out, min_range, max_use_range);
+  return out;
+}
+
+void LaserScan::endpoints(std::vector<Point2>& out, double min_range, double max_use_range) const {
+  out.clear();
   out.reserve(ranges.size());
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     if (status(i) != BeamStatus::kValid) continue;
     const double r = ranges[i];
     if (r < min_range || r >= max_use_range) continue;
-    const double a = bearing(i);
-    out.emplace_back(r * std::cos(a), r * std::sin(a));
+    out.push_back(endpoint(i));
   }
-  return out;
 }
 
 void set_flaser_geometry(LaserScan& scan) {

@@ -11,8 +11,7 @@ std::vector<Pose2> oriented_endpoints(const LaserScan& scan, const OrientedEndpo
   std::vector<char> ok(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (scan.status(i) != BeamStatus::kValid || scan.ranges[i] >= config.max_range) continue;
-    const double r = scan.ranges[i], a = scan.bearing(i);
-    p[i] = {r * std::cos(a), r * std::sin(a)}, ok[i] = 1;
+    p[i] = scan.endpoint(i), ok[i] = 1;
   }
   // Beam i and i+1 lie on one surface when both are valid and closer than the
   // gap plus the arc one beam spans at that range.

@@ -38,15 +38,11 @@ void enum_from_json(const nlohmann::json& j, Enum& v, const std::array<std::pair
   throw Error("expected one of " + expected + ", got " + j.dump());
 }
 
-constexpr std::array kFullBucketNames{std::pair{FullBucket::kReservoir, "reservoir"},
-                                      std::pair{FullBucket::kKeepNewest, "keep_newest"}};
 constexpr std::array kToleranceModeNames{std::pair{ToleranceMode::kDilateAtInsert, "dilate_at_insert"},
                                          std::pair{ToleranceMode::kProbeNeighbours, "probe_neighbours"}};
 constexpr std::array kOrderRuleNames{std::pair{FeatureOrderRule::kUniform, "uniform"},
                                      std::pair{FeatureOrderRule::kRecentWindow, "recent"},
                                      std::pair{FeatureOrderRule::kFreshFirst, "fresh"}};
-constexpr std::array kPreemptionRankNames{std::pair{PreemptionRank::kMeanScore, "mean_score"},
-                                          std::pair{PreemptionRank::kTotalScore, "total_score"}};
 constexpr std::array kHypothesisSourceNames{std::pair{HypothesisSource::kDatabase, "database"},
                                             std::pair{HypothesisSource::kRandomMapFeatures, "random"}};
 
@@ -56,14 +52,10 @@ void to_json(nlohmann::json& j, const Pose2& p) { j = {{"x", p.x}, {"y", p.y}, {
 void from_json(const nlohmann::json& j, Pose2& p) {
   p = Pose2(j.at("x").get<double>(), j.at("y").get<double>(), j.at("theta").get<double>());
 }
-void to_json(nlohmann::json& j, FullBucket v) { enum_to_json(j, v, kFullBucketNames); }
-void from_json(const nlohmann::json& j, FullBucket& v) { enum_from_json(j, v, kFullBucketNames); }
 void to_json(nlohmann::json& j, ToleranceMode v) { enum_to_json(j, v, kToleranceModeNames); }
 void from_json(const nlohmann::json& j, ToleranceMode& v) { enum_from_json(j, v, kToleranceModeNames); }
 void to_json(nlohmann::json& j, FeatureOrderRule v) { enum_to_json(j, v, kOrderRuleNames); }
 void from_json(const nlohmann::json& j, FeatureOrderRule& v) { enum_from_json(j, v, kOrderRuleNames); }
-void to_json(nlohmann::json& j, PreemptionRank v) { enum_to_json(j, v, kPreemptionRankNames); }
-void from_json(const nlohmann::json& j, PreemptionRank& v) { enum_from_json(j, v, kPreemptionRankNames); }
 void to_json(nlohmann::json& j, HypothesisSource v) { enum_to_json(j, v, kHypothesisSourceNames); }
 void from_json(const nlohmann::json& j, HypothesisSource& v) { enum_from_json(j, v, kHypothesisSourceNames); }
 
@@ -71,23 +63,23 @@ void from_json(const nlohmann::json& j, HypothesisSource& v) { enum_from_json(j,
 LSHLOC_JSON_FIELDS(FeatureExtractorConfig, min_range, max_range, segment_gap, segment_gap_per_meter, min_segment_points,
                    tangent_half_window, max_keypoints, keypoint_spacing, keypoint_max_range, normal_half_window,
                    max_normal_residual, edge_margin, rings, sectors, occupancy_component, descriptor_radius,
-                   descriptor_inner_radius, rim_taper, log_rings, bin_power, min_descriptor_support, prefer_structure)
-LSHLOC_JSON_FIELDS(LshConfig, K, L, w, seed, bucket_capacity, full_bucket, max_candidates, sketch_bits,
-                   sketch_collision_weight, initial_slots)
+                   descriptor_inner_radius, rim_taper, bin_power, min_descriptor_support)
+LSHLOC_JSON_FIELDS(LshConfig, K, L, w, seed, bucket_capacity, max_candidates, sketch_bits, sketch_collision_weight,
+                   initial_slots)
 LSHLOC_JSON_FIELDS(PoseGridConfig, cell_size, theta_bins, xy_tolerance, theta_tolerance, tolerance_mode,
                    max_load_factor, initial_capacity, seed)
 LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_features_per_scan, new_hypotheses_per_scan,
-                   iterations_per_scan, min_score, preference_z, count_unknown, order_rule, recent_window,
-                   preemption_rank, seed)
-LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_voxel, window_keyframes,
-                   keyframe_distance, keyframe_angle, map_voxel, keep_oldest_map_points, normal_radius,
-                   normal_beam_gaps, normal_max_neighbours, normal_min_points, max_line_flatness, coarse_correspondence,
-                   fine_correspondence, coarse_iterations, max_iterations, robust_scale, converged_translation,
-                   converged_rotation, rotation_length, odometry_prior, point_sigma, odometry_sigma_translation,
+                   iterations_per_scan, min_score, preference_z, order_rule, recent_window, seed)
+LSHLOC_JSON_FIELDS(ScanMatcherConfig::Experimental, odometry_prior, point_sigma, odometry_sigma_translation,
                    odometry_sigma_per_meter, odometry_sigma_rotation, odometry_sigma_rotation_per_rad,
-                   odometry_sigma_rotation_per_meter, degeneracy_threshold, inlier_distance, min_quality,
-                   min_correspondences, max_correction_translation, max_correction_rotation, velocity_guess_difference,
-                   reject_unconverged, stationary_translation, stationary_rotation)
+                   odometry_sigma_rotation_per_meter)
+LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_voxel, window_keyframes,
+                   keyframe_distance, keyframe_angle, map_voxel, normal_radius, normal_beam_gaps, normal_max_neighbours,
+                   normal_min_points, max_line_flatness, coarse_correspondence, fine_correspondence, coarse_iterations,
+                   max_iterations, robust_scale, converged_translation, converged_rotation, rotation_length,
+                   degeneracy_threshold, inlier_distance, min_quality, min_correspondences, max_correction_translation,
+                   max_correction_rotation, velocity_guess_difference, experimental, reject_unconverged,
+                   stationary_translation, stationary_rotation)
 LSHLOC_JSON_FIELDS(PoseGraphConfig, max_iterations, converged_step, robust_scale)
 LSHLOC_JSON_FIELDS(CorrelativeMatcherConfig, cell, sigma, block, angle_step_deg, max_query_points, runner_up_distance)
 LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement, node_distance, node_angle, node_voxel,
@@ -103,9 +95,9 @@ LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, sta
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty,
-                   return_support, contested_penalty, free_space_agreement, context_scans, context_spacing,
-                   data_point_spacing, free_points_per_surface_point, free_point_fraction, free_point_margin,
-                   hypothesis_source, report, seed)
+                   return_support, contested_penalty, context_scans, context_spacing, data_point_spacing,
+                   free_points_per_surface_point, free_point_fraction, free_point_margin, hypothesis_source, report,
+                   seed)
 
 }  // namespace lshloc
 

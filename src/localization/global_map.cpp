@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/common/cpu_time.hpp"
 
 namespace lshloc {
@@ -12,13 +13,13 @@ void GlobalMapConfig::validate() const {
   database.validate();
   occupancy.validate();
   free_space.validate();
-  if (free_space.theta_bins != 1) throw Error("GlobalMapConfig: free_space must be a 2-D grid (theta_bins = 1)");
-  if (!(endpoint_spacing >= 0.0)) throw Error("GlobalMapConfig: endpoint_spacing must be >= 0 m");
-  if (free_ray_stride == 0) throw Error("GlobalMapConfig: free_ray_stride must be >= 1 (beams)");
-  if (!(free_ray_margin >= 0.0) || !(free_ray_max_range > 0.0) || !(free_ray_no_return_range >= 0.0)) {
-    throw Error(
-        "GlobalMapConfig: free_ray_margin and free_ray_no_return_range must be >= 0 m and free_ray_max_range > 0 m");
-  }
+  require(free_space.theta_bins == 1, "GlobalMapConfig.free_space.theta_bins", "1 (a 2-D grid)", free_space.theta_bins);
+  require(endpoint_spacing >= 0.0, "GlobalMapConfig.endpoint_spacing", ">= 0 m", endpoint_spacing);
+  require(free_ray_stride >= 1, "GlobalMapConfig.free_ray_stride", ">= 1 beam", free_ray_stride);
+  require(free_ray_margin >= 0.0, "GlobalMapConfig.free_ray_margin", ">= 0 m", free_ray_margin);
+  require(free_ray_max_range > 0.0, "GlobalMapConfig.free_ray_max_range", "> 0 m", free_ray_max_range);
+  require(free_ray_no_return_range >= 0.0, "GlobalMapConfig.free_ray_no_return_range", ">= 0 m",
+          free_ray_no_return_range);
 }
 
 double GlobalMapStats::bytes_per_feature() const {
@@ -78,14 +79,11 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   const Point2 sensor = laser_pose.translation();
   // Occupancy: endpoints with their normal direction, thinned along the scan;
   // the free-space grid notes where the map has a normal (kNormal).
-  Point2 last(1e18, 1e18);
-  for (const SurfacePoint& p : surface.points) {
-    if ((p.position - last).norm() < config_.endpoint_spacing) continue;
-    last = p.position;
+  for_each_spaced(surface.points, config_.endpoint_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
     occupancy_.mark(submap, p.position.x(), p.position.y(), normal_towards(p.position, p.tangent, sensor),
                     cell_flags::kOccupied);
     free_space_.mark(submap, p.position.x(), p.position.y(), 0.0, cell_flags::kNormal);
-  }
+  });
   // Free space: cells the beams crossed, stopping short of the endpoint; the
   // endpoints' cells and their neighbours are marked occupied in the same 2-D
   // grid so that walls never read as free.
@@ -93,10 +91,7 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   const double c = std::cos(laser_pose.theta), s = std::sin(laser_pose.theta);
   // Every beam's endpoint in the laser frame, computed once for both passes.
   beam_endpoints_.resize(scan.size());
-  for (std::size_t i = 0; i < scan.size(); ++i) {
-    const double a = scan.bearing(i);
-    beam_endpoints_[i] = Point2(scan.ranges[i] * std::cos(a), scan.ranges[i] * std::sin(a));
-  }
+  for (std::size_t i = 0; i < scan.size(); ++i) beam_endpoints_[i] = scan.endpoint(i);
   const auto valid = [&](std::size_t i) { return i < scan.size() && scan.status(i) == BeamStatus::kValid; };
   for (std::size_t i = 0; i < scan.size(); i += config_.free_ray_stride) {
     const BeamStatus status = scan.status(i);

@@ -6,6 +6,7 @@
 
 #include "lshloc/common/cpu_time.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/geometry/voxel_thinning.hpp"
 
 namespace lshloc {
 
@@ -59,9 +60,10 @@ void LocalizerConfig::validate() const {
   features.validate();
   ransac.validate();
   report.validate();
-  if (candidates_per_feature == 0) throw Error("LocalizerConfig: candidates_per_feature must be >= 1");
-  if (!(free_space_penalty >= 0.0)) throw Error("LocalizerConfig: free_space_penalty must be >= 0");
-  if (!(return_support >= 0.0)) throw Error("LocalizerConfig: return_support must be >= 0");
+  require(candidates_per_feature >= 1, "LocalizerConfig.candidates_per_feature", ">= 1", candidates_per_feature);
+  require(free_space_penalty >= 0.0, "LocalizerConfig.free_space_penalty", ">= 0", free_space_penalty);
+  require(return_support >= 0.0, "LocalizerConfig.return_support", ">= 0", return_support);
+  require(contested_penalty >= 0.0, "LocalizerConfig.contested_penalty", ">= 0", contested_penalty);
 }
 
 Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
@@ -86,7 +88,7 @@ PoseGridScorerConfig Localizer::scorer_config() const {
           .free = -static_cast<float>(config_.free_space_penalty),
           .unknown = 0.0f,
           .ray_through_wall = -static_cast<float>(config_.free_space_penalty),
-          .ray_through_free = static_cast<float>(config_.free_space_agreement),
+          .ray_through_free = 0.0f,  // agreement on free space is no evidence (RESULTS.md)
           .ray_through_contested = -static_cast<float>(config_.contested_penalty),
           .surface_on_return = static_cast<float>(config_.return_support)};
 }
@@ -186,14 +188,11 @@ void Localizer::sample_data_points(const LaserScan& scan) {
   data_points_.clear();
   const Pose2& sensor_pose = surface_.sensor_pose;
   const Point2 sensor = sensor_pose.translation();
-  Point2 last(1e18, 1e18);
-  for (const SurfacePoint& p : surface_.points) {
-    if ((p.position - last).norm() < config_.data_point_spacing) continue;
-    last = p.position;
+  for_each_spaced(surface_.points, config_.data_point_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
     data_points_.push_back({static_cast<float>(p.position.x()), static_cast<float>(p.position.y()),
                             static_cast<float>(normal_towards(p.position, p.tangent, sensor)),
                             LocalPoint::Kind::kSurface});
-  }
+  });
   // Free-space points on evenly spread beams, as many as surface points.
   const auto wanted =
       static_cast<std::size_t>(config_.free_points_per_surface_point * static_cast<double>(data_points_.size()));

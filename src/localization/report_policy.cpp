@@ -31,10 +31,11 @@ std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P,
 }
 
 void ReportPolicyConfig::validate() const {
-  if (confidence.stable_scans == 0) throw Error("ReportPolicyConfig: confidence.stable_scans must be >= 1");
-  if (refine_points > 0 && !(refine_step_m > 0.0 && refine_step_deg > 0.0)) {
-    throw Error("ReportPolicyConfig: refine_step_m and refine_step_deg must be > 0 when refine_points > 0");
-  }
+  require(confidence.stable_scans >= 1, "ReportPolicyConfig.confidence.stable_scans", ">= 1", confidence.stable_scans);
+  if (refine_points == 0) return;
+  require(refine_step_m > 0.0, "ReportPolicyConfig.refine_step_m", "> 0 m when refine_points > 0", refine_step_m);
+  require(refine_step_deg > 0.0, "ReportPolicyConfig.refine_step_deg", "> 0 deg when refine_points > 0",
+          refine_step_deg);
 }
 
 ReportPolicy::ReportPolicy(ReportPolicyConfig config, RansacPreference ransac)

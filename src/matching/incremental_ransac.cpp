@@ -8,12 +8,13 @@
 namespace lshloc {
 
 void IncrementalRansacConfig::validate() const {
-  auto fail = [](const std::string& what) { throw Error("iRANSAC config: " + what); };
-  if (block_size < 1) fail("block_size (B) must be at least 1");
-  if (new_features_per_scan < 1) fail("new_features_per_scan (|U_new|) must be at least 1");
-  if (new_hypotheses_per_scan < 1) fail("new_hypotheses_per_scan (|V_new|) must be at least 1");
-  if (!std::isfinite(min_score)) fail("min_score (C_o) must be finite");
-  if (recent_window < 1) fail("recent_window must be at least 1 feature");
+  require(block_size >= 1, "IncrementalRansacConfig.block_size", ">= 1 (B)", block_size);
+  require(new_features_per_scan >= 1, "IncrementalRansacConfig.new_features_per_scan", ">= 1 (|U_new|)",
+          new_features_per_scan);
+  require(new_hypotheses_per_scan >= 1, "IncrementalRansacConfig.new_hypotheses_per_scan", ">= 1 (|V_new|)",
+          new_hypotheses_per_scan);
+  require(std::isfinite(min_score), "IncrementalRansacConfig.min_score", "a finite C_o", min_score);
+  require(recent_window >= 1, "IncrementalRansacConfig.recent_window", ">= 1 data-point", recent_window);
 }
 
 IncrementalRansac::IncrementalRansac(IncrementalRansacConfig config) : config_(config), rng_(config.seed) {
@@ -129,11 +130,7 @@ void IncrementalRansac::preempt(std::size_t keep) {
   // the order is total and the survivors are the same whatever V's order.
   rank_.resize(m);
   for (std::size_t j = 0; j < m; ++j) {
-    if (config_.preemption_rank == PreemptionRank::kTotalScore) {
-      rank_[j] = score_[j];
-    } else {
-      rank_[j] = scored_[j] > 0 ? static_cast<double>(score_[j]) / scored_[j] : 0.0;
-    }
+    rank_[j] = scored_[j] > 0 ? static_cast<double>(score_[j]) / scored_[j] : 0.0;
   }
   auto better = [&](std::uint32_t a, std::uint32_t b) {
     return rank_[a] != rank_[b] ? rank_[a] > rank_[b] : serial_[a] < serial_[b];

@@ -14,14 +14,13 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 }  // namespace
 
 void PoseGridConfig::validate() const {
-  auto fail = [](const std::string& what) { throw Error("pose grid config: " + what); };
-  if (!(cell_size > 0.0) || !std::isfinite(cell_size)) fail("cell_size must be a positive number of metres");
-  if (theta_bins < 1 || theta_bins > 255) fail("theta_bins must lie in 1..255, got " + std::to_string(theta_bins));
-  if (xy_tolerance < 0 || xy_tolerance > 8) fail("xy_tolerance must lie in 0..8 cells");
-  if (theta_tolerance < 0 || theta_tolerance > 8) fail("theta_tolerance must lie in 0..8 bins");
-  if (!(max_load_factor > 0.05 && max_load_factor <= 0.9))
-    fail("max_load_factor must lie in (0.05, 0.9] for linear probing");
-  if (initial_capacity < 2) fail("initial_capacity must be at least 2");
+  require(cell_size > 0.0 && std::isfinite(cell_size), "PoseGridConfig.cell_size", "> 0 m", cell_size);
+  require(theta_bins >= 1 && theta_bins <= 255, "PoseGridConfig.theta_bins", "1..255", theta_bins);
+  require(xy_tolerance >= 0 && xy_tolerance <= 8, "PoseGridConfig.xy_tolerance", "0..8 cells", xy_tolerance);
+  require(theta_tolerance >= 0 && theta_tolerance <= 8, "PoseGridConfig.theta_tolerance", "0..8 bins", theta_tolerance);
+  require(max_load_factor > 0.05 && max_load_factor <= 0.9, "PoseGridConfig.max_load_factor",
+          "in (0.05, 0.9] for linear probing", max_load_factor);
+  require(initial_capacity >= 2, "PoseGridConfig.initial_capacity", ">= 2", initial_capacity);
 }
 
 PoseGridHashMap::PoseGridHashMap(PoseGridConfig config) : config_(config) {

@@ -10,12 +10,12 @@
 namespace lshloc {
 
 void CorrelativeMatcherConfig::validate() const {
-  if (!(cell > 0.0)) throw Error("CorrelativeMatcherConfig: cell must be > 0 m");
-  if (!(sigma > 0.0)) throw Error("CorrelativeMatcherConfig: sigma must be > 0 m");
-  if (block < 1) throw Error("CorrelativeMatcherConfig: block must be >= 1 cell");
-  if (!(angle_step_deg > 0.0)) throw Error("CorrelativeMatcherConfig: angle_step_deg must be > 0");
-  if (max_query_points == 0) throw Error("CorrelativeMatcherConfig: max_query_points must be >= 1");
-  if (!(runner_up_distance >= 0.0)) throw Error("CorrelativeMatcherConfig: runner_up_distance must be >= 0 m");
+  require(cell > 0.0, "CorrelativeMatcherConfig.cell", "> 0 m", cell);
+  require(sigma > 0.0, "CorrelativeMatcherConfig.sigma", "> 0 m", sigma);
+  require(block >= 1, "CorrelativeMatcherConfig.block", ">= 1 cell", block);
+  require(angle_step_deg > 0.0, "CorrelativeMatcherConfig.angle_step_deg", "> 0 deg", angle_step_deg);
+  require(max_query_points >= 1, "CorrelativeMatcherConfig.max_query_points", ">= 1", max_query_points);
+  require(runner_up_distance >= 0.0, "CorrelativeMatcherConfig.runner_up_distance", ">= 0 m", runner_up_distance);
 }
 
 CorrelativeMatcher::CorrelativeMatcher(CorrelativeMatcherConfig config) : config_((config.validate(), config)) {}

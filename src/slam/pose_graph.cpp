@@ -55,9 +55,9 @@ Eigen::Matrix3d diagonal_information(double sigma_xy, double sigma_theta) {
 }
 
 void PoseGraphConfig::validate() const {
-  if (max_iterations == 0) throw Error("PoseGraphConfig: max_iterations must be >= 1");
-  if (!(converged_step > 0.0)) throw Error("PoseGraphConfig: converged_step must be > 0");
-  if (!(robust_scale > 0.0)) throw Error("PoseGraphConfig: robust_scale must be > 0");
+  require(max_iterations >= 1, "PoseGraphConfig.max_iterations", ">= 1", max_iterations);
+  require(converged_step > 0.0, "PoseGraphConfig.converged_step", "> 0", converged_step);
+  require(robust_scale > 0.0, "PoseGraphConfig.robust_scale", "> 0", robust_scale);
 }
 
 PoseGraph::PoseGraph(PoseGraphConfig config) : config_((config.validate(), config)) {}

@@ -20,20 +20,26 @@ void PoseGraphSlamConfig::validate() const {
   graph.validate();
   correlative.validate();
   refinement.validate();
-  if (!(node_distance > 0.0) || !(node_angle > 0.0) || !(node_voxel > 0.0)) {
-    throw Error("PoseGraphSlamConfig: node_distance, node_angle and node_voxel must be > 0");
-  }
-  if (!(edge_sigma_xy > 0.0) || !(edge_sigma_theta_deg > 0.0) || !(loop_sigma_xy > 0.0) ||
-      !(loop_sigma_theta_deg > 0.0) || edge_sigma_xy_per_m < 0.0 || edge_sigma_theta_per_m_deg < 0.0) {
-    throw Error("PoseGraphSlamConfig: edge and loop standard deviations must be > 0 (per-metre terms >= 0)");
-  }
-  if (!(loop_window > 0.0) || loop_window_per_m < 0.0 || !(loop_max_window >= loop_window) ||
-      !(loop_window_deg >= 0.0) || !(loop_min_travel >= 0.0)) {
-    throw Error("PoseGraphSlamConfig: loop windows must be > 0 (max >= start) and loop_min_travel >= 0");
-  }
-  if (!(loop_min_score > 0.0 && loop_min_score <= 1.0) || !(loop_max_runner_up > 0.0 && loop_max_runner_up <= 1.0)) {
-    throw Error("PoseGraphSlamConfig: loop_min_score and loop_max_runner_up must lie in (0, 1]");
-  }
+  const char* s = "PoseGraphSlamConfig.";
+  const auto r = [s](bool ok, const char* field, const char* expected, double got) {
+    require(ok, std::string(s) + field, expected, got);
+  };
+  r(node_distance > 0.0, "node_distance", "> 0 m", node_distance);
+  r(node_angle > 0.0, "node_angle", "> 0 rad", node_angle);
+  r(node_voxel > 0.0, "node_voxel", "> 0 m", node_voxel);
+  r(edge_sigma_xy > 0.0, "edge_sigma_xy", "> 0 m", edge_sigma_xy);
+  r(edge_sigma_xy_per_m >= 0.0, "edge_sigma_xy_per_m", ">= 0", edge_sigma_xy_per_m);
+  r(edge_sigma_theta_deg > 0.0, "edge_sigma_theta_deg", "> 0 deg", edge_sigma_theta_deg);
+  r(edge_sigma_theta_per_m_deg >= 0.0, "edge_sigma_theta_per_m_deg", ">= 0 deg/m", edge_sigma_theta_per_m_deg);
+  r(loop_sigma_xy > 0.0, "loop_sigma_xy", "> 0 m", loop_sigma_xy);
+  r(loop_sigma_theta_deg > 0.0, "loop_sigma_theta_deg", "> 0 deg", loop_sigma_theta_deg);
+  r(loop_window > 0.0, "loop_window", "> 0 m", loop_window);
+  r(loop_window_per_m >= 0.0, "loop_window_per_m", ">= 0", loop_window_per_m);
+  r(loop_max_window >= loop_window, "loop_max_window", ">= loop_window", loop_max_window);
+  r(loop_window_deg >= 0.0, "loop_window_deg", ">= 0 deg", loop_window_deg);
+  r(loop_min_travel >= 0.0, "loop_min_travel", ">= 0 m", loop_min_travel);
+  r(loop_min_score > 0.0 && loop_min_score <= 1.0, "loop_min_score", "in (0, 1]", loop_min_score);
+  r(loop_max_runner_up > 0.0 && loop_max_runner_up <= 1.0, "loop_max_runner_up", "in (0, 1]", loop_max_runner_up);
 }
 
 PoseGraphSlam::PoseGraphSlam(PoseGraphSlamConfig config)

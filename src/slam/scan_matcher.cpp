@@ -14,61 +14,57 @@ namespace lshloc {
 
 namespace {
 
-void require(bool ok, const char* field, const char* expected) {
-  if (!ok) throw Error(std::string("ScanMatcherConfig.") + field + " must be " + expected);
-}
-
 bool finite_pose(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.theta); }
-
-/// Keeps points (in scan order) at least `spacing` apart from the last kept
-/// one: a cheap voxel-like thinning that preserves the beam order.
-template <typename T, typename PositionOf>
-void thin_in_order(std::vector<T>& points, double spacing, PositionOf position_of) {
-  if (points.empty() || spacing <= 0.0) return;
-  const double spacing2 = spacing * spacing;
-  std::size_t kept = 1;
-  for (std::size_t i = 1; i < points.size(); ++i) {
-    if ((position_of(points[i]) - position_of(points[kept - 1])).squaredNorm() >= spacing2) {
-      points[kept++] = points[i];
-    }
-  }
-  points.resize(kept);
-}
 
 }  // namespace
 
 void ScanMatcherConfig::validate() const {
-  require(finite_pose(laser_offset), "laser_offset", "finite");
-  require(min_range >= 0.0 && std::isfinite(min_range), "min_range", ">= 0 [m]");
-  require(max_range > min_range && std::isfinite(max_range), "max_range", "> min_range [m]");
-  require(scan_voxel >= 0.0, "scan_voxel", ">= 0 [m]");
-  require(window_keyframes >= 1, "window_keyframes", ">= 1");
-  require(keyframe_distance >= 0.0, "keyframe_distance", ">= 0 [m]");
-  require(keyframe_angle >= 0.0, "keyframe_angle", ">= 0 [rad]");
-  require(map_voxel >= 0.0, "map_voxel", ">= 0 [m]");
-  require(normal_radius > 0.0, "normal_radius", "> 0 [m]");
-  require(normal_beam_gaps >= 0.0, "normal_beam_gaps", ">= 0");
-  require(normal_max_neighbours >= 1, "normal_max_neighbours", ">= 1");
-  require(normal_min_points >= 3, "normal_min_points", ">= 3");
-  require(max_line_flatness > 0.0 && max_line_flatness <= 1.0, "max_line_flatness", "in (0, 1]");
-  require(fine_correspondence > 0.0, "fine_correspondence", "> 0 [m]");
-  require(coarse_correspondence >= fine_correspondence, "coarse_correspondence", ">= fine_correspondence [m]");
-  require(max_iterations >= 1, "max_iterations", ">= 1");
-  require(robust_scale > 0.0, "robust_scale", "> 0 [m]");
-  require(rotation_length > 0.0, "rotation_length", "> 0 [m]");
-  require(point_sigma > 0.0, "point_sigma", "> 0 [m]");
-  require(odometry_sigma_translation > 0.0, "odometry_sigma_translation", "> 0 [m]");
-  require(odometry_sigma_per_meter >= 0.0, "odometry_sigma_per_meter", ">= 0 [m/m]");
-  require(odometry_sigma_rotation > 0.0, "odometry_sigma_rotation", "> 0 [rad]");
-  require(odometry_sigma_rotation_per_rad >= 0.0, "odometry_sigma_rotation_per_rad", ">= 0 [rad/rad]");
-  require(odometry_sigma_rotation_per_meter >= 0.0, "odometry_sigma_rotation_per_meter", ">= 0 [rad/m]");
-  require(degeneracy_threshold >= 0.0, "degeneracy_threshold", ">= 0");
-  require(inlier_distance > 0.0, "inlier_distance", "> 0 [m]");
-  require(min_quality >= 0.0 && min_quality <= 1.0, "min_quality", "in [0, 1]");
-  require(min_correspondences >= 3, "min_correspondences", ">= 3 (three unknowns)");
-  require(max_correction_translation > 0.0, "max_correction_translation", "> 0 [m]");
-  require(max_correction_rotation > 0.0, "max_correction_rotation", "> 0 [rad]");
-  require(velocity_guess_difference >= 0.0, "velocity_guess_difference", ">= 0 [m, rad]");
+  require(finite_pose(laser_offset), "ScanMatcherConfig.laser_offset", "finite");
+  require(min_range >= 0.0 && std::isfinite(min_range), "ScanMatcherConfig.min_range", ">= 0 [m]", min_range);
+  require(max_range > min_range && std::isfinite(max_range), "ScanMatcherConfig.max_range", "> min_range [m]",
+          max_range);
+  require(scan_voxel >= 0.0, "ScanMatcherConfig.scan_voxel", ">= 0 [m]", scan_voxel);
+  require(window_keyframes >= 1, "ScanMatcherConfig.window_keyframes", ">= 1", window_keyframes);
+  require(keyframe_distance >= 0.0, "ScanMatcherConfig.keyframe_distance", ">= 0 [m]", keyframe_distance);
+  require(keyframe_angle >= 0.0, "ScanMatcherConfig.keyframe_angle", ">= 0 [rad]", keyframe_angle);
+  require(map_voxel >= 0.0, "ScanMatcherConfig.map_voxel", ">= 0 [m]", map_voxel);
+  require(normal_radius > 0.0, "ScanMatcherConfig.normal_radius", "> 0 [m]", normal_radius);
+  require(normal_beam_gaps >= 0.0, "ScanMatcherConfig.normal_beam_gaps", ">= 0", normal_beam_gaps);
+  require(normal_max_neighbours >= 1, "ScanMatcherConfig.normal_max_neighbours", ">= 1", normal_max_neighbours);
+  require(normal_min_points >= 3, "ScanMatcherConfig.normal_min_points", ">= 3", normal_min_points);
+  require(max_line_flatness > 0.0 && max_line_flatness <= 1.0, "ScanMatcherConfig.max_line_flatness", "in (0, 1]",
+          max_line_flatness);
+  require(fine_correspondence > 0.0, "ScanMatcherConfig.fine_correspondence", "> 0 [m]", fine_correspondence);
+  require(coarse_correspondence >= fine_correspondence, "ScanMatcherConfig.coarse_correspondence",
+          ">= fine_correspondence [m]", coarse_correspondence);
+  require(max_iterations >= 1, "ScanMatcherConfig.max_iterations", ">= 1", max_iterations);
+  require(robust_scale > 0.0, "ScanMatcherConfig.robust_scale", "> 0 [m]", robust_scale);
+  require(rotation_length > 0.0, "ScanMatcherConfig.rotation_length", "> 0 [m]", rotation_length);
+  require(experimental.point_sigma > 0.0, "ScanMatcherConfig.experimental.point_sigma", "> 0 [m]",
+          experimental.point_sigma);
+  require(experimental.odometry_sigma_translation > 0.0, "ScanMatcherConfig.experimental.odometry_sigma_translation",
+          "> 0 [m]", experimental.odometry_sigma_translation);
+  require(experimental.odometry_sigma_per_meter >= 0.0, "ScanMatcherConfig.experimental.odometry_sigma_per_meter",
+          ">= 0 [m/m]", experimental.odometry_sigma_per_meter);
+  require(experimental.odometry_sigma_rotation > 0.0, "ScanMatcherConfig.experimental.odometry_sigma_rotation",
+          "> 0 [rad]", experimental.odometry_sigma_rotation);
+  require(experimental.odometry_sigma_rotation_per_rad >= 0.0,
+          "ScanMatcherConfig.experimental.odometry_sigma_rotation_per_rad", ">= 0 [rad/rad]",
+          experimental.odometry_sigma_rotation_per_rad);
+  require(experimental.odometry_sigma_rotation_per_meter >= 0.0,
+          "ScanMatcherConfig.experimental.odometry_sigma_rotation_per_meter", ">= 0 [rad/m]",
+          experimental.odometry_sigma_rotation_per_meter);
+  require(degeneracy_threshold >= 0.0, "ScanMatcherConfig.degeneracy_threshold", ">= 0", degeneracy_threshold);
+  require(inlier_distance > 0.0, "ScanMatcherConfig.inlier_distance", "> 0 [m]", inlier_distance);
+  require(min_quality >= 0.0 && min_quality <= 1.0, "ScanMatcherConfig.min_quality", "in [0, 1]", min_quality);
+  require(min_correspondences >= 3, "ScanMatcherConfig.min_correspondences", ">= 3 (three unknowns)",
+          min_correspondences);
+  require(max_correction_translation > 0.0, "ScanMatcherConfig.max_correction_translation", "> 0 [m]",
+          max_correction_translation);
+  require(max_correction_rotation > 0.0, "ScanMatcherConfig.max_correction_rotation", "> 0 [rad]",
+          max_correction_rotation);
+  require(velocity_guess_difference >= 0.0, "ScanMatcherConfig.velocity_guess_difference", ">= 0 [m, rad]",
+          velocity_guess_difference);
 }
 
 ScanMatcher::ScanMatcher(ScanMatcherConfig config) : config_(config) {
@@ -81,20 +77,6 @@ std::vector<StampedPose> ScanMatcher::keyframe_poses() const {
   out.reserve(keyframes_.size());
   for (const auto& k : keyframes_) out.push_back({k.timestamp, k.laser_pose});
   return out;
-}
-
-void ScanMatcher::usable_endpoints(const LaserScan& scan, std::vector<Point2>& out) const {
-  out.clear();
-  out.reserve(scan.size());
-  for (std::size_t i = 0; i < scan.size(); ++i) {
-    // Invalid (NaN) and no-return readings carry no surface; very long ones
-    // are too noisy and sparse to fit lines to.
-    if (scan.status(i) != BeamStatus::kValid) continue;
-    const double r = scan.ranges[i];
-    if (r < config_.min_range || r >= config_.max_range) continue;
-    const double a = scan.bearing(i);
-    out.emplace_back(r * std::cos(a), r * std::sin(a));
-  }
 }
 
 std::vector<MapPoint> ScanMatcher::line_points(const std::vector<Point2>& endpoints, double angle_increment) const {
@@ -137,13 +119,13 @@ std::vector<MapPoint> ScanMatcher::line_points(const std::vector<Point2>& endpoi
     if (normal.dot(p) > 0.0) normal = -normal;  // face the sensor
     out.push_back({p, normal});
   }
-  thin_in_order(out, config_.map_voxel, [](const MapPoint& m) -> const Point2& { return m.position; });
+  thin_spaced(out, config_.map_voxel, [](const MapPoint& m) -> const Point2& { return m.position; });
   return out;
 }
 
 void ScanMatcher::thin_source(const std::vector<Point2>& endpoints) {
   source_ = endpoints;
-  thin_in_order(source_, config_.scan_voxel, [](const Point2& p) -> const Point2& { return p; });
+  thin_spaced(source_, config_.scan_voxel, [](const Point2& p) -> const Point2& { return p; });
 }
 
 void ScanMatcher::add_keyframe(double timestamp, const Pose2& laser_pose, const std::vector<Point2>& endpoints,
@@ -168,11 +150,9 @@ void ScanMatcher::rebuild_map() {
                      Point2(c * m.normal.x() - s * m.normal.y(), s * m.normal.x() + c * m.normal.y())});
     }
   };
-  if (config_.keep_oldest_map_points) {
-    for (const auto& k : keyframes_) append(k);
-  } else {
-    for (auto it = keyframes_.rbegin(); it != keyframes_.rend(); ++it) append(*it);
-  }
+  // A map_voxel cell keeps the oldest keyframe's point: a stable reference,
+  // so drift grows only when the window moves on.
+  for (const auto& k : keyframes_) append(k);
   map_points_.clear();
   grid_w_ = grid_h_ = 0;
   cell_start_.assign(1, 0);
@@ -237,15 +217,16 @@ Pose2 ScanMatcher::align(const Pose2& guess, const Pose2& laser_step, ScanMatchR
   // Information of the odometry prior in the (x, y, theta * L) coordinates in
   // which the updates below are additive.
   Eigen::Vector3d prior_information = Eigen::Vector3d::Zero();
-  if (config_.odometry_prior) {
+  if (config_.experimental.odometry_prior) {
     const double dist = std::hypot(laser_step.x, laser_step.y);
-    const double st = config_.odometry_sigma_translation + config_.odometry_sigma_per_meter * dist;
-    const double sr = config_.odometry_sigma_rotation +
-                      config_.odometry_sigma_rotation_per_rad * std::abs(laser_step.theta) +
-                      config_.odometry_sigma_rotation_per_meter * dist;
+    const double st =
+        config_.experimental.odometry_sigma_translation + config_.experimental.odometry_sigma_per_meter * dist;
+    const double sr = config_.experimental.odometry_sigma_rotation +
+                      config_.experimental.odometry_sigma_rotation_per_rad * std::abs(laser_step.theta) +
+                      config_.experimental.odometry_sigma_rotation_per_meter * dist;
     prior_information = Eigen::Vector3d(1.0 / (st * st), 1.0 / (st * st), 1.0 / (sr * sr * L * L));
   }
-  const double point_information = 1.0 / (config_.point_sigma * config_.point_sigma);
+  const double point_information = 1.0 / (config_.experimental.point_sigma * config_.experimental.point_sigma);
   for (std::size_t iter = 0; iter < config_.max_iterations; ++iter) {
     const bool coarse = iter < config_.coarse_iterations;
     const double max_dist = coarse ? config_.coarse_correspondence : config_.fine_correspondence;
@@ -338,7 +319,9 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
   ScanMatchResult result;
   result.timestamp = scan.timestamp;
   ++stats_.scans;
-  usable_endpoints(scan, endpoints_);
+  // Invalid and no-return readings carry no surface; very long ones are too
+  // noisy and sparse to fit lines to.
+  scan.endpoints(endpoints_, config_.min_range, config_.max_range);
   const Pose2& offset = config_.laser_offset;
 
   if (!have_previous_) {

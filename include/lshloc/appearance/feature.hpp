@@ -1,4 +1,9 @@
 #pragma once
+// The appearance layer's data (docs/design.md section 3): features with their
+// descriptors, map locations and pose hypotheses.
+// Poses [m, rad]; descriptors in descriptor units (no physical unit).
+// Thread safety: plain values and a pure function; safe from any thread while
+// nobody mutates the value read.
 #include <array>
 #include <cstdint>
 

@@ -1,4 +1,11 @@
 #pragma once
+// Keypoints and GSC descriptors of a laser scan (docs/design.md section 2.1):
+// a scan's surface in a map frame, keypoints along its smooth segments, and a
+// 120-d shape-context descriptor per keypoint; ScanContext keeps the recent
+// surfaces that enter the descriptors.
+// Lengths [m], angles [rad].
+// Thread safety: FeatureExtractor and ScanContext are not thread-safe (one per
+// robot or thread); the free functions are pure.
 #include <cmath>
 #include <cstddef>
 #include <span>
@@ -46,15 +53,10 @@ struct FeatureExtractorConfig {
   /// Points fade out linearly over this outer share of the radius, so that a
   /// wall just at the rim does not flip in or out with a small shift.
   double rim_taper = 0.5;
-  bool log_rings = true;  ///< log-spaced rings beyond the inner radius (false: evenly spaced)
   /// Each bin's (cos, sin) vector is scaled to length |v|^bin_power before the
   /// L2 normalization: < 1 keeps a long wall in one bin from drowning the rest.
   double bin_power = 0.5;
   double min_descriptor_support = 1.0;  ///< [m] of surface inside the disc below which a keypoint is dropped
-  /// With more candidates than max_keypoints: true keeps those with the most
-  /// surface across the keypoint's own wall inside the disc (corners, doors,
-  /// openings: distinctive), false an evenly spread subset.
-  bool prefer_structure = true;
 
   /// Throws lshloc::Error naming the first field out of range.
   void validate() const;
@@ -73,6 +75,9 @@ struct SurfacePoint {
     cos2t = std::cos(2.0 * t), sin2t = std::sin(2.0 * t);
   }
 };
+
+/// A SurfacePoint's position (for the thinning functions of voxel_thinning.hpp).
+inline const Point2& position_of_surface_point(const SurfacePoint& p) { return p.position; }
 
 /// One scan's endpoints in a map frame, split into smooth segments and
 /// annotated with tangents: the extractor's input, and the form in which a

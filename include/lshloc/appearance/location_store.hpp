@@ -1,4 +1,8 @@
 #pragma once
+// The location store: the submap and pose of every map feature, by id.
+// Positions [m], headings [rad], stored as floats.
+// Thread safety: appends exclusive, reads concurrent (see LocationStore);
+// reserve() counts as an append.
 #include <cstdint>
 #include <limits>
 #include <string>

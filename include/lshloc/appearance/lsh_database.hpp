@@ -1,4 +1,9 @@
 #pragma once
+// The incremental E2LSH appearance database (docs/design.md section 2.1):
+// descriptors in, location ids out, with no rebuild as the map grows.
+// Descriptor units (L2-normalized, distances in [0, 2]); no physical units.
+// Thread safety: insert() alone; concurrent queries each with their own
+// LshQuery (see LshDatabase).
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -9,12 +14,6 @@
 
 namespace lshloc {
 
-/// What a bucket already holding bucket_capacity ids does with one more.
-enum class FullBucket {
-  kReservoir,   ///< keeps a uniform random sample of every id it was given (old places stay findable)
-  kKeepNewest,  ///< overwrites its oldest id (favours recently mapped places)
-};
-
 /// Settings of the E2LSH appearance database (docs/design.md section 2, paper
 /// section IV-A). Descriptors are L2-normalized, so distances lie in [0, 2];
 /// w is in those units.
@@ -24,9 +23,11 @@ struct LshConfig {
   double w = 2.0;      ///< bucket width of h(v) = floor((a.v + b) / w), descriptor units
   std::uint64_t seed = 0x5eed5eedULL;  ///< seeds the Gaussian a and uniform b
   /// A bucket keeps (and a query reads) at most this many ids (rounded up to
-  /// a power of two): a hot bucket cannot slow queries or grow.
+  /// a power of two): a hot bucket cannot slow queries or grow. A full
+  /// bucket keeps a uniform sample of every id it was given (reservoir
+  /// sampling seeded from `seed`: deterministic per insertion order), so old
+  /// places stay findable.
   std::size_t bucket_capacity = 64;
-  FullBucket full_bucket = FullBucket::kReservoir;  ///< seeded from `seed`: deterministic per insertion order
   /// A query counts at most this many bucket entries over all tables.
   std::size_t max_candidates = 600;
   /// 0: candidates are ranked by collision count alone (buckets hold ids
@@ -100,7 +101,7 @@ class LshQuery {
 /// Buckets: each bucket keeps its ids in one contiguous block of a per-table
 /// pool, doubling from 1 id up to bucket_capacity (rounded up to a power of
 /// two); a full bucket then keeps a uniform random sample of all the ids it
-/// was given (reservoir sampling) or its newest ones (LshConfig::full_bucket),
+/// was given (reservoir sampling),
 /// so a hot bucket (a long corridor seen a thousand times) holds and returns
 /// at most bucket_capacity ids and neither memory nor query time grows
 /// without bound.

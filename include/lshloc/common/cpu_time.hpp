@@ -2,6 +2,9 @@
 // CPU clocks for the pipeline's statistics. Per-stage costs are measured in
 // the calling thread's CPU time, not wall time: on a shared machine wall time
 // also counts the slices other processes hold the core.
+// Times [s] of CPU (a thread's or the process's), not wall clock.
+// Thread safety: the functions are safe from any thread. A CpuStopwatch
+// measures the thread that reads it: construct and read it on one thread.
 namespace lshloc {
 
 /// [s] CPU time of the calling thread so far.

@@ -1,6 +1,12 @@
 #pragma once
+// The one exception type every lshloc layer throws (docs/design.md section 5,
+// "Errors").
+// No physical units.
+// Thread safety: an Error is an immutable value; copy and read it from any thread.
 #include <stdexcept>
 #include <string>
+#include <string_view>
+#include <type_traits>
 
 namespace lshloc {
 
@@ -10,5 +16,23 @@ class Error : public std::runtime_error {
  public:
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
+
+/// Throws Error("FIELD: expected EXPECTED, got GOT").
+[[noreturn]] void throw_requirement(std::string_view field, std::string_view expected, double got);
+/// Throws Error("FIELD: expected EXPECTED").
+[[noreturn]] void throw_requirement(std::string_view field, std::string_view expected);
+
+/// The one check of config fields: unless `ok`, throws
+/// Error("Struct.field: expected EXPECTED, got GOT"), e.g.
+/// require(K >= 1, "LshConfig.K", ">= 1", K).
+template <class Number>
+requires std::is_arithmetic_v<Number>
+void require(bool ok, std::string_view field, std::string_view expected, Number got) {
+  if (!ok) throw_requirement(field, expected, static_cast<double>(got));
+}
+/// The same for a field whose value does not print as one number.
+inline void require(bool ok, std::string_view field, std::string_view expected) {
+  if (!ok) throw_requirement(field, expected);
+}
 
 }  // namespace lshloc

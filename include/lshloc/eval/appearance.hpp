@@ -1,4 +1,10 @@
 #pragma once
+// Descriptor context (the recent scans a scan's descriptors also see) and the
+// per-scan feature extraction of the place-recall evaluation.
+// Lengths [m], angles [rad].
+// Thread safety: a RecentSurfaces is one per thread (near() reuses a scratch
+// list); the extract_* functions use the caller's FeatureExtractor, itself one
+// per thread, and share nothing else.
 #include <cstdint>
 #include <optional>
 #include <span>

@@ -1,4 +1,11 @@
 #pragma once
+// The buildings of the data directory: where their logs lie, loading them,
+// building scenarios from them, and writing recordings as building directories.
+// Lengths [m], angles [rad], times [s].
+// Thread safety: a DatasetCatalog is immutable after construction (const
+// methods may run concurrently); the free functions share no state
+// (write_building_recording: distinct directories). resolve_data_dir reads
+// $LSHLOC_DATA: not while another thread changes the environment.
 #include <optional>
 #include <string>
 #include <vector>

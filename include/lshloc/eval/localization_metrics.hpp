@@ -1,4 +1,7 @@
 #pragma once
+// Scores a localizer's per-scan estimates against ground truth.
+// Positions and errors [m], angles [rad], except fields named *_deg [deg].
+// Stateless; safe from any thread.
 #include <cstdint>
 #include <optional>
 #include <vector>

@@ -1,4 +1,11 @@
 #pragma once
+// How well the descriptors and the LSH database find the right place: recall
+// of target features against the map's features.
+// Lengths [m], angles [rad] except fields named *_deg; descriptor distances in
+// descriptor units; timings [us] of wall clock.
+// Thread safety: evaluate_place_recall builds its own extractor, store and
+// database and is safe from any thread; its timings only mean something on an
+// otherwise idle machine.
 #include <cstddef>
 
 #include "lshloc/appearance/feature_extractor.hpp"

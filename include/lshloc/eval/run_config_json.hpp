@@ -1,7 +1,8 @@
 #pragma once
 // The evaluation harness's config structs as JSON, in the form of
 // io/config_json.hpp (every member under its C++ name; apply a partial
-// document with io::apply_config_patch). Stateless; safe from any thread.
+// document with io::apply_config_patch). Units as in each struct.
+// Stateless; safe from any thread.
 #include <nlohmann/json.hpp>
 
 #include "lshloc/eval/appearance.hpp"

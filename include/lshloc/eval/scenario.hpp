@@ -1,4 +1,10 @@
 #pragma once
+// The data of an evaluation scenario (docs/design.md section 6): building
+// recordings, submaps, the target's run, and how the target's building is
+// split into its submap and the run.
+// Lengths [m], angles [rad], times [s].
+// Thread safety: plain values; the functions share no state (the canonical
+// order is a constant built once) and are safe from any thread.
 #include <cstdint>
 #include <optional>
 #include <string>

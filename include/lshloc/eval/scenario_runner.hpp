@@ -1,4 +1,13 @@
 #pragma once
+// Runs a scenario: feeds the submaps to a GlobalMap as mappers working in
+// parallel would, runs the target's scans through a Localizer, and records the
+// estimates with their costs.
+// Poses [m, rad]; times [s], CPU (the whole process's) or wall clock as each
+// field says.
+// Thread safety: run_scenario owns its map and localizer. localize_target only
+// reads `map` and MapFeeder writes it, but a GlobalMap is not thread-safe
+// (docs/design.md section 5): keep each map on one thread. CPU times count
+// every thread of the process, so they hold only with one run at a time.
 #include <functional>
 #include <vector>
 

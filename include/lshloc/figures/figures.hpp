@@ -1,4 +1,10 @@
 #pragma once
+// The paper's figures (error curves, map figures, cost curves), drawn with
+// cairo and written as .png or .svg.
+// Positions and errors [m] (map frame); costs in the caller's units.
+// Thread safety: calls share no lshloc state (each draws on its own cairo
+// surface); lshloc never calls them concurrently, so concurrent calls rest on
+// cairo's own guarantees.
 #include <string>
 #include <vector>
 

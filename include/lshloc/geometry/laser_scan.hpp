@@ -1,4 +1,9 @@
 #pragma once
+// One planar laser scan: beam layout, ranges, time stamp and the poses the
+// log gives for it (docs/design.md section 3).
+// Lengths [m], angles [rad], times [s].
+// Thread safety: a plain value; const methods may be called concurrently while
+// nobody mutates the scan. set_flaser_geometry keeps no state.
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -36,8 +41,16 @@ struct LaserScan {
     return BeamStatus::kValid;
   }
 
+  /// Beam i's endpoint in the laser frame (whatever its status).
+  Point2 endpoint(std::size_t i) const {
+    const double r = ranges[i], a = bearing(i);
+    return {r * std::cos(a), r * std::sin(a)};
+  }
+
   /// Valid endpoints in the laser frame whose range lies in [min_range, max_use_range).
   std::vector<Point2> endpoints(double min_range = 0.0, double max_use_range = 1e9) const;
+  /// The same into `out` (cleared first), reusing its storage.
+  void endpoints(std::vector<Point2>& out, double min_range, double max_use_range) const;
 };
 
 /// Field of view [rad] and beam layout of a FLASER message of n beams over 180

@@ -3,6 +3,8 @@
 // neighbouring endpoints. These are the oriented points a pose grid can be
 // filled with (every endpoint, docs/design.md section 2) and the data-points iRANSAC can
 // score.
+// Lengths [m], angles [rad].
+// Stateless; safe from any thread.
 #include <vector>
 
 #include "lshloc/geometry/laser_scan.hpp"

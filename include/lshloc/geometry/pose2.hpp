@@ -1,4 +1,9 @@
 #pragma once
+// SE(2) poses, angle wrapping and pose distances; frames and the T_a_b naming
+// are in docs/design.md section 3.
+// Lengths [m], angles [rad] wrapped to (-pi, pi], time stamps [s].
+// Thread safety: value types and pure functions; const methods may be called
+// concurrently while nobody mutates the pose.
 #include <cmath>
 #include <numbers>
 #include <span>

@@ -1,4 +1,8 @@
 #pragma once
+// Joins two series by time stamp: for each query stamp, the nearest reference
+// stamp (ground truth to scans, relations to a trajectory).
+// Times [s].
+// Stateless; safe from any thread.
 #include <optional>
 #include <span>
 #include <vector>

@@ -1,6 +1,10 @@
 #pragma once
-// Voxel thinning of 2-D points: one point per square cell. The scan
-// matcher's local map, the SLAM nodes and the map figures all thin this way.
+// Thinning of 2-D points: one point per square cell (the scan matcher's local
+// map, the SLAM nodes, the map figures), or points a spacing apart along a
+// scan (scan points, map endpoints, data-points).
+// Lengths [m] (inv_voxel in 1/m).
+// Stateless; safe from any thread while no other thread uses the vector being
+// thinned.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -41,6 +45,32 @@ void thin_to_voxels(std::vector<T>& points, double voxel, PositionOf position_of
     if (kept != i) points[kept] = std::move(points[i]);
     ++kept;
   }
+  points.resize(kept);
+}
+
+/// Thinning along a scan: calls visit(point) for each of `points`, in order,
+/// that lies at least `spacing` [m] from the last one visited (the first
+/// always): cheaper than voxels and it keeps the beam order.
+/// `position_of(point)` gives a point's Point2.
+template <typename Points, typename PositionOf, typename Visit>
+void for_each_spaced(const Points& points, double spacing, PositionOf position_of, Visit visit) {
+  bool any = false;
+  Point2 last;
+  for (const auto& p : points) {
+    const Point2 position = position_of(p);
+    if (any && (position - last).norm() < spacing) continue;
+    any = true;
+    last = position;
+    visit(p);
+  }
+}
+
+/// for_each_spaced() in place: keeps only the points it visits.
+template <typename T, typename PositionOf>
+void thin_spaced(std::vector<T>& points, double spacing, PositionOf position_of) {
+  std::size_t kept = 0;
+  // A kept point moves to an index at most its own, after it was read.
+  for_each_spaced(points, spacing, position_of, [&](const T& p) { points[kept++] = p; });
   points.resize(kept);
 }
 

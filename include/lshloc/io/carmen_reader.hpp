@@ -1,4 +1,9 @@
 #pragma once
+// Reads CARMEN text logs (plain or .gz): CarmenReader streams them message by
+// message, read_carmen_log loads a whole log.
+// Lengths [m], angles [rad], times [s]; velocities [m/s] and [rad/s].
+// Thread safety: a CarmenReader is one per thread; read_carmen_log shares no
+// state and is safe from any thread.
 #include <map>
 #include <string>
 #include <string_view>

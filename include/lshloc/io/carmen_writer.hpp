@@ -2,6 +2,9 @@
 // Writes CARMEN text logs (FLASER / ROBOTLASER1, ODOM, PARAM) and pose files
 // that io::read_carmen_log and io::read_pose_file (and other CARMEN tools)
 // read back.
+// Lengths [m], angles [rad], times [s].
+// Thread safety: a CarmenWriter is one per thread; write_carmen_log and
+// write_pose_file share no state and are safe from any thread on distinct paths.
 #include <span>
 #include <string>
 #include <string_view>

@@ -35,14 +35,10 @@ namespace lshloc {
 
 void to_json(nlohmann::json& j, const Pose2& p);
 void from_json(const nlohmann::json& j, Pose2& p);
-void to_json(nlohmann::json& j, FullBucket v);
-void from_json(const nlohmann::json& j, FullBucket& v);
 void to_json(nlohmann::json& j, ToleranceMode v);
 void from_json(const nlohmann::json& j, ToleranceMode& v);
 void to_json(nlohmann::json& j, FeatureOrderRule v);
 void from_json(const nlohmann::json& j, FeatureOrderRule& v);
-void to_json(nlohmann::json& j, PreemptionRank v);
-void from_json(const nlohmann::json& j, PreemptionRank& v);
 void to_json(nlohmann::json& j, HypothesisSource v);
 void from_json(const nlohmann::json& j, HypothesisSource& v);
 void to_json(nlohmann::json& j, const FeatureExtractorConfig& c);
@@ -53,6 +49,8 @@ void to_json(nlohmann::json& j, const PoseGridConfig& c);
 void from_json(const nlohmann::json& j, PoseGridConfig& c);
 void to_json(nlohmann::json& j, const IncrementalRansacConfig& c);
 void from_json(const nlohmann::json& j, IncrementalRansacConfig& c);
+void to_json(nlohmann::json& j, const ScanMatcherConfig::Experimental& c);
+void from_json(const nlohmann::json& j, ScanMatcherConfig::Experimental& c);
 void to_json(nlohmann::json& j, const ScanMatcherConfig& c);
 void from_json(const nlohmann::json& j, ScanMatcherConfig& c);
 void to_json(nlohmann::json& j, const PoseGraphConfig& c);

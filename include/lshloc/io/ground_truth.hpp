@@ -1,4 +1,8 @@
 #pragma once
+// Reads a building's ground truth: the pose file (true laser poses by time
+// stamp) and the benchmark's relations file.
+// Lengths [m], angles [rad], times [s].
+// Stateless; safe from any thread.
 #include <string>
 #include <vector>
 

@@ -1,4 +1,9 @@
 #pragma once
+// The text layer under every reader: lines of a plain or gzip file, one at a
+// time, and the splitting and number parsing of their fields.
+// No physical units.
+// Thread safety: a LineReader is one per thread; split_fields and parse_* are
+// stateless and safe from any thread.
 #include <cstddef>
 #include <string>
 #include <string_view>

@@ -1,4 +1,8 @@
 #pragma once
+// Trajectories as TUM files (the format common trajectory-evaluation tools
+// read), written and read back.
+// Times [s], positions [m], headings [rad] (a quaternion on file).
+// Stateless; safe from any thread on distinct paths.
 #include <span>
 #include <string>
 #include <vector>

@@ -1,4 +1,9 @@
 #pragma once
+// The global map the mapper robots feed (docs/design.md section 2.1): submaps,
+// the appearance database, the location store and the occupancy and
+// free-space pose grids.
+// Poses [m, rad] in each submap's frame; times [s] of CPU.
+// Thread safety: not thread-safe; feed and query it from one thread.
 #include <cstdint>
 #include <deque>
 #include <string>
@@ -19,7 +24,7 @@ struct GlobalMapConfig {
   /// Occupancy of the (x, y, normal direction) grid: every scan endpoint is
   /// marked with the direction of its surface normal (towards the sensor),
   /// so a hypothesis can be checked against many points, not only keypoints.
-  PoseGridConfig occupancy{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 1};
+  PoseGridConfig occupancy;
   /// Negative evidence: a 2-D grid of cells that mapper rays saw free.
   PoseGridConfig free_space{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0};
   double endpoint_spacing = 0.1;    ///< [m] endpoints closer than this along a scan are marked once

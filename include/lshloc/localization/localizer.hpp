@@ -1,4 +1,9 @@
 #pragma once
+// The target robot's localizer (docs/design.md section 2.2): local map,
+// features, retrieval, hypotheses, iRANSAC, report, one scan at a time.
+// Poses [m, rad]; times [s] of CPU.
+// Thread safety: not thread-safe; one localizer per target robot, reading a
+// GlobalMap that does not change during add_scan().
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -24,6 +29,15 @@ enum class HypothesisSource : std::uint8_t {
   kRandomMapFeatures,  ///< uniformly random map features at the same budget (the ablation control)
 };
 
+/// The scan matcher of the target's local map: denser points (5 cm) and line
+/// normals from 3 points, so that far walls' sparse returns still match.
+inline ScanMatcherConfig local_map_matcher() {
+  ScanMatcherConfig c;
+  c.scan_voxel = 0.05;
+  c.normal_min_points = 3;
+  return c;
+}
+
 struct LocalizerConfig {
   /// The target's local map. It keeps far walls' sparse returns (line
   /// normals from 3 points) and matches more scan points (5 cm apart): over
@@ -31,19 +45,9 @@ struct LocalizerConfig {
   /// aces (median of 20), 0.8 instead of 1.3 on fr079
   /// (docs/results/local-map.md). Mapping (PoseGraphSlam) keeps the
   /// ScanMatcherConfig defaults: its loop closures got worse with these.
-  ScanMatcherConfig scan_matcher{.laser_offset = {}, .scan_voxel = 0.05, .normal_min_points = 3};
-  FeatureExtractorConfig features;  ///< must equal the global map's
-  /// iRANSAC as measured best on real logs (RESULTS.md): 40 data-points per
-  /// scan (surface and free-space), 50 iterations per scan halving once per
-  /// scan, features drawn from the newest 8000 (about 200 scans: older ones
-  /// have drifted), and best = argmax C/N - 2/sqrt(N).
-  IncrementalRansacConfig ransac{.block_size = 50,
-                                 .new_features_per_scan = 40,
-                                 .iterations_per_scan = 50,
-                                 .min_score = 30.0,
-                                 .preference_z = 2.0,
-                                 .order_rule = FeatureOrderRule::kRecentWindow,
-                                 .recent_window = 8000};
+  ScanMatcherConfig scan_matcher = local_map_matcher();
+  FeatureExtractorConfig features;           ///< must equal the global map's
+  IncrementalRansacConfig ransac;            ///< its defaults are the localizer's
   std::size_t candidates_per_feature = 100;  ///< k of each database query
   double free_space_penalty = 1.0;           ///< c(p, x) for a local point in space the map saw free
   /// c(p, x) for a local surface point on a map return that has no surface
@@ -60,10 +64,9 @@ struct LocalizerConfig {
   /// look-alike whose local rays crossed them was never contradicted
   /// (RESULTS.md, aces).
   double contested_penalty = 0.5;
-  double free_space_agreement = 0.0;  ///< c(p, x) for a free-space point in space the map saw free
-  std::size_t context_scans = 8;      ///< recent local scans whose surface enters descriptors
-  double context_spacing = 0.3;       ///< [m] a scan joins the context after this much travel
-  double data_point_spacing = 0.1;    ///< [m] endpoints thinned along a scan before sampling data-points
+  std::size_t context_scans = 8;    ///< recent local scans whose surface enters descriptors
+  double context_spacing = 0.3;     ///< [m] a scan joins the context after this much travel
+  double data_point_spacing = 0.1;  ///< [m] endpoints thinned along a scan before sampling data-points
   /// Free-space data-points per surface data-point: points on local rays
   /// (`free_point_fraction` of the way to the endpoint, at least
   /// `free_point_margin` short of it) that must not land on map walls.

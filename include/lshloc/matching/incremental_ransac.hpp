@@ -46,39 +46,27 @@ enum class FeatureOrderRule : std::uint8_t {
   kFreshFirst,
 };
 
-/// What the preemption ranks hypotheses by when it cuts the set.
-enum class PreemptionRank : std::uint8_t {
-  /// C_j / N_j: hypotheses of different ages compete fairly (default).
-  kMeanScore,
-  /// C_j, as Nister's original rule. Same survivors when every hypothesis has
-  /// been scored equally often (a fixed hypothesis set).
-  kTotalScore,
-};
-
 struct IncrementalRansacConfig {
-  std::size_t block_size = 10;                 ///< B: the active set halves every B-th iteration
-  std::size_t new_features_per_scan = 10;      ///< |U_new|: add_scan() keeps a random subset this large
+  // The defaults are the localizer's, measured best on the real logs
+  // (RESULTS.md): 40 data-points and 50 iterations per scan, halving once per
+  // scan; the paper's synthetic setting is B = 10, |U_new| = 10, 10 iterations.
+  std::size_t block_size = 50;                 ///< B: the active set halves every B-th iteration
+  std::size_t new_features_per_scan = 40;      ///< |U_new|: add_scan() keeps a random subset this large
   std::size_t new_hypotheses_per_scan = 1000;  ///< |V_new|: add_scan() keeps the first this many
-  std::size_t iterations_per_scan = 10;        ///< iterations run() does per scan (= B: steady state 2|V_new|)
-  double min_score = 3.0;                      ///< C_o: best() ignores hypotheses with C_j below it
+  std::size_t iterations_per_scan = 50;        ///< iterations run() does per scan (= B: steady state 2|V_new|)
+  double min_score = 30.0;                     ///< C_o: best() ignores hypotheses with C_j below it
   /// best() ranks by C_j/N_j - preference_z / sqrt(N_j): a lower confidence
   /// bound, so that a young hypothesis with a lucky streak does not outrank
   /// one with long support (per-point scores lie in [-1, 1]). 0 gives the
   /// paper's C_j/N_j.
-  double preference_z = 0.0;
-  /// Whether N_j counts every score (the paper) or only non-zero ones: with
-  /// scores +1 (the map agrees), -1 (it contradicts) and 0 (it does not
-  /// know), C_j / N_j is then the agreement among the points the map knows,
-  /// so a hypothesis is not marked down for the part of the local map that
-  /// lies where no mapper robot has been (the target's own window never is).
-  bool count_unknown = true;
-  /// kFreshFirst by default: with a drifting local map it kept the best
-  /// hypothesis right at 93-95% of viewpoints where the paper's kUniform
-  /// managed 17-49% (docs/results/matching.md); without drift all are ~98-100%.
-  FeatureOrderRule order_rule = FeatureOrderRule::kFreshFirst;
-  std::size_t recent_window = 200;  ///< [features] window of kRecentWindow / kFreshFirst
-  PreemptionRank preemption_rank = PreemptionRank::kMeanScore;
-  std::uint64_t seed = 0x5eed0002;  ///< random insertion and feature sampling
+  double preference_z = 2.0;
+  /// kRecentWindow: data-points from the newest recent_window (about 200
+  /// scans; older ones have drifted) decide on the real logs (RESULTS.md,
+  /// order rules); kFreshFirst did best on synthetic drift
+  /// (docs/results/matching.md), the paper's kUniform worst with drift.
+  FeatureOrderRule order_rule = FeatureOrderRule::kRecentWindow;
+  std::size_t recent_window = 8000;  ///< [features] window of kRecentWindow / kFreshFirst
+  std::uint64_t seed = 0x5eed0002;   ///< random insertion and feature sampling
 
   /// Throws lshloc::Error when a field is out of range.
   void validate() const;
@@ -180,8 +168,7 @@ class IncrementalRansac {
       float* c = score_.data();
       std::uint32_t* nn = scored_.data();
       const float* s = scratch_.data();
-      const std::uint32_t count_all = config_.count_unknown ? 1u : 0u;
-      for (std::size_t j = 0; j < m; ++j) c[j] += s[j], nn[j] += count_all | static_cast<std::uint32_t>(s[j] != 0.0f);
+      for (std::size_t j = 0; j < m; ++j) c[j] += s[j], nn[j] += 1;
       stats_.scores += m;
     }
   }

@@ -3,6 +3,8 @@
 // section 2.4): the local point x, moved by hypothesis p into submap r, scores `hit`
 // when its cell (with the grid's tolerance) holds a map feature of r, `free`
 // when the cell is only known free (negative evidence), else `unknown`.
+// Poses [m, rad]; scores unitless.
+// Thread safety: one scorer per thread (see PoseGridScorer).
 #include <cstdint>
 #include <vector>
 

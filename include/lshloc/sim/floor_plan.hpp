@@ -1,6 +1,10 @@
 #pragma once
 // Procedural office floor plans for the simulator: rooms, corridors, halls,
 // doors, pillars and clutter, all as line segments in one building frame.
+// Lengths [m] in the building frame; probabilities and counts unitless.
+// Thread safety: generate_floor_plan draws only from config.seed and is safe
+// from any thread; a FloorPlan is a plain value (const methods may run
+// concurrently while nobody mutates it).
 #include <cmath>
 #include <cstdint>
 #include <vector>

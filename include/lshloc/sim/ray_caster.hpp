@@ -1,6 +1,8 @@
 #pragma once
 // A 2-D ray caster over line segments, bucketed in a uniform grid so that the
 // cost of a ray depends on the cells it crosses, not on the building's size.
+// Lengths [m], angles [rad].
+// Thread safety: as stated on RayCaster (cast may run concurrently).
 #include <cmath>
 #include <cstdint>
 #include <span>

@@ -1,6 +1,8 @@
 #pragma once
 // A floor plan (and optionally a path over it) as SVG text: no I/O and no
 // graphics library, for quick looks and for documents.
+// Plan coordinates [m]; the SVG is in pixels (pixels_per_metre).
+// Stateless; safe from any thread.
 #include <span>
 #include <string>
 

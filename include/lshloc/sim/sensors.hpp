@@ -1,6 +1,10 @@
 #pragma once
 // The simulated robot's sensors: a planar laser (ray-cast, with range noise
 // and dropouts) and wheel odometry with biased, growing drift.
+// Lengths [m], angles [rad]; noise as each field says.
+// Thread safety: the functions keep no state. simulate_ranges advances the
+// caller's rng (one rng per thread); the caster may be shared (cast is const
+// and thread-safe).
 #include <cstdint>
 #include <numbers>
 #include <random>

@@ -4,7 +4,7 @@
 //   auto building = sim::generate_building({.plan = {.seed = 7}});
 //   BuildingRecording rec = sim::simulate_recording(building, {.seed = 1, .scans = 3000});
 //
-// A recording looks like a real building's logs (pipeline/scenario.hpp):
+// A recording looks like a real building's logs (eval/scenario.hpp):
 // raw scans carry the drifting odometry, corrected scans the true poses, and
 // `truth` joins them by the raw time stamps. io::write_building_recording
 // writes it as CARMEN logs every lshloc tool reads.
@@ -14,6 +14,8 @@
 // distributions used are implementation-defined, so another library may draw
 // other (equally valid) buildings. Everything here is const on its inputs:
 // several recordings of one building may be simulated in parallel.
+//
+// Lengths [m], angles [rad], times [s]; SimulationStats' seconds are wall clock.
 #include <cstdint>
 #include <string>
 

@@ -6,6 +6,8 @@
 // guard time is its submap. Used by
 // `lshloc demo`, `lshloc bench scale`, the end-to-end tests, and to add
 // buildings beyond the real ones to real-data scenarios.
+// Lengths [m], angles [rad], times [s].
+// Stateless: everything derives from the config's seeds; safe from any thread.
 #include <cstdint>
 #include <vector>
 

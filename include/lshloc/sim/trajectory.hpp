@@ -1,6 +1,8 @@
 #pragma once
 // A robot's tour through a floor plan: planned on the clearance grid (A*),
 // straightened where the clearance allows, and driven at a steady speed.
+// Lengths [m], angles [rad], times [s]; speeds [m/s], turn rates [rad/s].
+// Stateless: drive_tour draws only from its seed; safe from any thread.
 #include <cstdint>
 #include <vector>
 

@@ -6,6 +6,9 @@
 // needs no close initial guess, which is what closing a loop after a long
 // drift takes; the runner-up away from the best pose tells whether the match
 // is unique (a corridor is not).
+// Lengths [m], angles [rad] except angle_step_deg [deg]; scores unitless in
+// [0, 1].
+// Thread safety: one CorrelativeMatcher per thread (see the class).
 #include <cstddef>
 #include <cstdint>
 #include <span>

@@ -3,6 +3,11 @@
 // optimized by Gauss-Newton over a sparse system, with a Cauchy kernel on
 // edges marked robust (loop closures), so that one wrong closure bends the
 // graph little. Node 0 is held fixed.
+// Lengths [m], angles [rad]; an information matrix is the inverse covariance
+// of (dx [m], dy [m], dtheta [rad]).
+// Thread safety: one graph per thread; const methods (pose, edges, chi2,
+// stats) may run concurrently while nobody adds or optimizes.
+// diagonal_information is stateless.
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>

@@ -1,4 +1,8 @@
 #pragma once
+// Benchmark relations and the relations metric of Kümmerle et al. (2009),
+// which scores a SLAM trajectory by its relative motions.
+// Lengths [m], angles [rad], times [s].
+// Stateless; safe from any thread.
 #include <cstddef>
 #include <optional>
 #include <span>

@@ -1,4 +1,8 @@
 #pragma once
+// The target's local map: point-to-line ICP of each scan against a rolling
+// window of keyframes, from odometry (docs/design.md section 2.2).
+// Lengths [m], angles [rad].
+// Thread safety: not thread-safe; one matcher per robot.
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -25,14 +29,11 @@ struct ScanMatcherConfig {
   double scan_voxel = 0.08;
 
   // --- local map (rolling window of keyframes) ---
-  std::size_t window_keyframes = 60;  ///< keyframes kept in the local map (bounds cost per scan)
-  double keyframe_distance = 0.3;     ///< [m] robot travel since the last keyframe that adds a new one
-  double keyframe_angle = 0.17;       ///< [rad] (about 10 deg) rotation that adds a new keyframe
-  double map_voxel = 0.04;            ///< [m] map points: one per cell of this size (and a keyframe's
-                                      ///< points at least this far apart along its scan)
-  /// Which keyframe's point a map_voxel cell keeps: the oldest (a stable
-  /// reference: drift grows only when the window moves on) or the newest.
-  bool keep_oldest_map_points = true;
+  std::size_t window_keyframes = 60;      ///< keyframes kept in the local map (bounds cost per scan)
+  double keyframe_distance = 0.3;         ///< [m] robot travel since the last keyframe that adds a new one
+  double keyframe_angle = 0.17;           ///< [rad] (about 10 deg) rotation that adds a new keyframe
+  double map_voxel = 0.04;                ///< [m] map points: one per cell of this size (and a keyframe's
+                                          ///< points at least this far apart along its scan)
   double normal_radius = 0.25;            ///< [m] neighbours along the scan within this (or within
                                           ///< normal_beam_gaps beam spacings at the point's range) fit its line
   double normal_beam_gaps = 3.0;          ///< [-] so that sparse far walls (1 deg beams at 15 m) still get lines
@@ -52,19 +53,6 @@ struct ScanMatcherConfig {
   double converged_rotation = 2e-4;     ///< [rad] step below which ICP stops
   double rotation_length = 2.0;         ///< [m] lever arm that makes rotation comparable to translation in the
                                         ///< degeneracy test (a rotation of 1 rad counts as this many metres)
-
-  // --- odometry prior ---
-  /// The odometry increment can enter ICP as a prior, so that where the scan
-  /// says little the pose stays near odometry. Off by default: on the
-  /// benchmark logs it did not help reliably (fr079 got worse; see
-  /// docs/results/local-map.md). Its standard deviations per scan step:
-  bool odometry_prior = false;
-  double point_sigma = 0.05;  ///< [m] std dev of one point-to-line residual (inflated: neighbours correlate)
-  double odometry_sigma_translation = 0.02;         ///< [m] per step, plus the two terms below
-  double odometry_sigma_per_meter = 0.1;            ///< [m/m] grows with the distance travelled in the step
-  double odometry_sigma_rotation = 0.01;            ///< [rad] per step, plus the two terms below
-  double odometry_sigma_rotation_per_rad = 0.1;     ///< [rad/rad] grows with the step's rotation
-  double odometry_sigma_rotation_per_meter = 0.02;  ///< [rad/m] grows with the step's distance
 
   // --- robustness ---
   /// [-] a translation direction (eigenvector of the translation block of the
@@ -88,6 +76,21 @@ struct ScanMatcherConfig {
   bool reject_unconverged = true;
   double stationary_translation = 1e-3;  ///< [m] odometry step below which matching is skipped ...
   double stationary_rotation = 1e-3;     ///< [rad] ... (the pose still moves with odometry)
+
+  /// Settings of an experiment kept for reproduction, off by default: the
+  /// odometry increment as a prior in ICP, so that where the scan says little
+  /// the pose stays near odometry. On the benchmark logs it did not help
+  /// reliably (fr079 got worse; docs/results/local-map.md).
+  struct Experimental {
+    bool odometry_prior = false;
+    double point_sigma = 0.05;  ///< [m] std dev of one point-to-line residual (inflated: neighbours correlate)
+    double odometry_sigma_translation = 0.02;         ///< [m] per step, plus the two terms below
+    double odometry_sigma_per_meter = 0.1;            ///< [m/m] grows with the distance travelled in the step
+    double odometry_sigma_rotation = 0.01;            ///< [rad] per step, plus the two terms below
+    double odometry_sigma_rotation_per_rad = 0.1;     ///< [rad/rad] grows with the step's rotation
+    double odometry_sigma_rotation_per_meter = 0.02;  ///< [rad/m] grows with the step's distance
+  };
+  Experimental experimental;
 
   /// Throws lshloc::Error naming the first field that is out of range.
   void validate() const;
@@ -162,8 +165,6 @@ class ScanMatcher {
     std::vector<MapPoint> points;  ///< line points in the laser frame
   };
 
-  /// Endpoints of the usable beams, in the laser frame, in beam order.
-  void usable_endpoints(const LaserScan& scan, std::vector<Point2>& out) const;
   /// Line points (with normals) of a scan, in the laser frame, voxel-thinned.
   std::vector<MapPoint> line_points(const std::vector<Point2>& endpoints, double angle_increment) const;
   /// Thins `endpoints` to points scan_voxel apart (in beam order) into `source_`.
