@@ -46,5 +46,30 @@ TEST(VoxelThinning, NegativeCoordinatesAndNonPositiveVoxel) {
   EXPECT_EQ(untouched.size(), points.size());
 }
 
+TEST(SpacedThinning, KeepsExactlyThePointsAtLeastASpacingFromTheLastKept) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> step(0.0, 0.2);
+  std::vector<Point2> points;
+  Point2 at(0.0, 0.0);
+  for (int i = 0; i < 500; ++i) points.push_back(at += Point2(step(rng), step(rng) - 0.1));
+  for (const double spacing : {0.0, 0.1, 0.35}) {
+    // Brute force: walk the points, keep one when it is far enough from the last kept.
+    std::vector<Point2> expected{points[0]};
+    for (std::size_t i = 1; i < points.size(); ++i) {
+      if ((points[i] - expected.back()).norm() >= spacing) expected.push_back(points[i]);
+    }
+    std::vector<Point2> visited;
+    for_each_spaced(
+        points, spacing, [](const Point2& p) { return p; }, [&](const Point2& p) { visited.push_back(p); });
+    EXPECT_EQ(visited, expected) << "spacing " << spacing;
+    std::vector<Point2> in_place = points;
+    thin_spaced(in_place, spacing, [](const Point2& p) { return p; });
+    EXPECT_EQ(in_place, expected) << "spacing " << spacing;
+  }
+  std::vector<Point2> none;
+  thin_spaced(none, 0.1, [](const Point2& p) { return p; });
+  EXPECT_TRUE(none.empty());
+}
+
 }  // namespace
 }  // namespace lshloc

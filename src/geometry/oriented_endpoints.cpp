@@ -1,4 +1,5 @@
 #include "lshloc/geometry/oriented_endpoints.hpp"
+#include "lshloc/geometry/line_fit.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -30,22 +31,13 @@ std::vector<Pose2> oriented_endpoints(const LaserScan& scan, const OrientedEndpo
     while (lo > 0 && linked(lo - 1, lo) && (p[lo - 1] - p[i]).squaredNorm() <= r2) --lo;
     while (hi + 1 < n && linked(hi, hi + 1) && (p[hi + 1] - p[i]).squaredNorm() <= r2) ++hi;
     if (hi - lo + 1 < static_cast<std::size_t>(config.min_points)) continue;
-    // Principal direction of the run (2x2 covariance): the surface tangent.
-    Point2 mean = Point2::Zero();
-    for (std::size_t k = lo; k <= hi; ++k) mean += p[k];
-    mean /= static_cast<double>(hi - lo + 1);
-    double cxx = 0.0, cxy = 0.0, cyy = 0.0;
-    for (std::size_t k = lo; k <= hi; ++k) {
-      const Point2 d = p[k] - mean;
-      cxx += d.x() * d.x(), cxy += d.x() * d.y(), cyy += d.y() * d.y();
-    }
     // Both ends must reach out: a run that stops short on one side is an
     // edge, whose tangent is poorly defined.
     if ((p[lo] - p[i]).norm() < 0.5 * config.normal_radius || (p[hi] - p[i]).norm() < 0.5 * config.normal_radius)
       continue;
-    const double tangent = 0.5 * std::atan2(2.0 * cxy, cxx - cyy);
-    Point2 normal(-std::sin(tangent), std::cos(tangent));
-    if (normal.dot(p[i]) > 0.0) normal = -normal;  // towards the sensor
+    // The run's principal direction is the surface tangent.
+    const Point2 normal =
+        fit_line(std::span<const Point2>(p).subspan(lo, hi - lo + 1)).normal_towards(Point2::Zero(), p[i]);
     out.emplace_back(p[i].x(), p[i].y(), std::atan2(normal.y(), normal.x()));
   }
   return out;

@@ -9,6 +9,7 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
+#include "lshloc/geometry/line_fit.hpp"
 
 namespace lshloc {
 
@@ -97,27 +98,9 @@ std::vector<MapPoint> ScanMatcher::line_points(const std::vector<Point2>& endpoi
     while (hi + 1 < n && hi - i < reach && (endpoints[hi + 1] - p).squaredNorm() < r2) ++hi;
     const std::size_t count = hi - lo + 1;
     if (count < config_.normal_min_points) continue;
-    Point2 mean = Point2::Zero();
-    for (std::size_t j = lo; j <= hi; ++j) mean += endpoints[j];
-    mean /= static_cast<double>(count);
-    double sxx = 0.0, sxy = 0.0, syy = 0.0;
-    for (std::size_t j = lo; j <= hi; ++j) {
-      const Point2 d = endpoints[j] - mean;
-      sxx += d.x() * d.x(), sxy += d.x() * d.y(), syy += d.y() * d.y();
-    }
-    // Closed-form eigen decomposition of the 2x2 scatter matrix.
-    const double half_trace = 0.5 * (sxx + syy);
-    const double disc = std::sqrt(std::max(0.0, 0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy));
-    const double large = half_trace + disc, small = half_trace - disc;
-    if (large <= 0.0 || small > config_.max_line_flatness * large) continue;  // not a line: corner or clutter
-    // The normal is the eigenvector of the small eigenvalue, i.e. perpendicular
-    // to the large one's: (sxy, large - sxx) or (large - syy, sxy).
-    Point2 dir = std::abs(sxx - large) < std::abs(syy - large) ? Point2(large - syy, sxy) : Point2(sxy, large - sxx);
-    if (dir.squaredNorm() < 1e-20) dir = Point2(1.0, 0.0);
-    dir.normalize();
-    Point2 normal(-dir.y(), dir.x());
-    if (normal.dot(p) > 0.0) normal = -normal;  // face the sensor
-    out.push_back({p, normal});
+    const LineFit line = fit_line(std::span<const Point2>(endpoints).subspan(lo, count));
+    if (line.large <= 0.0 || line.small > config_.max_line_flatness * line.large) continue;  // corner or clutter
+    out.push_back({p, line.normal_towards(Point2::Zero(), p)});
   }
   thin_spaced(out, config_.map_voxel, [](const MapPoint& m) -> const Point2& { return m.position; });
   return out;
