@@ -29,12 +29,12 @@ TEST(PlaceRecall, Fr101WindowFindsItsPlacesInTheMap) {
   EXPECT_EQ(r.lsh.entries, r.map_features);
 }
 
-TEST(RecentSurfaces, KeepsScansThatMovedAndDropsFarOnes) {
+TEST(ScanContext, KeepsScansThatMovedAndDropsFarOnes) {
   DescriptorContextConfig cfg;
   cfg.scans = 2;
   cfg.min_step = 0.5;
   cfg.max_distance = 3.0;
-  RecentSurfaces recent(cfg);
+  ScanContext recent(cfg.scans, cfg.min_step, cfg.min_turn);
   auto at = [](double x) {
     ScanSurface s;
     s.sensor_pose = Pose2(x, 0.0, 0.0);
@@ -42,16 +42,16 @@ TEST(RecentSurfaces, KeepsScansThatMovedAndDropsFarOnes) {
   };
   recent.offer(at(0.0));
   recent.offer(at(0.2));  // too close to the last kept one
-  EXPECT_EQ(recent.all().size(), 1u);
+  EXPECT_EQ(recent.surfaces().size(), 1u);
   recent.offer(at(1.0));
   recent.offer(at(2.0));  // the oldest (0.0) leaves: at most 2
-  ASSERT_EQ(recent.all().size(), 2u);
-  EXPECT_DOUBLE_EQ(recent.all().front().sensor_pose.x, 1.0);
-  EXPECT_EQ(recent.near(Pose2(4.5, 0.0, 0.0)).size(), 1u);  // 1.0 is 3.5 m away
+  ASSERT_EQ(recent.surfaces().size(), 2u);
+  EXPECT_DOUBLE_EQ(recent.surfaces().front().sensor_pose.x, 1.0);
+  EXPECT_EQ(recent.near(Pose2(4.5, 0.0, 0.0), cfg.max_distance).size(), 1u);  // 1.0 is 3.5 m away
   cfg.scans = 0;
-  RecentSurfaces none(cfg);
+  ScanContext none(cfg.scans, cfg.min_step, cfg.min_turn);
   none.offer(at(0.0));
-  EXPECT_TRUE(none.all().empty());
+  EXPECT_TRUE(none.surfaces().empty());
 }
 
 }  // namespace

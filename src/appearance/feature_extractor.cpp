@@ -278,10 +278,20 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
 }
 
 void ScanContext::offer(const ScanSurface& surface) {
-  if (!surfaces_.empty() && translation_distance(last_pose_, surface.sensor_pose) < spacing_) return;
+  if (!surfaces_.empty() && translation_distance(last_pose_, surface.sensor_pose) < spacing_ &&
+      angle_distance(last_pose_.theta, surface.sensor_pose.theta) < min_turn_)
+    return;
   surfaces_.push_back(surface);
   last_pose_ = surface.sensor_pose;
   if (surfaces_.size() > scans_) surfaces_.erase(surfaces_.begin());
+}
+
+std::vector<ScanSurface> ScanContext::near(const Pose2& sensor, double max_distance) const {
+  std::vector<ScanSurface> out;
+  for (const ScanSurface& s : surfaces_) {
+    if (translation_distance(s.sensor_pose, sensor) <= max_distance) out.push_back(s);
+  }
+  return out;
 }
 
 }  // namespace lshloc

@@ -8,6 +8,7 @@
 // robot or thread); the free functions are pure.
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -163,18 +164,23 @@ class FeatureExtractor {
 
 /// The recent surfaces of one robot's scans that enter its next scans'
 /// descriptors as context: a scan joins once the sensor has moved `spacing`
-/// [m] since the last one that joined, and the oldest leaves beyond `scans`.
-/// Not thread-safe.
+/// [m] (or turned `min_turn` [rad]) since the last one that joined, and the
+/// oldest leaves beyond `scans` (0: none kept). Not thread-safe.
 class ScanContext {
  public:
-  ScanContext(std::size_t scans, double spacing) : scans_(scans), spacing_(spacing) {}
+  ScanContext(std::size_t scans, double spacing, double min_turn = std::numeric_limits<double>::infinity())
+      : scans_(scans), spacing_(spacing), min_turn_(min_turn) {}
   /// Offers the surface of the newest scan (after its features were extracted).
   void offer(const ScanSurface& surface);
+  /// The kept surfaces, oldest first.
   std::span<const ScanSurface> surfaces() const { return surfaces_; }
+  /// The kept surfaces whose sensor lies within `max_distance` [m] of `sensor`.
+  std::vector<ScanSurface> near(const Pose2& sensor, double max_distance) const;
 
  private:
   std::size_t scans_;
   double spacing_;
+  double min_turn_;
   std::vector<ScanSurface> surfaces_;  // a few scans: erasing the front is cheap
   Pose2 last_pose_;
 };

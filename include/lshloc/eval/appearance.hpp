@@ -1,10 +1,9 @@
 #pragma once
-// Descriptor context (the recent scans a scan's descriptors also see) and the
-// per-scan feature extraction of the place-recall evaluation.
+// The per-scan feature extraction of the place-recall evaluation, with its
+// descriptor context (a ScanContext of the recent scans).
 // Lengths [m], angles [rad].
-// Thread safety: a RecentSurfaces is one per thread (near() reuses a scratch
-// list); the extract_* functions use the caller's FeatureExtractor, itself one
-// per thread, and share nothing else.
+// Thread safety: the extract_* functions use the caller's FeatureExtractor,
+// itself one per thread, and share nothing else.
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -21,24 +20,6 @@ struct DescriptorContextConfig {
   double min_step = 0.3;      ///< [m] a scan joins the context only after the sensor moved this far ...
   double min_turn = 0.3;      ///< [rad] ... or turned this much since the last one that joined
   double max_distance = 8.0;  ///< [m] context scans whose sensor lies farther from the current one are left out
-};
-
-/// The recent scans a mapper or the target keeps as descriptor context:
-/// a short list, appended one scan at a time (O(scans) per push).
-class RecentSurfaces {
- public:
-  explicit RecentSurfaces(DescriptorContextConfig config = {}) : config_(config) {}
-  /// Offers a scan that has just been described; kept if it moved enough.
-  void offer(const ScanSurface& surface);
-  /// The kept scans near `sensor` (those within max_distance).
-  std::span<const ScanSurface> near(const Pose2& sensor);
-  const std::vector<ScanSurface>& all() const { return kept_; }
-  void clear() { kept_.clear(); }
-
- private:
-  DescriptorContextConfig config_;
-  std::vector<ScanSurface> kept_;  ///< oldest first
-  std::vector<ScanSurface> near_;
 };
 
 /// Features of one scan with the index of the scan they came from.
