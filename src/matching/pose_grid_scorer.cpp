@@ -12,16 +12,14 @@ namespace lshloc {
 
 namespace {
 /// Lookups are prefetched this many hypotheses ahead, far enough to cover a
-/// DRAM miss: on fr079 with 15 buildings (BENCHMARKS.md) 12 gave 22 ns per
-/// score, 24 gave 19.6, 40 and 64 gave 18.
+/// DRAM miss (the distance was measured: BENCHMARKS.md, speed-ups).
 constexpr std::size_t kAhead = 40;
 
 /// A cell of the free-space grid is a map wall when it holds a map return
 /// that map rays never crossed: people and doors leave cells marked both
 /// occupied and free, and a dilated neighbour of a wall is where the target's
-/// rays along that wall pass (aces, RESULTS.md: on a corridor the map saw
-/// only from far away, up to 8% of the true pose's newest data-points landed
-/// there).
+/// rays along that wall pass (a corridor the map saw only from far away:
+/// RESULTS.md).
 constexpr CellFlags kWallBits = cell_flags::kReturn | cell_flags::kFree;
 /// ... free space when map rays crossed it and no return nor its dilation
 /// marked it occupied ...

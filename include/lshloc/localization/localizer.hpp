@@ -39,10 +39,8 @@ inline ScanMatcherConfig local_map_matcher() {
 }
 
 struct LocalizerConfig {
-  /// The target's local map. It keeps far walls' sparse returns (line
-  /// normals from 3 points) and matches more scan points (5 cm apart): over
-  /// 1000-scan windows its heading drifts 0.9 instead of 2.4 degrees on
-  /// aces (median of 20), 0.8 instead of 1.3 on fr079
+  /// The target's local map keeps far walls' sparse returns and matches
+  /// denser scan points: its heading drifts less over a window
   /// (docs/results/local-map.md). Mapping (PoseGraphSlam) keeps the
   /// ScanMatcherConfig defaults: its loop closures got worse with these.
   ScanMatcherConfig scan_matcher = local_map_matcher();

@@ -53,16 +53,15 @@ struct ConfidenceConfig {
   /// recent data-points, its map scores them (hit, or local walls in space
   /// the map saw free, local rays through map walls). Where the map holds
   /// almost nothing about the reported place, the recent scans are no
-  /// evidence against it (aces: the robot drives from a junction into a
-  /// corridor the mappers saw only from far away, and a fully mapped
-  /// look-alike fits those scans better).
+  /// evidence against it (a robot driving into a corridor the mappers saw
+  /// only from far away: a fully mapped look-alike fits those scans better).
   double duel_recent_min_evidence = 0.1;
   /// A reported place that was once well supported is given up, by either
   /// duel, only for a challenger that iRANSAC supports as well (min_scored
   /// data-points at a mean of min_mean_score). A look-alike that fits the
   /// local map only where the true place's map is thin (the robot drives
   /// where the mappers barely went) otherwise takes over on a small lead
-  /// without ever being well supported itself (RESULTS.md, aces 1341).
+  /// without ever being well supported itself (RESULTS.md, design choices).
   bool challenger_needs_support = true;
   double same_place_m = 1.0;     ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
