@@ -26,6 +26,7 @@
 #include "lshloc/matching/pose_grid.hpp"
 #include "lshloc/matching/pose_grid_scorer.hpp"
 #include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/config_json.hpp"
 
 namespace lshloc::app {
 
@@ -33,17 +34,8 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-struct BenchMatchingOptions {
-  bool json = false;
-  std::string map_log;  ///< corrected CARMEN log; empty: synthetic walls
-  std::size_t viewpoints = 10000;
-  std::size_t warm_up = 100;     ///< viewpoints before the "first 100" window
-  std::size_t window = 100;      ///< viewpoints averaged at the start and the end
-  double inlier_share = 0.01;    ///< share of hypotheses from true correspondences
-  double drift_xy = 0.0;         ///< [m] std. dev. of the local map's drift per viewpoint (random walk)
-  double drift_theta_deg = 0.0;  ///< [deg] same, heading
-  std::string tolerance_mode = "dilate";
-  std::string order_rule = "fresh";
+/// The pose grid and iRANSAC under test; --config sets any of their fields.
+struct MatchingSettings {
   // The paper's synthetic setting (BENCHMARKS.md's matching rows), not the
   // localizer's defaults.
   PoseGridConfig grid{.cell_size = 0.1};
@@ -54,6 +46,20 @@ struct BenchMatchingOptions {
                                  .preference_z = 0.0,
                                  .order_rule = FeatureOrderRule::kFreshFirst,
                                  .recent_window = 200};
+};
+LSHLOC_JSON_FIELDS(MatchingSettings, grid, ransac)
+
+struct BenchMatchingOptions {
+  bool json = false;
+  std::string map_log;  ///< corrected CARMEN log; empty: synthetic walls
+  std::size_t viewpoints = 10000;
+  std::size_t warm_up = 100;     ///< viewpoints before the "first 100" window
+  std::size_t window = 100;      ///< viewpoints averaged at the start and the end
+  double inlier_share = 0.01;    ///< share of hypotheses from true correspondences
+  double drift_xy = 0.0;         ///< [m] std. dev. of the local map's drift per viewpoint (random walk)
+  double drift_theta_deg = 0.0;  ///< [deg] same, heading
+  MatchingSettings settings;
+  bool print_config = false;
 };
 
 /// A synthetic building: 400 random walls in a 100 x 100 m square, an
@@ -102,23 +108,9 @@ double mean(const std::vector<double>& v, std::size_t from, std::size_t count) {
   return s / static_cast<double>(count);
 }
 
-nlohmann::json run_bench(BenchMatchingOptions o) {
-  if (o.tolerance_mode == "dilate") {
-    o.grid.tolerance_mode = ToleranceMode::kDilateAtInsert;
-  } else if (o.tolerance_mode == "probe") {
-    o.grid.tolerance_mode = ToleranceMode::kProbeNeighbours;
-  } else {
-    throw Error("bench matching: --tolerance-mode must be dilate or probe, got " + o.tolerance_mode);
-  }
-  if (o.order_rule == "uniform") {
-    o.ransac.order_rule = FeatureOrderRule::kUniform;
-  } else if (o.order_rule == "recent") {
-    o.ransac.order_rule = FeatureOrderRule::kRecentWindow;
-  } else if (o.order_rule == "fresh") {
-    o.ransac.order_rule = FeatureOrderRule::kFreshFirst;
-  } else {
-    throw Error("bench matching: --order must be uniform, recent or fresh, got " + o.order_rule);
-  }
+nlohmann::json run_bench(const BenchMatchingOptions& o) {
+  const PoseGridConfig& grid_config = o.settings.grid;
+  const IncrementalRansacConfig& ransac_config = o.settings.ransac;
   if (o.viewpoints < o.warm_up + 2 * o.window)
     throw Error("bench matching: --viewpoints must be at least warm-up + 2 x 100 = " +
                 std::to_string(o.warm_up + 2 * o.window));
@@ -127,7 +119,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
   std::vector<std::vector<Pose2>> groups;
   std::size_t valid_endpoints = 0;
   if (o.map_log.empty()) {
-    groups.push_back(synthetic_map_points(o.ransac.seed));
+    groups.push_back(synthetic_map_points(ransac_config.seed));
   } else {
     groups = log_map_points(o.map_log, valid_endpoints);
   }
@@ -135,7 +127,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
   for (const auto& g : groups) map_points.insert(map_points.end(), g.begin(), g.end());
   if (map_points.empty()) throw Error("bench matching: the map has no oriented endpoints");
 
-  PoseGridHashMap grid(o.grid);
+  PoseGridHashMap grid(grid_config);
   const auto t_fill0 = std::chrono::steady_clock::now();
   for (const Pose2& p : map_points) grid.insert(0, p.x, p.y, p.theta);
   const double fill_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_fill0).count();
@@ -148,7 +140,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
   //    hypotheses disagree with new ones (the case the order rules differ on).
   const Pose2 T_true(12.5, -7.25, 0.6);  // T_submap_local at viewpoint 0
   Pose2 drift;                           // D_k
-  std::mt19937_64 rng(o.ransac.seed + 1);
+  std::mt19937_64 rng(ransac_config.seed + 1);
   std::normal_distribution<double> dxy(0.0, o.drift_xy), dth(0.0, o.drift_theta_deg * kPi / 180.0);
   std::vector<double> error_m(o.viewpoints, std::numeric_limits<double>::infinity()), error_deg(o.viewpoints, 180.0);
   std::normal_distribution<double> nxy(0.0, 0.02), nth(0.0, 0.01);
@@ -157,7 +149,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
   std::vector<Pose2> local_truth;  // the map point behind each local feature
   std::vector<Pose2> local_seen;   // the local feature (noisy, local frame)
 
-  IncrementalRansac ransac(o.ransac);
+  IncrementalRansac ransac(ransac_config);
   PoseGridScorer scorer(grid);
   std::vector<double> viewpoint_ms(o.viewpoints), viewpoint_ms_wall(o.viewpoints);
   double scoring_s = 0.0, scoring_wall_s = 0.0;
@@ -170,7 +162,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
     const Pose2 T_now = T_true * drift;
     const Pose2 T_local_submap = T_now.inverse();
     const auto& group = groups[vp % groups.size()];
-    for (std::size_t k = 0; k < o.ransac.new_features_per_scan; ++k) {
+    for (std::size_t k = 0; k < ransac_config.new_features_per_scan; ++k) {
       const Pose2& g = group.empty() ? map_points[any_map(rng)]
                                      : group[std::uniform_int_distribution<std::size_t>(0, group.size() - 1)(rng)];
       const Pose2 l = T_local_submap * g;
@@ -182,7 +174,7 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
     // Hypotheses from correspondences of this viewpoint's features: the true
     // partner with probability inlier_share, else a random map point.
     const std::size_t first = local_seen.size() - fresh.size();
-    for (std::size_t h = 0; h < o.ransac.new_hypotheses_per_scan; ++h) {
+    for (std::size_t h = 0; h < ransac_config.new_hypotheses_per_scan; ++h) {
       const std::size_t i = first + h % fresh.size();
       const Pose2& g = u01(rng) < o.inlier_share ? local_truth[i] : map_points[any_map(rng)];
       hyps.push_back(hypothesis_from_correspondence(0, g, local_seen[i]));
@@ -232,17 +224,17 @@ nlohmann::json run_bench(BenchMatchingOptions o) {
   out["map_points"] = map_points.size();
   if (!o.map_log.empty()) out["valid_endpoints"] = valid_endpoints;
   out["grid_contents"] = "scan endpoints with a surface normal (oriented_endpoints), heading = normal";
-  out["tolerance_mode"] = o.tolerance_mode;
-  out["xy_tolerance"] = o.grid.xy_tolerance;
-  out["theta_tolerance"] = o.grid.theta_tolerance;
-  out["cell_size"] = o.grid.cell_size;
-  out["theta_bins"] = o.grid.theta_bins;
-  out["order_rule"] = o.order_rule;
+  out["tolerance_mode"] = grid_config.tolerance_mode;
+  out["xy_tolerance"] = grid_config.xy_tolerance;
+  out["theta_tolerance"] = grid_config.theta_tolerance;
+  out["cell_size"] = grid_config.cell_size;
+  out["theta_bins"] = grid_config.theta_bins;
+  out["order_rule"] = ransac_config.order_rule;
   out["grid_fill_s"] = fill_s;
   out["grid_capacity"] = gs.capacity;
   out["grid_memory_bytes"] = gs.memory_bytes;
   out["grid_rehashes"] = gs.rehashes;
-  out["grid_max_load"] = o.grid.max_load_factor;
+  out["grid_max_load"] = grid_config.max_load_factor;
   out["table_fraction"] = gs.table_fraction;
   if (!o.map_log.empty()) {
     out["grid_bins"] = gs.bins_used;
@@ -288,28 +280,19 @@ void add_bench_matching_command(CLI::App& bench, GlobalOptions& global) {
       ->capture_default_str();
   cmd->add_option("--drift-theta", o->drift_theta_deg, "[deg] local-map heading drift per viewpoint (std. dev.)")
       ->capture_default_str();
-  cmd->add_option("--recent-window", o->ransac.recent_window, "[features] window of the recent / fresh order rules")
-      ->capture_default_str();
-  cmd->add_option("--min-score", o->ransac.min_score, "C_o: best() ignores hypotheses with C below it")
-      ->capture_default_str();
-  cmd->add_option("--hypotheses", o->ransac.new_hypotheses_per_scan, "|V_new| per viewpoint")->capture_default_str();
-  cmd->add_option("--features", o->ransac.new_features_per_scan, "|U_new| per viewpoint")->capture_default_str();
-  cmd->add_option("--block", o->ransac.block_size, "B: halve the active set every B-th iteration")
-      ->capture_default_str();
-  cmd->add_option("--iterations", o->ransac.iterations_per_scan, "iterations per viewpoint")->capture_default_str();
-  cmd->add_option("--order", o->order_rule,
-                  "feature order rule: uniform (paper), recent, fresh (each new feature first)")
-      ->capture_default_str();
-  cmd->add_option("--cell", o->grid.cell_size, "[m] pose-grid cell size")->capture_default_str();
-  cmd->add_option("--theta-bins", o->grid.theta_bins, "pose-grid heading bins")->capture_default_str();
-  cmd->add_option("--xy-tolerance", o->grid.xy_tolerance, "[cells] neighbours in x, y")->capture_default_str();
-  cmd->add_option("--theta-tolerance", o->grid.theta_tolerance, "[bins] neighbours in heading")->capture_default_str();
-  cmd->add_option("--max-load", o->grid.max_load_factor, "pose-grid load (bins used / capacity) that doubles it")
-      ->capture_default_str();
-  cmd->add_option("--tolerance-mode", o->tolerance_mode, "dilate (at insert) or probe (neighbours at query)")
-      ->capture_default_str();
-  cmd->add_option("--seed", o->ransac.seed, "seed of the simulation and of iRANSAC")->capture_default_str();
+  // Applied while parsing, like every --config of the tool.
+  cmd->add_option_function<std::string>(
+         "--config",
+         [o](const std::string& path) { io::apply_config_patch(io::read_json_file(path), o->settings, path); },
+         "JSON file of the pose grid's and iRANSAC's settings ({\"grid\": PoseGridConfig, \"ransac\": "
+         "IncrementalRansacConfig}, any subset; --print-config shows them); default: the paper's synthetic setting")
+      ->trigger_on_parse();
+  cmd->add_flag("--print-config", o->print_config, "print the effective settings as JSON and exit");
   cmd->callback([o] {
+    if (o->print_config) {
+      std::printf("%s\n", nlohmann::json(o->settings).dump(2).c_str());
+      return;
+    }
     const nlohmann::json out = run_bench(*o);
     if (o->json) {
       std::printf("%s\n", out.dump().c_str());
