@@ -6,6 +6,7 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/simulator.hpp"
 #include "test_support.hpp"
 
@@ -163,6 +164,25 @@ TEST(DatasetCatalog, KnowsFifteenBuildingsAndReportsMissingThings) {
   EXPECT_THROW(catalog.building("atlantis"), Error);
   EXPECT_TRUE(catalog.building("fr101").relations.empty());
   EXPECT_FALSE(catalog.building("mit-csail").relations.empty());
+}
+
+TEST(ScenarioRunner, TheLaserOffsetComesFromTheTargetLogOrOnceFromTheConfig) {
+  const GlobalMap map;
+  TargetRun target;  // no scans: only the offset rule runs
+  target.laser_offset = Pose2(-0.04, 0.0, 0.0);
+  LocalizerConfig config;
+  EXPECT_NO_THROW(localize_target(map, target, config));  // from the log
+  config.scan_matcher.laser_offset = Pose2(-0.04, 0.0, 0.0);
+  EXPECT_NO_THROW(localize_target(map, target, config));  // the same twice
+  config.scan_matcher.laser_offset = Pose2(0.1, 0.0, 0.0);
+  try {
+    localize_target(map, target, config);
+    FAIL() << "a config offset other than the log's was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("LocalizerConfig.scan_matcher.laser_offset: expected"), std::string::npos);
+  }
+  target.laser_offset = Pose2();  // a log without the PARAM: the config's offset is used
+  EXPECT_NO_THROW(localize_target(map, target, config));
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "lshloc/eval/scenario_runner.hpp"
 
 #include "lshloc/common/cpu_time.hpp"
+#include "lshloc/common/error.hpp"
 
 #include <chrono>
 
@@ -44,7 +45,21 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
                             const Progress& progress, const LocalizerObserver& observer,
                             const BeforeScan& before_scan) {
   ScenarioRun run;
-  config.scan_matcher.laser_offset = target.laser_offset;
+  // The laser offset comes from the target's log; a config may give one for
+  // a log without it, but never another one than the log's.
+  const Pose2& given = config.scan_matcher.laser_offset;
+  const bool config_sets = given.x != 0.0 || given.y != 0.0 || given.theta != 0.0;
+  const bool log_sets =
+      target.laser_offset.x != 0.0 || target.laser_offset.y != 0.0 || target.laser_offset.theta != 0.0;
+  if (config_sets && log_sets &&
+      (given.x != target.laser_offset.x || given.y != target.laser_offset.y ||
+       given.theta != target.laser_offset.theta)) {
+    throw Error("LocalizerConfig.scan_matcher.laser_offset: expected none or the target log's (" +
+                std::to_string(target.laser_offset.x) + ", " + std::to_string(target.laser_offset.y) + ", " +
+                std::to_string(target.laser_offset.theta) + "), got (" + std::to_string(given.x) + ", " +
+                std::to_string(given.y) + ", " + std::to_string(given.theta) + ")");
+  }
+  if (!config_sets) config.scan_matcher.laser_offset = target.laser_offset;
   Localizer localizer(map, config);
   const auto& scans = target.scans;
   run.estimates.reserve(scans.size());

@@ -75,7 +75,9 @@ class MapFeeder {
 using BeforeScan = std::function<void(std::size_t)>;
 
 /// Runs a target's scans through a new Localizer over `map` (its scan
-/// matcher takes the target's laser offset). map_build_s stays 0.
+/// matcher takes the target's laser offset, unless the config gives one for
+/// a target without; a config offset other than the target's is an error).
+/// map_build_s stays 0.
 ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
                             const Progress& progress = {}, const LocalizerObserver& observer = {},
                             const BeforeScan& before_scan = {});
