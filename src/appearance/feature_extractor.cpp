@@ -294,4 +294,44 @@ std::vector<ScanSurface> ScanContext::near(const Pose2& sensor, double max_dista
   return out;
 }
 
+void ScanContext::write_snapshot(ByteWriter& out) const {
+  out.varint(surfaces_.size());
+  for (const ScanSurface& s : surfaces_) {
+    for (const double v : {s.sensor_pose.x, s.sensor_pose.y, s.sensor_pose.theta}) out.f64(v);
+    out.varint(s.points.size());
+    for (const SurfacePoint& p : s.points) {
+      for (const double v : {p.position.x(), p.position.y(), p.tangent, p.weight, p.cos2t, p.sin2t}) out.f64(v);
+    }
+    for (const double r : s.range) out.f64(r);
+    out.varint(s.segment_begin.size());
+    for (const std::size_t b : s.segment_begin) out.varint(b);
+  }
+}
+
+void ScanContext::read_snapshot(ByteReader& in) {
+  if (!surfaces_.empty()) throw Error("ScanContext::read_snapshot: the context is not empty");
+  const auto count = static_cast<std::size_t>(in.varint_at_most(scans_, "a count of context scans"));
+  surfaces_.resize(count);
+  for (ScanSurface& s : surfaces_) {
+    s.sensor_pose = {in.f64(), in.f64(), in.f64()};
+    const auto points = static_cast<std::size_t>(in.varint_at_most(in.remaining() / 56, "a count of surface points"));
+    s.points.resize(points);
+    for (SurfacePoint& p : s.points) {
+      p.position = {in.f64(), in.f64()};
+      p.tangent = in.f64(), p.weight = in.f64(), p.cos2t = in.f64(), p.sin2t = in.f64();
+    }
+    s.range.resize(points);
+    for (double& r : s.range) r = in.f64();
+    const auto segments = static_cast<std::size_t>(in.varint_at_most(points, "a count of segments"));
+    s.segment_begin.resize(segments);
+    std::size_t previous = 0;
+    for (std::size_t& b : s.segment_begin) {
+      b = static_cast<std::size_t>(in.varint_at_most(points, "a segment start within the points"));
+      if (b < previous) in.fail("segment starts in ascending order");
+      previous = b;
+    }
+  }
+  if (!surfaces_.empty()) last_pose_ = surfaces_.back().sensor_pose;
+}
+
 }  // namespace lshloc

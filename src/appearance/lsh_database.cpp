@@ -346,6 +346,87 @@ void LshDatabase::rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) co
   q.ranked_.swap(q.reranked_);
 }
 
+// Per table: its size (log2), then its buckets by ascending tag, each as
+// the tag's difference to the previous one, the count of ids it was given
+// and the ids it keeps, in order, as differences (ids in a bucket mostly
+// ascend: 1-3 bytes instead of 4).
+void LshDatabase::write_snapshot(ByteWriter& out) const {
+  const std::uint32_t cap = 1u << capacity_class_;
+  out.varint(entries_);
+  out.u64(rng_state_);
+  std::vector<const Slot*> buckets;
+  for (const Table& t : tables_) {
+    out.u8(static_cast<std::uint8_t>(t.bits));
+    buckets.clear();
+    for (const Slot& s : t.slots)
+      if (s.inserted != 0) buckets.push_back(&s);
+    std::sort(buckets.begin(), buckets.end(), [](const Slot* a, const Slot* b) { return a->tag < b->tag; });
+    out.varint(buckets.size());
+    std::uint32_t previous_tag = 0;
+    for (const Slot* s : buckets) {
+      out.varint(s->tag - previous_tag);
+      previous_tag = s->tag;
+      out.varint(s->inserted);
+      std::int64_t previous_id = 0;
+      const std::uint32_t* ids = t.pool.data() + s->offset;
+      for (std::uint32_t n = 0; n < std::min(s->inserted, cap); ++n) {
+        out.signed_varint(static_cast<std::int64_t>(ids[n]) - previous_id);
+        previous_id = ids[n];
+      }
+    }
+  }
+  out.varint(sketch_ids_);
+  for (const std::uint64_t w : sketches_) out.u64(w);
+}
+
+void LshDatabase::read_snapshot(ByteReader& in, std::uint64_t id_limit) {
+  if (entries_ != 0) throw Error("LshDatabase::read_snapshot: the database is not empty");
+  const std::uint32_t cap = 1u << capacity_class_;
+  entries_ = static_cast<std::size_t>(in.varint_at_most(0xFFFFFFFFu, "a count of entries"));
+  rng_state_ = in.u64();
+  const std::uint64_t max_id = std::min<std::uint64_t>(id_limit, kNone);
+  for (Table& t : tables_) {
+    const int bits = in.u8();
+    if (bits < t.bits || bits > 32)
+      in.fail("a table size of 2^" + std::to_string(t.bits) + "..2^32 slots, got 2^" + std::to_string(bits));
+    t.bits = bits;
+    t.slots.assign(std::size_t{1} << bits, Slot{});
+    const std::size_t mask = t.slots.size() - 1;
+    // At most 70% full, as insert() keeps it: linear probing must find an empty slot.
+    const auto count = static_cast<std::size_t>(in.varint_at_most(7 * t.slots.size() / 10, "a bucket count"));
+    std::uint64_t tag = 0;
+    for (std::size_t b = 0; b < count; ++b) {
+      const std::uint64_t step = in.varint();
+      if (b > 0 && step == 0) in.fail("bucket tags in ascending order");
+      tag += step;
+      if (tag > 0xFFFFFFFFu) in.fail("a 32-bit bucket tag");
+      const auto inserted = static_cast<std::uint32_t>(in.varint_at_most(0xFFFFFFFFu, "a bucket's id count"));
+      if (inserted == 0) in.fail("a non-empty bucket");
+      const std::uint32_t kept = std::min(inserted, cap);
+      const auto size_class = static_cast<std::uint32_t>(std::bit_width(kept - 1));
+      if (kept > in.remaining()) in.fail(std::to_string(kept) + " bucket ids (at least a byte each)");
+      const std::uint32_t offset = allocate(t, size_class);
+      std::int64_t id = 0;
+      for (std::uint32_t n = 0; n < kept; ++n) {
+        id += in.signed_varint();
+        if (id < 0 || static_cast<std::uint64_t>(id) >= max_id)
+          in.fail("a location id below " + std::to_string(max_id) + ", got " + std::to_string(id));
+        t.pool[offset + n] = static_cast<std::uint32_t>(id);
+      }
+      std::size_t i = home(static_cast<std::uint32_t>(tag), t.bits);
+      while (t.slots[i].inserted != 0) i = (i + 1) & mask;
+      t.slots[i] = {static_cast<std::uint32_t>(tag), offset, inserted, size_class};
+      ++t.used;
+    }
+  }
+  sketch_ids_ = static_cast<std::size_t>(in.varint_at_most(max_id, "a sketch count"));
+  if (sketch_words_ == 0 && sketch_ids_ != 0) in.fail("no sketches (sketch_bits is 0)");
+  const std::size_t words = sketch_ids_ * sketch_words_;
+  if (words > in.remaining() / 8) in.fail(std::to_string(words) + " sketch words");
+  sketches_.resize(words);
+  for (std::uint64_t& w : sketches_) w = in.u64();
+}
+
 LshStats LshDatabase::stats() const {
   LshStats s;
   s.entries = entries_;

@@ -144,6 +144,94 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   }
 }
 
+std::optional<std::uint32_t> GlobalMap::find_submap(std::string_view name) const {
+  for (std::size_t i = 0; i < submaps_.size(); ++i)
+    if (submaps_[i].name == name) return static_cast<std::uint32_t>(i);
+  return std::nullopt;
+}
+
+const std::vector<std::string>& GlobalMap::snapshot_sections() {
+  static const std::vector<std::string> names = {"submaps",   "locations",  "database",
+                                                 "occupancy", "free_space", "counters"};
+  return names;
+}
+
+std::vector<MapSection> GlobalMap::snapshot() const {
+  std::vector<MapSection> out;
+  for (const std::string& name : snapshot_sections()) {
+    ByteWriter w;
+    if (name == "submaps") {
+      w.varint(submaps_.size());
+      for (const SubmapState& s : submaps_) {
+        w.string(s.name);
+        w.varint(s.scans);
+        s.context.write_snapshot(w);
+      }
+    } else if (name == "locations") {
+      locations_.write_snapshot(w);
+    } else if (name == "database") {
+      database_.write_snapshot(w);
+    } else if (name == "occupancy") {
+      occupancy_.write_snapshot(w);
+    } else if (name == "free_space") {
+      free_space_.write_snapshot(w);
+    } else {
+      w.varint(stats_.scans);
+      w.varint(stats_.features);
+      w.f64(stats_.extract_s), w.f64(stats_.database_insert_s), w.f64(stats_.grid_s);
+    }
+    out.push_back({name, w.take()});
+  }
+  return out;
+}
+
+std::unique_ptr<GlobalMap> GlobalMap::from_snapshot(const GlobalMapConfig& config,
+                                                    std::span<const MapSectionView> sections,
+                                                    const std::string& source) {
+  auto map = std::make_unique<GlobalMap>(config);
+  for (const std::string& name : snapshot_sections()) {
+    const MapSectionView* section = nullptr;
+    for (const MapSectionView& s : sections)
+      if (s.name == name) section = &s;
+    if (section == nullptr) throw Error(source + ": section " + name + " is missing");
+    ByteReader in(section->bytes, source + ": section " + name);
+    const auto submaps = static_cast<std::uint32_t>(map->submaps_.size());
+    if (name == "submaps") {
+      const auto count = in.varint_at_most(PoseGridHashMap::kMaxSubmaps, "a submap count");
+      for (std::uint64_t i = 0; i < count; ++i) {
+        const std::uint32_t id = map->add_submap(in.string(4096));
+        SubmapState& s = map->submaps_[id];
+        s.scans = static_cast<std::size_t>(in.varint());
+        s.context.read_snapshot(in);
+      }
+    } else if (name == "locations") {
+      map->locations_.read_snapshot(in, submaps);
+    } else if (name == "database") {
+      map->database_.read_snapshot(in, map->locations_.size());
+    } else if (name == "occupancy") {
+      map->occupancy_.read_snapshot(in, submaps);
+    } else if (name == "free_space") {
+      map->free_space_.read_snapshot(in, submaps);
+    } else {
+      map->stats_.scans = static_cast<std::size_t>(in.varint());
+      map->stats_.features = static_cast<std::size_t>(in.varint());
+      map->stats_.extract_s = in.f64(), map->stats_.database_insert_s = in.f64(), map->stats_.grid_s = in.f64();
+      std::size_t scans = 0;
+      for (const SubmapState& sub : map->submaps_) scans += sub.scans;
+      if (map->stats_.scans != scans)
+        in.fail(std::to_string(scans) + " scans (the submaps' sum), got " + std::to_string(map->stats_.scans));
+      if (map->stats_.features != map->locations_.size())
+        in.fail(std::to_string(map->locations_.size()) + " features (one per location), got " +
+                std::to_string(map->stats_.features));
+    }
+    in.expect_done();
+  }
+  if (map->database_.size() != map->locations_.size())
+    throw Error(source + ": section database holds " + std::to_string(map->database_.size()) +
+                " entries; expected one per location (" + std::to_string(map->locations_.size()) + ")");
+  return map;
+}
+
 GlobalMapStats GlobalMap::stats() const {
   GlobalMapStats s = stats_;
   s.submaps = submaps_.size();

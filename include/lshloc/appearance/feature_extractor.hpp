@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lshloc/appearance/feature.hpp"
+#include "lshloc/common/byte_codec.hpp"
 #include "lshloc/geometry/laser_scan.hpp"
 #include "lshloc/geometry/pose2.hpp"
 
@@ -176,6 +177,12 @@ class ScanContext {
   std::span<const ScanSurface> surfaces() const { return surfaces_; }
   /// The kept surfaces whose sensor lies within `max_distance` [m] of `sensor`.
   std::vector<ScanSurface> near(const Pose2& sensor, double max_distance) const;
+
+  /// The kept surfaces, bit for bit (docs/map-format.md).
+  void write_snapshot(ByteWriter& out) const;
+  /// Restores what write_snapshot() wrote into this (empty) context.
+  /// Throws lshloc::Error naming `in`'s source on anything inconsistent.
+  void read_snapshot(ByteReader& in);
 
  private:
   std::size_t scans_;

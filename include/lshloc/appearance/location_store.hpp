@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "lshloc/common/byte_codec.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/appearance/feature.hpp"
 
@@ -45,6 +46,28 @@ class LocationStore {
   void reserve(std::size_t n) { locations_.reserve(n); }
   std::size_t bytes() const { return locations_.capacity() * sizeof(MapLocation); }
   const std::vector<MapLocation>& locations() const { return locations_; }
+
+  /// Every location bit for bit (docs/map-format.md): the submap as a
+  /// varint, the pose as three floats.
+  void write_snapshot(ByteWriter& out) const {
+    out.varint(locations_.size());
+    for (const MapLocation& l : locations_) {
+      out.varint(l.submap);
+      out.f32(l.x), out.f32(l.y), out.f32(l.theta);
+    }
+  }
+  /// Restores what write_snapshot() wrote into this (empty) store; submaps
+  /// must lie below `submap_limit`. Throws lshloc::Error naming `in`'s source.
+  void read_snapshot(ByteReader& in, std::uint32_t submap_limit) {
+    if (!locations_.empty()) throw Error("LocationStore::read_snapshot: the store is not empty");
+    const auto n = static_cast<std::size_t>(in.varint_at_most(in.remaining() / 13, "a location count"));
+    if (n > 0 && submap_limit == 0) in.fail("no locations in a map without submaps");
+    locations_.resize(n);
+    for (MapLocation& l : locations_) {
+      l.submap = static_cast<std::uint32_t>(in.varint_at_most(submap_limit - 1, "a known submap"));
+      l.x = in.f32(), l.y = in.f32(), l.theta = in.f32();
+    }
+  }
 
  private:
   std::vector<MapLocation> locations_;

@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include "lshloc/appearance/feature.hpp"
+#include "lshloc/common/byte_codec.hpp"
 
 namespace lshloc {
 
@@ -148,6 +149,16 @@ class LshDatabase {
 
   std::size_t size() const { return entries_; }
   LshStats stats() const;
+
+  /// The database's contents (every bucket's ids in order, the sketches and
+  /// the reservoir sampler's state) in a canonical form: equal contents
+  /// write equal bytes whatever the tables' layout (docs/map-format.md).
+  void write_snapshot(ByteWriter& out) const;
+  /// Restores what write_snapshot() wrote into this database, which must be
+  /// empty and have the writer's config; it then answers and grows exactly
+  /// as the written one would. Ids must be below `id_limit`. Throws
+  /// lshloc::Error naming `in`'s source on anything inconsistent.
+  void read_snapshot(ByteReader& in, std::uint64_t id_limit);
 
  private:
   friend class LshQuery;

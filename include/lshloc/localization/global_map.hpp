@@ -6,7 +6,11 @@
 // Thread safety: not thread-safe; feed and query it from one thread.
 #include <cstdint>
 #include <deque>
+#include <memory>
+#include <optional>
+#include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lshloc/appearance/feature_extractor.hpp"
@@ -65,6 +69,17 @@ struct GlobalMapStats {
   }
 };
 
+/// One named part of a GlobalMap's snapshot (docs/map-format.md).
+struct MapSection {
+  std::string name;
+  std::vector<std::uint8_t> bytes;
+};
+/// A MapSection read in place (e.g. from a loaded file).
+struct MapSectionView {
+  std::string_view name;
+  std::span<const std::uint8_t> bytes;
+};
+
 /// The global map G = {G_1..G_R}: submaps in their own frames, the appearance
 /// database, the location store and the pose grids. Mapper robots feed it one
 /// scan at a time (in any interleaving across submaps); nothing is rebuilt.
@@ -84,6 +99,26 @@ class GlobalMap {
 
   std::size_t submap_count() const { return submaps_.size(); }
   const std::string& submap_name(std::uint32_t submap) const { return submaps_.at(submap).name; }
+  /// Mapper scans added to `submap` so far.
+  std::size_t submap_scans(std::uint32_t submap) const { return submaps_.at(submap).scans; }
+  /// The id of the first submap named `name`, if any.
+  std::optional<std::uint32_t> find_submap(std::string_view name) const;
+
+  /// The names of the snapshot's sections, in the order snapshot() writes them.
+  static const std::vector<std::string>& snapshot_sections();
+  /// The map's whole state as sections, in snapshot_sections() order:
+  /// "submaps" (names, scan counts, descriptor contexts), "locations",
+  /// "database", "occupancy", "free_space" and "counters" (counts and the
+  /// build's CPU times). Canonical: maps with equal contents write equal
+  /// sections whatever their tables' layout (the times in "counters" aside).
+  std::vector<MapSection> snapshot() const;
+  /// The map snapshot() wrote, given the writer's config; add_scan() then
+  /// continues exactly as it would have on the written map. Bulk reads, no
+  /// feature extraction or hashing of descriptors. Throws lshloc::Error
+  /// naming `source` and the section on a missing section or anything
+  /// inconsistent.
+  static std::unique_ptr<GlobalMap> from_snapshot(const GlobalMapConfig& config,
+                                                  std::span<const MapSectionView> sections, const std::string& source);
 
   const LshDatabase& database() const { return database_; }
   const LocationStore& locations() const { return locations_; }

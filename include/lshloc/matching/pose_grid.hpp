@@ -10,6 +10,8 @@
 #include <numbers>
 #include <vector>
 
+#include "lshloc/common/byte_codec.hpp"
+
 namespace lshloc {
 
 /// What a pose-grid cell holds: a small set of flags (OR-ed together when a
@@ -122,6 +124,16 @@ class PoseGridHashMap {
   PoseCell cell_of(std::uint32_t submap, double x, double y, double theta) const;
 
   PoseGridStats stats() const;
+
+  /// The grid's cells and counters in a canonical form (cells by ascending
+  /// key): equal grids write equal bytes whatever their table layout
+  /// (docs/map-format.md).
+  void write_snapshot(ByteWriter& out) const;
+  /// Restores what write_snapshot() wrote into this grid, which must be
+  /// empty and have the writer's config. Cells must belong to submaps below
+  /// `submap_limit`. Throws lshloc::Error naming `in`'s source on anything
+  /// inconsistent.
+  void read_snapshot(ByteReader& in, std::uint32_t submap_limit);
 
   // --- The pieces of a lookup, for callers that batch many probes (iRANSAC
   // scoring): pack the (submap, ix, iy) keys, hash them, prefetch, look up. ---

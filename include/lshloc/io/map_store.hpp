@@ -1,0 +1,131 @@
+#pragma once
+// The map store (docs/map-format.md): a global map saved as one file, a
+// checksummed snapshot of its structures followed by an append-only journal
+// of mapper scans. Build once, load in a bulk read, append without a
+// rebuild, and lose no acknowledged scan when the process dies.
+// Poses [m, rad]; sizes [bytes].
+// Thread safety: load_map, verify_map and save_map share no state; a
+// MapAppender is one writer's object (not thread-safe), and holds an
+// exclusive lock on its file so that a second writer, in any process, is
+// refused. Readers may load a map while one writer appends: they see the
+// scans acknowledged so far, and a record being written reads as a torn tail.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lshloc/localization/global_map.hpp"
+#include "lshloc/localization/localizer.hpp"
+
+namespace lshloc::io {
+
+/// The file format version this lshloc writes and reads.
+inline constexpr std::uint32_t kMapFormatVersion = 1;
+
+/// What a map file holds, as far as reading it found.
+struct MapFileInfo {
+  std::uint32_t format_version = 0;
+  std::uint64_t file_bytes = 0;
+  std::uint64_t snapshot_bytes = 0;  ///< header and sections; the journal follows
+  std::uint64_t journal_bytes = 0;   ///< complete journal records
+  std::size_t journal_submaps = 0;   ///< submaps the journal opened
+  std::size_t journal_scans = 0;     ///< scans the journal added
+  std::uint64_t torn_bytes = 0;      ///< an incomplete last record, dropped (0: none)
+  struct Section {
+    std::string name;
+    std::uint64_t offset = 0;  ///< of its payload
+    std::uint64_t bytes = 0;
+  };
+  std::vector<Section> sections;
+  nlohmann::json meta;  ///< free-form: who built the map and from what
+};
+
+/// A loaded map: its settings, its structures, and what the file held.
+struct LoadedMap {
+  std::unique_ptr<GlobalMap> map;
+  MapFileInfo info;
+  /// Problems that lost nothing acknowledged (a torn last journal record),
+  /// each naming the file and the byte offset.
+  std::vector<std::string> warnings;
+};
+
+/// Writes `map` as a snapshot with an empty journal: to a temporary file in
+/// the same directory, fsync'ed, then renamed over `path` (and the directory
+/// fsync'ed), so `path` holds either its old content or the whole new map.
+/// `meta` (a JSON object) is kept as the file's free-form description.
+void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta = nlohmann::json::object());
+
+/// Reads a map file: checks every checksum, restores the snapshot in bulk
+/// and replays the journal. A torn last journal record is dropped with a
+/// warning; anything else wrong (truncated snapshot, a changed byte, a wrong
+/// magic number, a newer format version, settings this lshloc cannot use,
+/// an empty file) throws lshloc::Error naming the file, the section or
+/// record, and what was expected.
+LoadedMap load_map(const std::string& path);
+
+/// Whether the file starts with the map magic number (false when it cannot
+/// be read or is shorter).
+bool looks_like_map_file(const std::string& path);
+
+/// Throws lshloc::Error naming `source` when a localizer with `localizer`
+/// settings cannot use a map built with `map` settings (the feature
+/// extractor and descriptor context must be the map's).
+void require_localizer_fits_map(const LocalizerConfig& localizer, const GlobalMapConfig& map,
+                                const std::string& source);
+
+/// How a MapAppender makes appends durable.
+struct MapAppenderConfig {
+  /// Scans per fsync: an append is acknowledged once its record and every
+  /// record before it are written and fsync'ed; 1 syncs every scan, more
+  /// batches them (higher throughput; a crash loses at most the scans of the
+  /// unfinished batch, none of them acknowledged).
+  std::size_t sync_every = 1;
+  void validate() const;
+};
+
+/// Appends mapper updates to a map file's journal; nothing is rebuilt.
+/// Opening loads the map (snapshot and journal), cuts off a torn last record
+/// (with a warning) and takes an exclusive lock on the file. Each append is
+/// applied to the in-memory map and written to the journal; durability as
+/// MapAppenderConfig says. Not thread-safe.
+class MapAppender {
+ public:
+  explicit MapAppender(const std::string& path, MapAppenderConfig config = {});
+  ~MapAppender();  ///< syncs what is pending (errors are swallowed: call sync() to see them)
+  MapAppender(const MapAppender&) = delete;
+  MapAppender& operator=(const MapAppender&) = delete;
+
+  const GlobalMap& map() const { return *map_; }
+  const std::vector<std::string>& warnings() const { return warnings_; }
+
+  /// Opens a new submap (journaled with the next scan's batch) and returns its id.
+  std::uint32_t add_submap(const std::string& name);
+  /// Adds one mapper scan to `submap` at `laser_pose` (its frame's pose);
+  /// returns the features it added. Syncs when the batch is full.
+  std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose);
+  /// Writes and fsyncs every pending record; afterwards every scan added so
+  /// far is acknowledged.
+  void sync();
+  /// Scans in the map that are durable (snapshot plus synced journal).
+  std::size_t acknowledged_scans() const { return acknowledged_scans_; }
+  /// Folds the journal into a new snapshot (atomically, as save_map does).
+  void compact(const nlohmann::json& meta);
+
+ private:
+  void open_file();
+
+  std::string path_;
+  MapAppenderConfig config_;
+  std::unique_ptr<GlobalMap> map_;
+  nlohmann::json meta_;
+  std::vector<std::string> warnings_;
+  int fd_ = -1;
+  std::vector<std::uint8_t> pending_;  ///< encoded records not yet written
+  std::size_t pending_scans_ = 0;
+  std::size_t acknowledged_scans_ = 0;
+  bool broken_ = false;  ///< an add_scan() failed half-way in memory
+};
+
+}  // namespace lshloc::io

@@ -1,0 +1,539 @@
+#include "lshloc/io/map_store.hpp"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/io/config_json.hpp"
+
+namespace lshloc::io {
+
+namespace {
+
+static_assert(std::numeric_limits<float>::is_iec559 && std::numeric_limits<double>::is_iec559,
+              "the map format stores IEEE-754 binary32 and binary64 values");
+
+constexpr std::array<char, 8> kMagic = {'L', 'S', 'H', 'L', 'O', 'C', 'M', 'P'};
+constexpr std::uint32_t kByteOrderMark = 0x01020304;
+constexpr std::size_t kHeaderBytes = 64;
+constexpr std::uint32_t kSectionMagic = 0x54434553;  // "SECT"
+constexpr std::size_t kSectionNameBytes = 16;
+constexpr std::size_t kSectionHeaderBytes = 4 + kSectionNameBytes + 8 + 4 + 4;
+constexpr std::uint32_t kRecordMagic = 0x4345524a;  // "JREC"
+constexpr std::size_t kRecordHeaderBytes = 16;
+constexpr std::uint64_t kMaxRecordBytes = 1u << 24;
+enum RecordKind : std::uint8_t { kSubmapRecord = 1, kScanRecord = 2 };
+
+std::uint32_t crc_of(std::span<const std::uint8_t> data) {
+  return static_cast<std::uint32_t>(crc32_z(crc32_z(0L, Z_NULL, 0), data.data(), data.size()));
+}
+
+std::string system_error(const std::string& path, const std::string& what) {
+  return path + ": " + what + ": " + std::strerror(errno);
+}
+
+void write_all(int fd, std::span<const std::uint8_t> data, const std::string& path) {
+  while (!data.empty()) {
+    const ssize_t n = ::write(fd, data.data(), data.size());
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw Error(system_error(path, "cannot write"));
+    }
+    data = data.subspan(static_cast<std::size_t>(n));
+  }
+}
+
+void sync_directory_of(const std::string& path) {
+  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  const std::string name = dir.empty() ? "." : dir.string();
+  const int fd = ::open(name.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) throw Error(system_error(name, "cannot open the directory to sync it"));
+  const int rc = ::fsync(fd);
+  ::close(fd);
+  if (rc != 0) throw Error(system_error(name, "cannot sync the directory"));
+}
+
+std::vector<std::uint8_t> read_whole_file(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw Error(system_error(path, "cannot open the map"));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    ::close(fd);
+    throw Error(system_error(path, "cannot stat the map"));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(fd);
+    throw Error(path + ": not a regular file; expected an lshloc map file");
+  }
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(st.st_size));
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      ::close(fd);
+      throw Error(system_error(path, "cannot read the map"));
+    }
+    if (n == 0) break;  // shrank while reading: judge what was read
+    done += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  bytes.resize(done);
+  return bytes;
+}
+
+// --- Encoding ---
+
+void put_section(ByteWriter& out, const std::string& name, std::span<const std::uint8_t> payload) {
+  ByteWriter header;
+  header.u32(kSectionMagic);
+  std::array<std::uint8_t, kSectionNameBytes> padded{};
+  std::memcpy(padded.data(), name.data(), std::min(name.size(), padded.size()));
+  header.raw(padded);
+  header.u64(payload.size());
+  header.u32(crc_of(payload));
+  header.u32(crc_of(header.bytes()));
+  out.raw(header.bytes());
+  out.raw(payload);
+}
+
+std::vector<std::uint8_t> encode_snapshot(const GlobalMap& map, const nlohmann::json& meta) {
+  std::vector<std::pair<std::string, std::vector<std::uint8_t>>> sections;
+  const std::string settings = nlohmann::json(map.config()).dump();
+  const std::string meta_text = meta.dump();
+  sections.emplace_back("settings", std::vector<std::uint8_t>(settings.begin(), settings.end()));
+  sections.emplace_back("meta", std::vector<std::uint8_t>(meta_text.begin(), meta_text.end()));
+  for (MapSection& s : map.snapshot()) sections.emplace_back(s.name, std::move(s.bytes));
+  std::uint64_t total = kHeaderBytes;
+  for (const auto& s : sections) total += kSectionHeaderBytes + s.second.size();
+
+  ByteWriter header;
+  header.raw({reinterpret_cast<const std::uint8_t*>(kMagic.data()), kMagic.size()});
+  header.u32(kMapFormatVersion);
+  header.u32(kByteOrderMark);
+  header.u8(sizeof(float)), header.u8(sizeof(double)), header.u8(0), header.u8(0);
+  header.u32(static_cast<std::uint32_t>(sections.size()));
+  header.u64(total);
+  while (header.size() < kHeaderBytes - 4) header.u8(0);
+  header.u32(crc_of(header.bytes()));
+
+  ByteWriter out;
+  out.raw(header.bytes());
+  for (const auto& [name, bytes] : sections) put_section(out, name, bytes);
+  return out.take();
+}
+
+void put_record(std::vector<std::uint8_t>& out, std::span<const std::uint8_t> payload) {
+  ByteWriter header;
+  header.u32(kRecordMagic);
+  header.u32(static_cast<std::uint32_t>(payload.size()));
+  header.u32(crc_of(payload));
+  header.u32(crc_of(header.bytes()));
+  out.insert(out.end(), header.bytes().begin(), header.bytes().end());
+  out.insert(out.end(), payload.begin(), payload.end());
+}
+
+std::vector<std::uint8_t> encode_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose) {
+  ByteWriter w;
+  w.u8(kScanRecord);
+  w.varint(submap);
+  for (const double v : {laser_pose.x, laser_pose.y, laser_pose.theta, scan.timestamp, scan.angle_min,
+                         scan.angle_increment, scan.max_range})
+    w.f64(v);
+  w.varint(scan.ranges.size());
+  for (const float r : scan.ranges) w.f32(r);
+  return w.take();
+}
+
+// --- Decoding ---
+
+struct ParsedFile {
+  MapFileInfo info;
+  GlobalMapConfig config;
+  std::vector<MapSectionView> sections;
+  std::vector<std::pair<std::uint64_t, std::span<const std::uint8_t>>> records;  ///< (offset, payload)
+  std::uint64_t journal_end = 0;                                                 ///< end of the last complete record
+  std::vector<std::string> warnings;
+};
+
+std::string hex_bytes(std::span<const std::uint8_t> bytes) {
+  std::string out;
+  char buf[4];
+  for (const std::uint8_t b : bytes) {
+    std::snprintf(buf, sizeof buf, "%02x", b);
+    out += buf;
+  }
+  return out;
+}
+
+GlobalMapConfig settings_from(std::span<const std::uint8_t> bytes, const std::string& source) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(bytes.begin(), bytes.end());
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(source + ": expected the map's settings as JSON: " + e.what());
+  }
+  if (!j.is_object()) throw Error(source + ": expected the map's settings as a JSON object");
+  GlobalMapConfig config;
+  // Every key must be one this lshloc knows: a setting it would ignore
+  // could change what the map means.
+  apply_config_patch(j, config, source);
+  try {
+    config.validate();
+  } catch (const Error& e) {
+    throw Error(source + ": settings this lshloc cannot use: " + e.what());
+  }
+  return config;
+}
+
+ParsedFile parse_map_file(std::span<const std::uint8_t> file, const std::string& path) {
+  ParsedFile p;
+  p.info.file_bytes = file.size();
+  if (file.empty())
+    throw Error(path + ": empty file (0 bytes); expected an lshloc map, which starts with a 64-byte header");
+  if (file.size() < kMagic.size() || std::memcmp(file.data(), kMagic.data(), kMagic.size()) != 0)
+    throw Error(path + ": not an lshloc map: it starts with bytes " +
+                hex_bytes(file.subspan(0, std::min<std::size_t>(file.size(), 8))) + ", expected \"LSHLOCMP\"");
+  if (file.size() < kHeaderBytes)
+    throw Error(path + ": truncated: " + std::to_string(file.size()) + " bytes, shorter than the " +
+                std::to_string(kHeaderBytes) + "-byte header");
+  ByteReader header(file.subspan(0, kHeaderBytes), path + ": header");
+  header.raw(kMagic.size());
+  const std::uint32_t version = header.u32();
+  if (version > kMapFormatVersion)
+    throw Error(path + ": format version " + std::to_string(version) + " is newer than this lshloc reads (" +
+                std::to_string(kMapFormatVersion) + "); use a newer lshloc, or rebuild the map");
+  if (crc_of(file.subspan(0, kHeaderBytes - 4)) != ByteReader(file.subspan(kHeaderBytes - 4, 4), path).u32())
+    throw Error(path + ": header: checksum mismatch; the file is damaged");
+  if (version == 0)
+    throw Error(path + ": header: expected format version 1.." + std::to_string(kMapFormatVersion) + ", got 0");
+  p.info.format_version = version;
+  if (header.u32() != kByteOrderMark) header.fail("the little-endian byte-order mark 04 03 02 01");
+  if (header.u8() != sizeof(float) || header.u8() != sizeof(double)) header.fail("4-byte floats and 8-byte doubles");
+  header.u8(), header.u8();
+  const std::uint32_t section_count = header.u32();
+  const std::uint64_t snapshot_end = header.u64();
+  if (snapshot_end > file.size())
+    throw Error(path + ": truncated: the header says the snapshot ends at byte " + std::to_string(snapshot_end) +
+                ", the file has " + std::to_string(file.size()) + " bytes");
+  if (section_count > 64) header.fail("at most 64 sections, got " + std::to_string(section_count));
+  p.info.snapshot_bytes = snapshot_end;
+
+  std::uint64_t at = kHeaderBytes;
+  for (std::uint32_t s = 0; s < section_count; ++s) {
+    const std::string where = path + ": section " + std::to_string(s) + " at byte " + std::to_string(at);
+    if (snapshot_end - at < kSectionHeaderBytes)
+      throw Error(where + ": expected a " + std::to_string(kSectionHeaderBytes) +
+                  "-byte section header before the snapshot's end at byte " + std::to_string(snapshot_end));
+    const auto head = file.subspan(at, kSectionHeaderBytes);
+    ByteReader r(head, where);
+    const std::uint32_t magic = r.u32();
+    const auto name_bytes = r.raw(kSectionNameBytes);
+    std::string name(reinterpret_cast<const char*>(name_bytes.data()), kSectionNameBytes);
+    name.resize(std::strlen(name.c_str()));
+    const std::uint64_t length = r.u64();
+    const std::uint32_t payload_crc = r.u32();
+    const std::uint32_t header_crc = r.u32();
+    if (magic != kSectionMagic || crc_of(head.subspan(0, kSectionHeaderBytes - 4)) != header_crc)
+      throw Error(where + ": section header checksum mismatch; the file is damaged");
+    at += kSectionHeaderBytes;
+    const std::string named = path + ": section " + name;
+    if (length > snapshot_end - at)
+      throw Error(named + ": " + std::to_string(length) + " bytes from byte " + std::to_string(at) +
+                  " run past the snapshot's end at byte " + std::to_string(snapshot_end));
+    const auto payload = file.subspan(at, length);
+    if (crc_of(payload) != payload_crc)
+      throw Error(named + " (" + std::to_string(length) + " bytes at byte " + std::to_string(at) +
+                  "): checksum mismatch; the file is damaged");
+    for (const auto& other : p.sections)
+      if (other.name == name) throw Error(named + ": appears twice");
+    p.sections.push_back({std::string_view(reinterpret_cast<const char*>(name_bytes.data()), name.size()), payload});
+    p.info.sections.push_back({name, at, length});
+    at += length;
+  }
+  if (at != snapshot_end)
+    throw Error(path + ": the sections end at byte " + std::to_string(at) + ", expected the snapshot's end at byte " +
+                std::to_string(snapshot_end));
+  const auto section = [&](std::string_view name) -> std::span<const std::uint8_t> {
+    for (const auto& s : p.sections)
+      if (s.name == name) return s.bytes;
+    throw Error(path + ": section " + std::string(name) + " is missing");
+  };
+  for (const auto& s : p.sections) {
+    const auto& known = GlobalMap::snapshot_sections();
+    if (s.name != "settings" && s.name != "meta" && std::find(known.begin(), known.end(), s.name) == known.end())
+      throw Error(path + ": unknown section \"" + std::string(s.name) + "\" for format version " +
+                  std::to_string(version));
+  }
+  p.config = settings_from(section("settings"), path + ": section settings");
+  const auto meta = section("meta");
+  try {
+    p.info.meta = nlohmann::json::parse(meta.begin(), meta.end());
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(path + ": section meta: expected a JSON object: " + e.what());
+  }
+
+  // The journal: complete records up to a possibly torn last one.
+  std::uint64_t j = snapshot_end;
+  while (j < file.size()) {
+    const std::string where =
+        path + ": journal record " + std::to_string(p.records.size() + 1) + " at byte " + std::to_string(j);
+    const std::uint64_t left = file.size() - j;
+    if (left < kRecordHeaderBytes) {
+      p.info.torn_bytes = left;
+      p.warnings.push_back(where + " is torn (" + std::to_string(left) + " bytes of a " +
+                           std::to_string(kRecordHeaderBytes) + "-byte header); dropped");
+      break;
+    }
+    const auto head = file.subspan(j, kRecordHeaderBytes);
+    ByteReader r(head, where);
+    const std::uint32_t magic = r.u32();
+    const std::uint32_t length = r.u32();
+    const std::uint32_t payload_crc = r.u32();
+    if (magic != kRecordMagic || crc_of(head.subspan(0, 12)) != r.u32())
+      throw Error(where + ": record header checksum mismatch; the file is damaged");
+    if (length > kMaxRecordBytes) throw Error(where + ": expected a record of at most 16 MiB");
+    if (length > left - kRecordHeaderBytes) {
+      p.info.torn_bytes = left;
+      p.warnings.push_back(where + " is torn (" + std::to_string(left - kRecordHeaderBytes) + " of " +
+                           std::to_string(length) + " payload bytes); dropped");
+      break;
+    }
+    const auto payload = file.subspan(j + kRecordHeaderBytes, length);
+    if (crc_of(payload) != payload_crc) throw Error(where + ": checksum mismatch; the file is damaged");
+    p.records.emplace_back(j, payload);
+    j += kRecordHeaderBytes + length;
+  }
+  p.journal_end = j;
+  p.info.journal_bytes = j - snapshot_end;
+  return p;
+}
+
+/// Applies one journal record to `map`.
+void replay(GlobalMap& map, std::span<const std::uint8_t> payload, const std::string& where, MapFileInfo& info) {
+  ByteReader in(payload, where);
+  const std::uint8_t kind = in.u8();
+  if (kind == kSubmapRecord) {
+    if (map.submap_count() >= PoseGridHashMap::kMaxSubmaps) in.fail("at most 16382 submaps");
+    map.add_submap(in.string(4096));
+    ++info.journal_submaps;
+  } else if (kind == kScanRecord) {
+    const auto submap = static_cast<std::uint32_t>(in.varint());
+    if (submap >= map.submap_count())
+      in.fail("a submap id below " + std::to_string(map.submap_count()) + ", got " + std::to_string(submap));
+    LaserScan scan;
+    Pose2 pose;
+    pose.x = in.f64(), pose.y = in.f64(), pose.theta = in.f64();
+    scan.timestamp = in.f64(), scan.angle_min = in.f64(), scan.angle_increment = in.f64(), scan.max_range = in.f64();
+    for (const double v : {pose.x, pose.y, pose.theta, scan.angle_min, scan.angle_increment})
+      if (!std::isfinite(v)) in.fail("finite pose and beam geometry");
+    if (std::isnan(scan.max_range)) in.fail("a maximum range that is a number");
+    scan.ranges.resize(static_cast<std::size_t>(in.varint_at_most(in.remaining() / 4, "a beam count")));
+    for (float& r : scan.ranges) r = in.f32();
+    scan.pose = pose;
+    in.expect_done();
+    map.add_scan(submap, scan, pose);
+    ++info.journal_scans;
+  } else {
+    in.fail("a record kind of 1 (submap) or 2 (scan), got " + std::to_string(kind));
+  }
+  in.expect_done();
+}
+
+LoadedMap load_parsed(const ParsedFile& p, const std::string& path) {
+  LoadedMap out;
+  out.info = p.info;
+  out.warnings = p.warnings;
+  out.map = GlobalMap::from_snapshot(p.config, p.sections, path);
+  for (const auto& [offset, payload] : p.records) {
+    const std::string where = path + ": journal record at byte " + std::to_string(offset);
+    try {
+      replay(*out.map, payload, where, out.info);
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      throw Error(what.rfind(where, 0) == 0 ? what : where + ": " + what);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta) {
+  const std::vector<std::uint8_t> bytes = encode_snapshot(map, meta);
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(system_error(tmp, "cannot create the map"));
+  try {
+    write_all(fd, bytes, tmp);
+    if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync the map"));
+  } catch (...) {
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw;
+  }
+  ::close(fd);
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string message = system_error(path, "cannot replace the map with " + tmp);
+    ::unlink(tmp.c_str());
+    throw Error(message);
+  }
+  sync_directory_of(path);
+}
+
+LoadedMap load_map(const std::string& path) {
+  const std::vector<std::uint8_t> file = read_whole_file(path);
+  return load_parsed(parse_map_file(file, path), path);
+}
+
+bool looks_like_map_file(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  std::array<char, 8> head{};
+  const ssize_t n = ::read(fd, head.data(), head.size());
+  ::close(fd);
+  return n == static_cast<ssize_t>(head.size()) && head == kMagic;
+}
+
+void require_localizer_fits_map(const LocalizerConfig& localizer, const GlobalMapConfig& map,
+                                const std::string& source) {
+  const nlohmann::json mine = localizer.features, theirs = map.features;
+  if (mine != theirs) {
+    const nlohmann::json diff = nlohmann::json::diff(theirs, mine);
+    throw Error(source +
+                ": settings the localizer cannot use: the map's features settings differ from the "
+                "localizer's (" +
+                diff.dump() + "); localize with the map's settings (`lshloc map info --json`)");
+  }
+  if (localizer.context_scans != map.context_scans || localizer.context_spacing != map.context_spacing)
+    throw Error(source + ": settings the localizer cannot use: the map's descriptor context (context_scans " +
+                std::to_string(map.context_scans) + ", context_spacing " + std::to_string(map.context_spacing) +
+                ") differs from the localizer's");
+}
+
+void MapAppenderConfig::validate() const {
+  require(sync_every >= 1, "MapAppenderConfig.sync_every", ">= 1 scan per fsync", sync_every);
+}
+
+MapAppender::MapAppender(const std::string& path, MapAppenderConfig config) : path_(path), config_(config) {
+  config_.validate();
+  open_file();
+}
+
+void MapAppender::open_file() {
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CLOEXEC);
+  if (fd_ < 0) throw Error(system_error(path_, "cannot open the map for appending"));
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd_);
+    fd_ = -1;
+    throw Error(path_ + ": another process is appending to this map (its lock is held)");
+  }
+  try {
+    const std::vector<std::uint8_t> file = read_whole_file(path_);
+    const ParsedFile parsed = parse_map_file(file, path_);
+    LoadedMap loaded = load_parsed(parsed, path_);
+    map_ = std::move(loaded.map);
+    meta_ = loaded.info.meta;
+    warnings_ = loaded.warnings;
+    if (parsed.info.torn_bytes > 0) {
+      // Cut the torn record off so that new records follow the last good one.
+      if (::ftruncate(fd_, static_cast<off_t>(parsed.journal_end)) != 0 || ::fsync(fd_) != 0)
+        throw Error(system_error(path_, "cannot cut off the torn journal record"));
+    }
+    if (::lseek(fd_, static_cast<off_t>(parsed.journal_end), SEEK_SET) < 0)
+      throw Error(system_error(path_, "cannot seek to the journal's end"));
+    acknowledged_scans_ = map_->stats().scans;
+  } catch (...) {
+    ::close(fd_);
+    fd_ = -1;
+    throw;
+  }
+}
+
+MapAppender::~MapAppender() {
+  try {
+    sync();
+  } catch (const Error&) {
+    // The destructor cannot report; callers who need to know call sync().
+  }
+  if (fd_ >= 0) ::close(fd_);
+}
+
+std::uint32_t MapAppender::add_submap(const std::string& name) {
+  if (name.size() > 4096) throw Error(path_ + ": a submap name of at most 4096 bytes expected");
+  if (map_->submap_count() >= PoseGridHashMap::kMaxSubmaps)
+    throw Error(path_ + ": the map holds 16382 submaps already");
+  ByteWriter w;
+  w.u8(kSubmapRecord);
+  w.string(name);
+  put_record(pending_, w.bytes());
+  return map_->add_submap(name);
+}
+
+std::size_t MapAppender::add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose) {
+  if (submap >= map_->submap_count())
+    throw Error(path_ + ": append to unknown submap " + std::to_string(submap) + " (the map has " +
+                std::to_string(map_->submap_count()) + ")");
+  for (const double v : {laser_pose.x, laser_pose.y, laser_pose.theta, scan.angle_min, scan.angle_increment})
+    if (!std::isfinite(v)) throw Error(path_ + ": a scan with a non-finite pose or beam geometry cannot be appended");
+  if (std::isnan(scan.max_range)) throw Error(path_ + ": a scan whose maximum range is NaN cannot be appended");
+  const std::vector<std::uint8_t> payload = encode_scan(submap, scan, laser_pose);
+  if (broken_) throw Error(path_ + ": an earlier append failed half-way; reopen the map to append again");
+  LaserScan replayed = scan;  // exactly what a reload replays
+  replayed.pose = laser_pose;
+  std::size_t added = 0;
+  try {
+    added = map_->add_scan(submap, replayed, laser_pose);
+  } catch (...) {
+    broken_ = true;  // the in-memory map may hold part of the scan; the file does not
+    throw;
+  }
+  put_record(pending_, payload);
+  if (++pending_scans_ >= config_.sync_every) sync();
+  return added;
+}
+
+void MapAppender::sync() {
+  if (pending_.empty() || fd_ < 0) return;
+  write_all(fd_, pending_, path_);
+  if (::fdatasync(fd_) != 0) throw Error(system_error(path_, "cannot sync the journal"));
+  pending_.clear();
+  acknowledged_scans_ += pending_scans_;
+  pending_scans_ = 0;
+}
+
+void MapAppender::compact(const nlohmann::json& meta) {
+  sync();
+  meta_ = meta;
+  const std::vector<std::uint8_t> bytes = encode_snapshot(*map_, meta_);
+  const std::string tmp = path_ + ".tmp." + std::to_string(::getpid());
+  const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(system_error(tmp, "cannot create the compacted map"));
+  try {
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw Error(system_error(tmp, "cannot lock the compacted map"));
+    write_all(fd, bytes, tmp);
+    if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync the compacted map"));
+    if (::rename(tmp.c_str(), path_.c_str()) != 0) throw Error(system_error(path_, "cannot replace the map"));
+  } catch (...) {
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw;
+  }
+  sync_directory_of(path_);
+  ::close(fd_);
+  fd_ = fd;  // locked, positioned at the end: the new, empty journal
+}
+
+}  // namespace lshloc::io

@@ -1,0 +1,359 @@
+// The map store: snapshots restore maps bit for bit, journals replay to the
+// same map, durable appends survive, and every damaged file is refused with
+// an error that names the file and the section.
+#include "lshloc/io/map_store.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/eval/scenario_runner.hpp"
+#include "lshloc/io/config_json.hpp"
+#include "lshloc/sim/synthetic_scenario.hpp"
+#include "test_support.hpp"
+
+namespace lshloc {
+namespace {
+
+sim::SyntheticScenarioConfig small_world() {
+  sim::SyntheticScenarioConfig c;
+  c.seed = 11;
+  c.buildings = 3;
+  c.target_building = 1;
+  c.map_scans = 600;
+  c.target_scans = 120;
+  return c;
+}
+
+const Scenario& world() {
+  static const Scenario sc = sim::synthetic_scenario(small_world());
+  return sc;
+}
+
+/// Feeds scans [from, to) of every submap, one of each in turn.
+void feed(GlobalMap& map, const Scenario& sc, std::size_t from, std::size_t to) {
+  for (std::size_t i = from; i < to; ++i)
+    for (std::uint32_t s = 0; s < sc.submaps.size(); ++s)
+      if (i < sc.submaps[s].scans.size()) map.add_scan(s, sc.submaps[s].scans[i], sc.submaps[s].scans[i].pose);
+}
+
+std::unique_ptr<GlobalMap> map_of_first(std::size_t scans) {
+  auto map = std::make_unique<GlobalMap>();
+  for (const Submap& s : world().submaps) map->add_submap(s.name);
+  feed(*map, world(), 0, scans);
+  return map;
+}
+
+/// The snapshot without the build's CPU times (the only part two builds of
+/// one map may differ in).
+std::vector<MapSection> contents(const GlobalMap& map) {
+  std::vector<MapSection> out = map.snapshot();
+  for (MapSection& s : out)
+    if (s.name == "counters") s.bytes.resize(s.bytes.size() - 24);  // three f64 times at the end
+  return out;
+}
+
+void expect_same_contents(const GlobalMap& a, const GlobalMap& b) {
+  const auto sa = contents(a), sb = contents(b);
+  ASSERT_EQ(sa.size(), sb.size());
+  for (std::size_t i = 0; i < sa.size(); ++i) {
+    EXPECT_EQ(sa[i].name, sb[i].name);
+    EXPECT_TRUE(sa[i].bytes == sb[i].bytes) << "section " << sa[i].name << " differs";
+  }
+}
+
+std::vector<MapSectionView> views(const std::vector<MapSection>& sections) {
+  std::vector<MapSectionView> out;
+  for (const MapSection& s : sections) out.push_back({s.name, s.bytes});
+  return out;
+}
+
+std::vector<LocalizationEstimate> localize(const GlobalMap& map) {
+  return localize_target(map, world().target, LocalizerConfig{}).estimates;
+}
+
+void expect_same_estimates(const std::vector<LocalizationEstimate>& a, const std::vector<LocalizationEstimate>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].has_estimate, b[i].has_estimate) << "scan " << i;
+    EXPECT_EQ(a[i].localized, b[i].localized) << "scan " << i;
+    EXPECT_EQ(a[i].submap, b[i].submap) << "scan " << i;
+    EXPECT_EQ(a[i].pose.x, b[i].pose.x) << "scan " << i;
+    EXPECT_EQ(a[i].pose.y, b[i].pose.y) << "scan " << i;
+    EXPECT_EQ(a[i].pose.theta, b[i].pose.theta) << "scan " << i;
+    EXPECT_EQ(a[i].mean_score, b[i].mean_score) << "scan " << i;
+  }
+}
+
+std::vector<std::uint8_t> read_bytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+void write_bytes(const std::string& path, const std::vector<std::uint8_t>& bytes) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+std::string load_error(const std::string& path) {
+  try {
+    io::load_map(path);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(MapSnapshot, RestoresTheMapBitForBit) {
+  const auto map = map_of_first(600);
+  const auto sections = map->snapshot();
+  const auto restored = GlobalMap::from_snapshot(map->config(), views(sections), "test");
+  const auto again = restored->snapshot();
+  ASSERT_EQ(sections.size(), again.size());
+  for (std::size_t i = 0; i < sections.size(); ++i)
+    EXPECT_TRUE(sections[i].bytes == again[i].bytes) << sections[i].name;
+  EXPECT_EQ(restored->stats().features, map->stats().features);
+  EXPECT_EQ(restored->stats().scans, map->stats().scans);
+  EXPECT_GT(restored->stats().features, 1000u);
+  expect_same_estimates(localize(*map), localize(*restored));
+}
+
+TEST(MapSnapshot, ARestoredMapGrowsExactlyAsTheOriginal) {
+  // Half the scans, snapshot, restore; the rest fed to both: same contents,
+  // and the same as a map fed everything at once.
+  auto original = map_of_first(300);
+  const auto sections = original->snapshot();
+  auto restored = GlobalMap::from_snapshot(original->config(), views(sections), "test");
+  feed(*original, world(), 300, 600);
+  feed(*restored, world(), 300, 600);
+  expect_same_contents(*original, *restored);
+  expect_same_contents(*map_of_first(600), *restored);
+}
+
+TEST(MapSnapshot, RejectsInconsistentSections) {
+  const auto map = map_of_first(50);
+  auto sections = map->snapshot();
+  auto bad = sections;
+  bad[1].bytes.pop_back();  // locations one byte short
+  EXPECT_THROW(GlobalMap::from_snapshot(map->config(), views(bad), "m"), Error);
+  bad = sections;
+  bad.erase(bad.begin() + 2);
+  try {
+    GlobalMap::from_snapshot(map->config(), views(bad), "m");
+    ADD_FAILURE() << "a missing section was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("section database is missing"), std::string::npos) << e.what();
+  }
+  // Every prefix of every section fails cleanly (no crash, no silent map).
+  for (std::size_t s = 0; s < sections.size(); ++s) {
+    for (std::size_t cut : {std::size_t{0}, sections[s].bytes.size() / 3, sections[s].bytes.size() - 1}) {
+      bad = sections;
+      bad[s].bytes.resize(cut);
+      EXPECT_THROW(GlobalMap::from_snapshot(map->config(), views(bad), "m"), Error) << sections[s].name << " " << cut;
+    }
+  }
+}
+
+TEST(MapStore, SaveAndLoadGiveTheSameMapAndEstimates) {
+  const auto map = map_of_first(600);
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, *map, {{"made_by", "test"}});
+  const io::LoadedMap loaded = io::load_map(path);
+  EXPECT_TRUE(loaded.warnings.empty());
+  EXPECT_EQ(loaded.info.format_version, io::kMapFormatVersion);
+  EXPECT_EQ(loaded.info.meta.at("made_by"), "test");
+  EXPECT_EQ(loaded.info.journal_scans, 0u);
+  expect_same_contents(*map, *loaded.map);
+  expect_same_estimates(localize(*map), localize(*loaded.map));
+  // Saving the loaded map writes the same bytes.
+  const std::string again = test::temp_path(".map");
+  io::save_map(again, *loaded.map, {{"made_by", "test"}});
+  EXPECT_TRUE(read_bytes(path) == read_bytes(again));
+}
+
+TEST(MapStore, AppendedScansAreReplayedToTheSameMap) {
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, *map_of_first(200));
+  {
+    io::MapAppender appender(path, {.sync_every = 7});
+    for (std::size_t i = 200; i < 600; ++i)
+      for (std::uint32_t s = 0; s < world().submaps.size(); ++s)
+        if (i < world().submaps[s].scans.size())
+          appender.add_scan(s, world().submaps[s].scans[i], world().submaps[s].scans[i].pose);
+    const std::uint32_t extra = appender.add_submap("extra building");
+    for (std::size_t i = 0; i < 50; ++i)
+      appender.add_scan(extra, world().submaps[0].scans[i], world().submaps[0].scans[i].pose);
+    appender.sync();
+    EXPECT_EQ(appender.acknowledged_scans(), appender.map().stats().scans);
+  }
+  const io::LoadedMap loaded = io::load_map(path);
+  EXPECT_EQ(loaded.info.journal_scans, map_of_first(600)->stats().scans - map_of_first(200)->stats().scans + 50);
+  EXPECT_EQ(loaded.info.journal_submaps, 1u);
+  auto expected = map_of_first(600);
+  const std::uint32_t extra = expected->add_submap("extra building");
+  for (std::size_t i = 0; i < 50; ++i)
+    expected->add_scan(extra, world().submaps[0].scans[i], world().submaps[0].scans[i].pose);
+  expect_same_contents(*expected, *loaded.map);
+
+  // Compaction folds the journal into the snapshot: same map, no journal.
+  {
+    io::MapAppender appender(path);
+    appender.compact({{"made_by", "compact"}});
+  }
+  const io::LoadedMap compacted = io::load_map(path);
+  EXPECT_EQ(compacted.info.journal_bytes, 0u);
+  expect_same_contents(*expected, *compacted.map);
+}
+
+TEST(MapStore, ATornLastRecordIsDroppedWithAWarningAndCutOffOnAppend) {
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, *map_of_first(100));
+  {
+    io::MapAppender appender(path);
+    for (std::size_t i = 100; i < 110; ++i)
+      appender.add_scan(0, world().submaps[0].scans[i], world().submaps[0].scans[i].pose);
+  }
+  auto bytes = read_bytes(path);
+  const std::size_t full = bytes.size();
+  bytes.resize(full - 100);  // the last record loses its end, as a crash mid-write leaves it
+  write_bytes(path, bytes);
+  const io::LoadedMap loaded = io::load_map(path);
+  ASSERT_EQ(loaded.warnings.size(), 1u);
+  EXPECT_NE(loaded.warnings[0].find("torn"), std::string::npos) << loaded.warnings[0];
+  EXPECT_NE(loaded.warnings[0].find("at byte "), std::string::npos) << loaded.warnings[0];
+  EXPECT_EQ(loaded.info.journal_scans, 9u);
+  {
+    io::MapAppender appender(path);  // cuts the torn record off, then appends after the last good one
+    EXPECT_EQ(appender.warnings().size(), 1u);
+    appender.add_scan(0, world().submaps[0].scans[109], world().submaps[0].scans[109].pose);
+  }
+  const io::LoadedMap repaired = io::load_map(path);
+  EXPECT_TRUE(repaired.warnings.empty());
+  EXPECT_EQ(repaired.info.journal_scans, 10u);
+  auto expected = map_of_first(100);
+  for (std::size_t i = 100; i < 110; ++i)
+    expected->add_scan(0, world().submaps[0].scans[i], world().submaps[0].scans[i].pose);
+  expect_same_contents(*expected, *repaired.map);
+}
+
+TEST(MapStore, ASecondWriterIsRefused) {
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, *map_of_first(10));
+  io::MapAppender first(path);
+  try {
+    io::MapAppender second(path);
+    ADD_FAILURE() << "two writers at once";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("another process is appending"), std::string::npos) << e.what();
+  }
+}
+
+class DamagedMap : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    path_ = test::temp_path(".map");
+    io::save_map(path_, *map_of_first(60));
+    {
+      io::MapAppender appender(path_);
+      appender.add_scan(0, world().submaps[0].scans[60], world().submaps[0].scans[60].pose);
+    }
+    good_ = read_bytes(path_);
+    info_ = io::load_map(path_).info;
+  }
+  /// The error loading `bytes` gives (empty: it loaded).
+  std::string error_of(const std::vector<std::uint8_t>& bytes) {
+    const std::string path = test::temp_path(".map");
+    write_bytes(path, bytes);
+    return load_error(path);
+  }
+  std::string path_;
+  std::vector<std::uint8_t> good_;
+  io::MapFileInfo info_;
+};
+
+TEST_F(DamagedMap, EveryFlippedByteOfEverySectionIsCaughtAndNamed) {
+  ASSERT_EQ(info_.sections.size(), 2 + GlobalMap::snapshot_sections().size());
+  for (const auto& s : info_.sections) {
+    for (const std::uint64_t at : {s.offset, s.offset + s.bytes / 2, s.offset + s.bytes - 1}) {
+      auto bytes = good_;
+      bytes[at] ^= 0x10;
+      const std::string e = error_of(bytes);
+      EXPECT_NE(e.find("section " + s.name), std::string::npos) << "byte " << at << ": " << e;
+      EXPECT_NE(e.find("checksum mismatch"), std::string::npos) << e;
+    }
+  }
+  // Header, section headers and the journal record too.
+  for (const std::uint64_t at :
+       {std::uint64_t{30}, std::uint64_t{64 + 25}, info_.snapshot_bytes + 5, info_.file_bytes - 3}) {
+    auto bytes = good_;
+    bytes[at] ^= 0x01;
+    const std::string e = error_of(bytes);
+    EXPECT_NE(e.find("checksum mismatch"), std::string::npos) << "byte " << at << ": " << e;
+  }
+}
+
+TEST_F(DamagedMap, TruncatedEmptyWrongMagicAndNewerVersionAreRefused) {
+  for (const std::size_t size :
+       {std::size_t{10}, std::size_t{63}, std::size_t{64}, std::size_t{200},
+        static_cast<std::size_t>(info_.snapshot_bytes / 2), static_cast<std::size_t>(info_.snapshot_bytes - 1)}) {
+    auto bytes = good_;
+    bytes.resize(size);
+    const std::string e = error_of(bytes);
+    EXPECT_NE(e.find("truncated"), std::string::npos) << size << ": " << e;
+    EXPECT_NE(e.find(".map: "), std::string::npos) << "names the file: " << e;
+  }
+  EXPECT_NE(error_of({}).find("empty file"), std::string::npos);
+  auto bytes = good_;
+  bytes[0] = 'X';
+  EXPECT_NE(error_of(bytes).find("not an lshloc map"), std::string::npos);
+  bytes = good_;
+  bytes[8] = 2;  // format version 2 (the header checksum is not even looked at)
+  EXPECT_NE(error_of(bytes).find("format version 2 is newer"), std::string::npos) << error_of(bytes);
+}
+
+TEST_F(DamagedMap, SettingsTheLocalizerCannotUseAreRefused) {
+  GlobalMapConfig odd;
+  odd.features.max_range = 12.0;
+  GlobalMap map(odd);
+  map.add_submap("a");
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, map);
+  const io::LoadedMap loaded = io::load_map(path);
+  EXPECT_EQ(loaded.map->config().features.max_range, 12.0);
+  try {
+    io::require_localizer_fits_map(LocalizerConfig{}, loaded.map->config(), path);
+    ADD_FAILURE() << "a localizer with other feature settings was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("max_range"), std::string::npos) << e.what();
+  }
+  LocalizerConfig fitting;
+  fitting.features = loaded.map->config().features;
+  EXPECT_NO_THROW(io::require_localizer_fits_map(fitting, loaded.map->config(), path));
+}
+
+TEST(MapStoreRealData, ASavedScenarioMapLocalizesExactlyAsTheBuiltOne) {
+  LSHLOC_REQUIRE_DATA(data);
+  const io::DatasetCatalog catalog(data);
+  ScenarioConfig config;
+  config.building = "intel";
+  config.start = 5000;
+  config.length = 120;
+  config.submaps = 2;
+  const Scenario sc = io::load_scenario(catalog, config);
+  GlobalMap built;
+  MapFeeder(built, sc.submaps).feed_until(1.0);
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, built);
+  const io::LoadedMap loaded = io::load_map(path);
+  const auto a = localize_target(built, sc.target, LocalizerConfig{}).estimates;
+  const auto b = localize_target(*loaded.map, sc.target, LocalizerConfig{}).estimates;
+  expect_same_estimates(a, b);
+  EXPECT_TRUE(a.back().localized) << "the scenario should localize, or the comparison says little";
+}
+
+}  // namespace
+}  // namespace lshloc
