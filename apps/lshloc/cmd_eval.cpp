@@ -2,6 +2,7 @@
 // one JSON line (and figures with --plot).
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "localizer_options.hpp"
+#include "map_source.hpp"
 #include "scenario_report.hpp"
 
 namespace lshloc::app {
@@ -34,6 +36,8 @@ struct EvalOptions {
   bool json = false;
   std::string plot_dir;
   std::string trace;
+  std::string save_map;
+  std::string load_map;
   std::vector<std::size_t> submaps{1};
   LocalizerOptions localizer;
 };
@@ -96,12 +100,73 @@ Scenario load_eval_scenario(const io::DatasetCatalog& catalog, const ScenarioCon
   return sc;
 }
 
+/// What a saved scenario map records of its scenario (and checks on load).
+nlohmann::json scenario_meta(const Scenario& sc) {
+  const ScenarioConfig& c = sc.config;
+  return {{"made_by", "lshloc eval"},
+          {"scenario",
+           {{"building", c.building},
+            {"start", c.start},
+            {"length", c.length},
+            {"submaps", c.submaps},
+            {"guard_s", c.guard_s},
+            {"seed", c.seed}}},
+          {"target_submap", sc.target_submap}};
+}
+
+/// The target's submap in a map saved for `saved` (its meta), after checking
+/// that the map fits scenario `c`: the same buildings, and a window inside the
+/// saved one, so that the map holds none of the window's scans.
+std::uint32_t check_saved_scenario(const nlohmann::json& meta, const ScenarioConfig& c, const std::string& path) {
+  if (!meta.contains("scenario") || !meta.contains("target_submap"))
+    throw Error(path + ": not a map saved by `lshloc eval --save-map` (its meta has no scenario)");
+  const nlohmann::json& s = meta["scenario"];
+  const auto start = s.value("start", std::size_t{0}), length = s.value("length", std::size_t{0});
+  const bool fits = s.value("building", "") == c.building && s.value("submaps", std::size_t{0}) == c.submaps &&
+                    s.value("guard_s", -1.0) == c.guard_s && s.value("seed", std::uint64_t{0}) == c.seed &&
+                    c.start >= start && c.start + c.length <= start + length;
+  if (!fits)
+    throw Error(path + ": saved for the scenario " + s.dump() + "; this run (building " + c.building + ", start " +
+                std::to_string(c.start) + ", length " + std::to_string(c.length) + ", submaps " +
+                std::to_string(c.submaps) +
+                ") needs the same building, submaps, guard and seed, and a window inside the saved one");
+  return meta["target_submap"].get<std::uint32_t>();
+}
+
+/// The scenario's run, on a map built from its submaps (saved with
+/// --save-map) or loaded with --load-map.
+ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOptions& opt, const Progress& progress,
+                     const LocalizerObserver& observer) {
+  if (opt.save_map.empty() && opt.load_map.empty()) return run_scenario(sc, run_config, progress, observer);
+  std::unique_ptr<GlobalMap> map;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!opt.load_map.empty()) {
+    io::LoadedMap loaded = open_saved_map(opt.load_map, run_config);
+    sc.target_submap = check_saved_scenario(loaded.info.meta, sc.config, opt.load_map);
+    map = std::move(loaded.map);
+  } else {
+    if (run_config.map_share_before_target != 1.0)
+      throw Error("--save-map: expected the whole map before the target starts (map_share_before_target 1), got " +
+                  std::to_string(run_config.map_share_before_target));
+    map = std::make_unique<GlobalMap>(run_config.map);
+    MapFeeder(*map, sc.submaps).feed_until(1.0);
+  }
+  const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!opt.save_map.empty()) {
+    io::save_map(opt.save_map, *map, scenario_meta(sc));
+    std::fprintf(stderr, "map saved: %s\n", opt.save_map.c_str());
+  }
+  ScenarioRun run = localize_target(*map, sc.target, run_config.localizer, progress, observer);
+  run.map_build_s = map_s;
+  return run;
+}
+
 /// Runs one scenario: prints its JSON line, writes its figures and trace, and
 /// returns its error curve.
 io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config, const EvalOptions& opt,
                               bool suffix_trace) {
-  Scenario sc = load_eval_scenario(catalog, config);
-  const ScenarioRunConfig run_config = make_run_config(opt.localizer);
+  Scenario sc = opt.load_map.empty() ? load_eval_scenario(catalog, config) : io::load_scenario_target(catalog, config);
+  ScenarioRunConfig run_config = make_run_config(opt.localizer);
   const bool tty = isatty(fileno(stderr));
   // With --trace: where the true hypothesis stands among the active ones.
   std::vector<TruthRank> ranks(sc.target.scans.size());
@@ -113,8 +178,8 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
       }
     };
   }
-  const ScenarioRun run = run_scenario(
-      sc, run_config,
+  const ScenarioRun run = run_eval(
+      sc, run_config, opt,
       [&](std::size_t done, std::size_t total) {
         if (tty && (done % 25 == 0 || done == total)) {
           std::fprintf(stderr, "\r%s R=%zu: scan %zu/%zu", sc.config.building.c_str(), sc.config.submaps, done, total);
@@ -185,13 +250,22 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
       ->capture_default_str();
   cmd->add_flag("--json", opt->json, "print only the JSON line on stdout (progress goes to stderr either way)");
   cmd->add_option("--plot", opt->plot_dir, "write figures (PNG and SVG) into this directory");
-  cmd->add_option("--trace", opt->trace, "write a CSV row per target scan (estimate, truth, error, scores)");
+  cmd->add_option("--trace", opt->trace,
+                  "write a CSV row per target scan (estimate, truth, error, scores; no timings, so that runs compare "
+                  "byte for byte)");
+  cmd->add_option("--save-map", opt->save_map, "save the scenario's global map to this file (docs/map-format.md)");
+  cmd->add_option("--load-map", opt->load_map,
+                  "run on a map saved by --save-map for this scenario (or one whose window holds this one's) "
+                  "instead of building it; reads only the target's logs")
+      ->excludes("--save-map");
   add_localizer_options(*cmd, opt->localizer, /*research_flags=*/true);
   cmd->callback([&global, opt, cmd] {
     if (print_config_if_asked(opt->localizer)) return;
     if (cmd->count("--start") == 0) opt->scenario.start = default_start(opt->scenario.building);
     const io::DatasetCatalog catalog(global.resolved_data_dir());
     std::vector<io::ErrorSeries> curves;
+    if ((!opt->save_map.empty() || !opt->load_map.empty()) && opt->submaps.size() > 1)
+      throw Error("--save-map / --load-map: expected one --submaps value, got " + std::to_string(opt->submaps.size()));
     for (const std::size_t r : opt->submaps) {
       ScenarioConfig scenario = opt->scenario;
       scenario.submaps = r;

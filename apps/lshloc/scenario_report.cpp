@@ -86,10 +86,12 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
   io::MapFigure fig;
   fig.title = sc.config.building + " (submap " + std::to_string(sc.target_submap) +
               "): true (green) and estimated (blue) trajectory";
-  const Submap& own = sc.submaps[sc.target_submap];
-  // One point per 5 cm cell: the figure shows the walls, and its SVG stays small.
-  for (const LaserScan& scan : own.scans) {
-    for (const Point2& p : scan.endpoints(0.05, 20.0)) fig.map_points.push_back(scan.pose.transform(p));
+  // One point per 5 cm cell: the figure shows the walls, and its SVG stays
+  // small. (A run on a saved map has no submap scans: no walls drawn.)
+  if (sc.target_submap < sc.submaps.size()) {
+    for (const LaserScan& scan : sc.submaps[sc.target_submap].scans) {
+      for (const Point2& p : scan.endpoints(0.05, 20.0)) fig.map_points.push_back(scan.pose.transform(p));
+    }
   }
   thin_to_voxels(fig.map_points, 0.05);
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
@@ -112,7 +114,7 @@ void write_scenario_trace(const std::string& path, const Scenario& sc, const Sce
   if (f == nullptr) throw Error(path + ": cannot write the trace");
   std::fprintf(f,
                "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
-               "truth_theta,error_m,cpu_s\n");
+               "truth_theta,error_m\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = sc.target.truth[i];
@@ -120,10 +122,9 @@ void write_scenario_trace(const std::string& path, const Scenario& sc, const Sce
                  e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta, e.localized ? 1 : 0, e.mean_score,
                  e.scored, e.margin);
     if (t)
-      std::fprintf(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
+      std::fprintf(f, "%.4f,%.4f,%.5f,%.4f\n", t->x, t->y, t->theta, m.error_per_scan_m[i]);
     else
-      std::fprintf(f, ",,,,");
-    std::fprintf(f, "%.4f\n", run.cpu_s[i]);
+      std::fprintf(f, ",,,\n");
   }
   if (std::fclose(f) != 0) throw Error(path + ": cannot write the trace");
 }

@@ -137,6 +137,15 @@ Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& conf
   return sc;
 }
 
+Scenario load_scenario_target(const DatasetCatalog& catalog, const ScenarioConfig& config,
+                              const CarmenReaderConfig& reader) {
+  Scenario sc;
+  sc.config = config;
+  Submap own;
+  split_target_building(catalog.load(config.building, /*with_raw=*/true, reader), config, own, sc.target);
+  return sc;
+}
+
 BuildingFiles write_building_recording(const BuildingRecording& rec, const std::string& dir,
                                        const CarmenWriterConfig& config) {
   if (rec.name.empty() || rec.name.find('/') != std::string::npos) {

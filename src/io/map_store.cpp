@@ -445,7 +445,7 @@ void MapAppender::open_file() {
     const ParsedFile parsed = parse_map_file(file, path_);
     LoadedMap loaded = load_parsed(parsed, path_);
     map_ = std::move(loaded.map);
-    meta_ = loaded.info.meta;
+    opened_ = loaded.info;
     warnings_ = loaded.warnings;
     if (parsed.info.torn_bytes > 0) {
       // Cut the torn record off so that new records follow the last good one.
@@ -516,8 +516,7 @@ void MapAppender::sync() {
 
 void MapAppender::compact(const nlohmann::json& meta) {
   sync();
-  meta_ = meta;
-  const std::vector<std::uint8_t> bytes = encode_snapshot(*map_, meta_);
+  const std::vector<std::uint8_t> bytes = encode_snapshot(*map_, meta);
   const std::string tmp = path_ + ".tmp." + std::to_string(::getpid());
   const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw Error(system_error(tmp, "cannot create the compacted map"));

@@ -69,6 +69,11 @@ BuildingRecording load_building(const BuildingFiles& files, bool with_raw, const
 Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& config,
                        const CarmenReaderConfig& reader = {});
 
+/// The scenario's target run alone (its submaps left empty): for a run on a
+/// map saved earlier, which reads only the target's building.
+Scenario load_scenario_target(const DatasetCatalog& catalog, const ScenarioConfig& config,
+                              const CarmenReaderConfig& reader = {});
+
 /// Writes a recording as a building directory `dir/NAME/`: `NAME.log.gz`
 /// (raw scans with ODOM lines), `NAME-corrected.log.gz` (corrected scans) and
 /// `NAME.gfs-poses-at-raw-stamps.txt` (truth), each only when the recording

@@ -99,6 +99,8 @@ class MapAppender {
 
   const GlobalMap& map() const { return *map_; }
   const std::vector<std::string>& warnings() const { return warnings_; }
+  /// What the file held when it was opened.
+  const MapFileInfo& opened() const { return opened_; }
 
   /// Opens a new submap (journaled with the next scan's batch) and returns its id.
   std::uint32_t add_submap(const std::string& name);
@@ -119,7 +121,7 @@ class MapAppender {
   std::string path_;
   MapAppenderConfig config_;
   std::unique_ptr<GlobalMap> map_;
-  nlohmann::json meta_;
+  MapFileInfo opened_;
   std::vector<std::string> warnings_;
   int fd_ = -1;
   std::vector<std::uint8_t> pending_;  ///< encoded records not yet written

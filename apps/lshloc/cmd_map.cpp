@@ -1,0 +1,312 @@
+// `lshloc map`: build a global map once and keep it (docs/map-format.md):
+// build, append, info, verify, compact.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/io/config_json.hpp"
+#include "lshloc/io/map_store.hpp"
+#include "map_source.hpp"
+
+namespace lshloc::app {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::uint64_t file_bytes(const std::string& path) {
+  std::error_code ec;
+  const auto n = std::filesystem::file_size(path, ec);
+  return ec ? 0 : static_cast<std::uint64_t>(n);
+}
+
+void print_warnings(const std::vector<std::string>& warnings) {
+  for (const std::string& w : warnings) std::fprintf(stderr, "lshloc: warning: %s\n", w.c_str());
+}
+
+/// The map's contents and its file, as `map info --json` prints them.
+nlohmann::json map_json(const std::string& path, const GlobalMap& map, const io::MapFileInfo& info) {
+  const GlobalMapStats s = map.stats();
+  nlohmann::json j;
+  j["path"] = path;
+  j["format_version"] = info.format_version;
+  j["bytes"] = info.file_bytes;
+  j["snapshot_bytes"] = info.snapshot_bytes;
+  j["journal_bytes"] = info.journal_bytes;
+  j["journal_submaps"] = info.journal_submaps;
+  j["journal_scans"] = info.journal_scans;
+  j["torn_bytes"] = info.torn_bytes;
+  j["submaps"] = map.submap_count();
+  j["scans"] = s.scans;
+  j["features"] = s.features;
+  j["file_bytes_per_feature"] =
+      s.features ? static_cast<double>(info.file_bytes) / static_cast<double>(s.features) : 0.0;
+  j["memory_bytes_per_feature"] = s.bytes_per_feature();
+  nlohmann::json submaps = nlohmann::json::array();
+  for (std::uint32_t i = 0; i < map.submap_count(); ++i)
+    submaps.push_back({{"id", i}, {"name", map.submap_name(i)}, {"scans", map.submap_scans(i)}});
+  j["submap_list"] = submaps;
+  nlohmann::json sections = nlohmann::json::array();
+  for (const auto& sec : info.sections) sections.push_back({{"name", sec.name}, {"bytes", sec.bytes}});
+  j["sections"] = sections;
+  j["settings"] = map.config();
+  j["meta"] = info.meta;
+  return j;
+}
+
+struct BuildOptions {
+  std::vector<std::string> logs;
+  std::vector<std::string> names;
+  std::string out;
+  std::string config;
+  bool slam = false;
+  bool json = false;
+  bool print_config = false;
+};
+
+struct AppendOptions {
+  std::string map;
+  std::string log;
+  std::string submap;
+  std::size_t from = 0;
+  std::size_t count = 0;
+  std::size_t sync_every = 1;
+  bool slam = false;
+  bool ack_lines = false;
+  bool json = false;
+};
+
+GlobalMapConfig map_settings(const std::string& config_path) {
+  GlobalMapConfig c;
+  if (!config_path.empty()) io::apply_config_patch(io::read_json_file(config_path), c, config_path);
+  c.validate();
+  return c;
+}
+
+void add_build(CLI::App& map_cmd) {
+  auto opt = std::make_shared<BuildOptions>();
+  auto* cmd = map_cmd.add_subcommand(
+      "build",
+      "Build a global map from mapped logs, one submap per log, and save it (an atomic write: the file holds\n"
+      "the old map or the whole new one). LOG takes the log's own FLASER poses (a corrected log; with --slam, a\n"
+      "raw log posed by lshloc's SLAM); LOG,POSES takes poses from a `timestamp x y theta` file.");
+  cmd->add_option("logs", opt->logs, "map logs: LOG or LOG,POSES")->required();
+  cmd->add_option("--out", opt->out, "the map file to write")->required();
+  cmd->add_option("--name", opt->names, "submap names, one per log in order (default: each log's file name)");
+  cmd->add_flag("--slam", opt->slam, "pose raw logs given without a poses file by lshloc's SLAM");
+  cmd->add_option("--config", opt->config,
+                  "JSON file of map settings (GlobalMapConfig fields; the shape --print-config writes)");
+  cmd->add_flag("--print-config", opt->print_config, "print the effective map settings as JSON and exit");
+  cmd->add_flag("--json", opt->json, "print one JSON line (the fields of `map info --json`) instead of text");
+  cmd->callback([opt] {
+    const GlobalMapConfig config = map_settings(opt->config);
+    if (opt->print_config) {
+      std::printf("%s\n", nlohmann::json(config).dump(2).c_str());
+      return;
+    }
+    if (!opt->names.empty() && opt->names.size() != opt->logs.size())
+      throw Error("--name: expected one name per log (" + std::to_string(opt->logs.size()) + "), got " +
+                  std::to_string(opt->names.size()));
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<Submap> submaps;
+    nlohmann::json sources = nlohmann::json::array();
+    for (std::size_t i = 0; i < opt->logs.size(); ++i) {
+      std::fprintf(stderr, "map build: reading %s\n", opt->logs[i].c_str());
+      submaps.push_back(load_map_argument(opt->logs[i], opt->slam));
+      if (!opt->names.empty()) submaps.back().name = opt->names[i];
+      sources.push_back({{"submap", submaps.back().name},
+                         {"source", opt->logs[i]},
+                         {"scans", submaps.back().scans.size()},
+                         {"poses_from_slam", submaps.back().poses_from_slam}});
+    }
+    GlobalMap map(config);
+    std::fprintf(stderr, "map build: adding %zu submaps\n", submaps.size());
+    MapFeeder(map, submaps).feed_until(1.0);
+    const double build_s = seconds_since(t0);
+    const auto t1 = std::chrono::steady_clock::now();
+    io::save_map(opt->out, map, {{"made_by", "lshloc map build"}, {"submaps", sources}});
+    const double save_s = seconds_since(t1);
+    const io::LoadedMap check = io::load_map(opt->out);  // what was written reads back
+    nlohmann::json j = map_json(opt->out, *check.map, check.info);
+    j["build_s"] = build_s;
+    j["save_s"] = save_s;
+    if (opt->json) {
+      std::printf("%s\n", j.dump().c_str());
+    } else {
+      std::printf(
+          "%s: %zu submaps, %zu scans, %zu features, %llu bytes (%.1f per feature); built in %.1f s, saved in "
+          "%.2f s\n",
+          opt->out.c_str(), map.submap_count(), map.stats().scans, map.stats().features,
+          static_cast<unsigned long long>(check.info.file_bytes), j["file_bytes_per_feature"].get<double>(), build_s,
+          save_s);
+    }
+  });
+}
+
+void add_append(CLI::App& map_cmd) {
+  auto opt = std::make_shared<AppendOptions>();
+  auto* cmd = map_cmd.add_subcommand(
+      "append",
+      "Append a mapped log's scans to a saved map's journal, as a new submap or onto an existing one (--submap\n"
+      "NAME of a submap the map has: the poses must be in its frame). Each scan is acknowledged once its journal\n"
+      "record is fsync'ed (every --sync-every scans); a crash loses no acknowledged scan.");
+  cmd->add_option("map", opt->map, "the map file")->required();
+  cmd->add_option("log", opt->log, "LOG or LOG,POSES, as for `map build`")->required();
+  cmd->add_option("--submap", opt->submap, "submap to add to (default: a new one named after the log)");
+  cmd->add_option("--from", opt->from, "first scan of the log to append (to resume an interrupted append)")
+      ->capture_default_str();
+  cmd->add_option("--count", opt->count, "scans to append (0: to the end of the log)")->capture_default_str();
+  cmd->add_option("--sync-every", opt->sync_every, "scans per fsync (1: each scan is durable before the next)")
+      ->capture_default_str();
+  cmd->add_flag("--slam", opt->slam, "pose a raw log given without a poses file by lshloc's SLAM");
+  cmd->add_flag("--ack-lines", opt->ack_lines,
+                "after each fsync print `acknowledged N` (N: the submap's durable scans) on stdout, flushed");
+  cmd->add_flag("--json", opt->json, "print one JSON summary line");
+  cmd->callback([opt] {
+    const Submap log = load_map_argument(opt->log, opt->slam);
+    if (opt->from > log.scans.size())
+      throw Error(opt->log + ": --from " + std::to_string(opt->from) + " is past its " +
+                  std::to_string(log.scans.size()) + " posed scans");
+    io::MapAppender appender(opt->map, {.sync_every = opt->sync_every});
+    print_warnings(appender.warnings());
+    const std::string name = opt->submap.empty() ? log.name : opt->submap;
+    const auto existing = appender.map().find_submap(name);
+    const std::uint32_t submap = existing ? *existing : appender.add_submap(name);
+    const std::size_t submap_before = appender.map().submap_scans(submap);
+    const std::size_t acked_before = appender.acknowledged_scans();
+    const std::size_t end = opt->count == 0 ? log.scans.size() : std::min(log.scans.size(), opt->from + opt->count);
+    const bool tty = isatty(fileno(stderr));
+    std::size_t last_acked = acked_before;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto report = [&] {
+      if (opt->ack_lines && appender.acknowledged_scans() != last_acked) {
+        last_acked = appender.acknowledged_scans();
+        std::printf("acknowledged %zu\n", submap_before + (last_acked - acked_before));
+        std::fflush(stdout);
+      }
+    };
+    std::size_t features = 0;
+    for (std::size_t i = opt->from; i < end; ++i) {
+      features += appender.add_scan(submap, log.scans[i], log.scans[i].pose);
+      report();
+      if (tty && ((i - opt->from) % 100 == 0 || i + 1 == end))
+        std::fprintf(stderr, "\rmap append: scan %zu/%zu", i + 1 - opt->from, end - opt->from);
+    }
+    appender.sync();
+    report();
+    if (tty) std::fprintf(stderr, "\n");
+    const double seconds = seconds_since(t0);
+    const std::size_t appended = end - opt->from;
+    nlohmann::json j = {{"map", opt->map},
+                        {"submap", name},
+                        {"submap_id", submap},
+                        {"new_submap", !existing.has_value()},
+                        {"appended_scans", appended},
+                        {"appended_features", features},
+                        {"submap_scans", appender.map().submap_scans(submap)},
+                        {"scans", appender.map().stats().scans},
+                        {"features", appender.map().stats().features},
+                        {"seconds", seconds},
+                        {"scans_per_s", seconds > 0 ? static_cast<double>(appended) / seconds : 0.0},
+                        {"sync_every", opt->sync_every}};
+    if (opt->json) {
+      std::printf("%s\n", j.dump().c_str());
+    } else if (!opt->ack_lines) {
+      std::printf("%s: appended %zu scans (%zu features) to submap %s in %.2f s (%.0f scans/s)\n", opt->map.c_str(),
+                  appended, features, name.c_str(), seconds, j["scans_per_s"].get<double>());
+    }
+  });
+}
+
+void add_info(CLI::App& map_cmd) {
+  auto path = std::make_shared<std::string>();
+  auto json = std::make_shared<bool>(false);
+  auto* cmd = map_cmd.add_subcommand(
+      "info", "Describe a saved map: submaps, scans, features, bytes, format version, settings and journal.");
+  cmd->add_option("map", *path, "the map file")->required();
+  cmd->add_flag("--json", *json, "print one JSON object");
+  cmd->callback([path, json] {
+    const io::LoadedMap loaded = io::load_map(*path);
+    print_warnings(loaded.warnings);
+    const nlohmann::json j = map_json(*path, *loaded.map, loaded.info);
+    if (*json) {
+      std::printf("%s\n", j.dump().c_str());
+      return;
+    }
+    std::printf("%s: lshloc map, format version %u\n", path->c_str(), loaded.info.format_version);
+    std::printf("  %zu submaps, %zu scans, %zu features\n", loaded.map->submap_count(), j["scans"].get<std::size_t>(),
+                j["features"].get<std::size_t>());
+    std::printf("  %llu bytes (%.1f per feature): snapshot %llu, journal %llu (%zu scans, %zu new submaps)\n",
+                static_cast<unsigned long long>(loaded.info.file_bytes), j["file_bytes_per_feature"].get<double>(),
+                static_cast<unsigned long long>(loaded.info.snapshot_bytes),
+                static_cast<unsigned long long>(loaded.info.journal_bytes), loaded.info.journal_scans,
+                loaded.info.journal_submaps);
+    for (std::uint32_t i = 0; i < loaded.map->submap_count(); ++i)
+      std::printf("  submap %u: %s, %zu scans\n", i, loaded.map->submap_name(i).c_str(), loaded.map->submap_scans(i));
+    std::printf("  settings and sections: `lshloc map info --json %s`\n", path->c_str());
+  });
+}
+
+void add_verify(CLI::App& map_cmd) {
+  auto path = std::make_shared<std::string>();
+  auto* cmd = map_cmd.add_subcommand(
+      "verify",
+      "Check a saved map: every checksum (header, sections, journal records) and every structure it decodes to.\n"
+      "Exit 0 when it is good (a torn last journal record, as a crash leaves it, is reported and is not an error),\n"
+      "1 with a message naming the damaged part when not.");
+  cmd->add_option("map", *path, "the map file")->required();
+  cmd->callback([path] {
+    const io::LoadedMap loaded = io::load_map(*path);
+    print_warnings(loaded.warnings);
+    std::size_t records = loaded.info.journal_scans + loaded.info.journal_submaps;
+    std::printf(
+        "%s: good: format version %u, %zu sections and %zu journal records checked; %zu submaps, %zu scans, "
+        "%zu features\n",
+        path->c_str(), loaded.info.format_version, loaded.info.sections.size(), records, loaded.map->submap_count(),
+        loaded.map->stats().scans, loaded.map->stats().features);
+  });
+}
+
+void add_compact(CLI::App& map_cmd) {
+  auto path = std::make_shared<std::string>();
+  auto* cmd = map_cmd.add_subcommand(
+      "compact", "Fold a map's journal into a new snapshot (atomically: the file holds the old or the new form).");
+  cmd->add_option("map", *path, "the map file")->required();
+  cmd->callback([path] {
+    const std::uint64_t before = file_bytes(*path);
+    io::MapAppender appender(*path);
+    print_warnings(appender.warnings());
+    const io::MapFileInfo& current = appender.opened();
+    nlohmann::json meta = current.meta;
+    meta["compacted_journal_scans"] = current.journal_scans;
+    const auto t0 = std::chrono::steady_clock::now();
+    appender.compact(meta);
+    std::printf("%s: compacted %zu journal scans in %.2f s; %llu -> %llu bytes\n", path->c_str(), current.journal_scans,
+                seconds_since(t0), static_cast<unsigned long long>(before),
+                static_cast<unsigned long long>(file_bytes(*path)));
+  });
+}
+
+}  // namespace
+
+void add_map_command(CLI::App& app, GlobalOptions& global) {
+  (void)global;
+  auto* cmd = app.add_subcommand("map", "Build, grow and check saved global maps (docs/map-format.md)");
+  cmd->require_subcommand(1);
+  add_build(*cmd);
+  add_append(*cmd);
+  add_info(*cmd);
+  add_verify(*cmd);
+  add_compact(*cmd);
+}
+
+}  // namespace lshloc::app
