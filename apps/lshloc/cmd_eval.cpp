@@ -136,7 +136,7 @@ std::uint32_t check_saved_scenario(const nlohmann::json& meta, const ScenarioCon
 /// The scenario's run, on a map built from its submaps (saved with
 /// --save-map) or loaded with --load-map.
 ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOptions& opt, const Progress& progress,
-                     const LocalizerObserver& observer) {
+                     const LocalizerObserver& observer, nlohmann::json& map_store) {
   if (opt.save_map.empty() && opt.load_map.empty()) return run_scenario(sc, run_config, progress, observer);
   std::unique_ptr<GlobalMap> map;
   const auto t0 = std::chrono::steady_clock::now();
@@ -152,8 +152,12 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
     MapFeeder(*map, sc.submaps).feed_until(1.0);
   }
   const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!opt.load_map.empty()) map_store["map_load_s"] = map_s;
   if (!opt.save_map.empty()) {
+    const auto t1 = std::chrono::steady_clock::now();
     io::save_map(opt.save_map, *map, scenario_meta(sc));
+    map_store["map_save_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    map_store["map_file_bytes"] = std::filesystem::file_size(opt.save_map);
     std::fprintf(stderr, "map saved: %s\n", opt.save_map.c_str());
   }
   ScenarioRun run = localize_target(*map, sc.target, run_config.localizer, progress, observer);
@@ -178,6 +182,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
       }
     };
   }
+  nlohmann::json map_store = nlohmann::json::object();
   const ScenarioRun run = run_eval(
       sc, run_config, opt,
       [&](std::size_t done, std::size_t total) {
@@ -186,12 +191,13 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
           if (done == total) std::fprintf(stderr, "\n");
         }
       },
-      observer);
+      observer, map_store);
   const LocalizationMetrics m =
       evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
   nlohmann::json j = scenario_json(sc, run, m);
   j["order_rule"] = run_config.localizer.ransac.order_rule;
   j["hypotheses"] = run_config.localizer.hypothesis_source;
+  j.update(map_store);
   std::printf("%s\n", j.dump().c_str());
   std::fflush(stdout);
   if (!opt.plot_dir.empty()) {

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "lshloc/common/cpu_time.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/map_store.hpp"
@@ -235,9 +236,15 @@ void add_info(CLI::App& map_cmd) {
   cmd->add_option("map", *path, "the map file")->required();
   cmd->add_flag("--json", *json, "print one JSON object");
   cmd->callback([path, json] {
+    const auto t0 = std::chrono::steady_clock::now();
+    const double cpu0 = process_cpu_seconds();
     const io::LoadedMap loaded = io::load_map(*path);
+    const double load_cpu_s = process_cpu_seconds() - cpu0;
+    const double load_s = seconds_since(t0);
     print_warnings(loaded.warnings);
-    const nlohmann::json j = map_json(*path, *loaded.map, loaded.info);
+    nlohmann::json j = map_json(*path, *loaded.map, loaded.info);
+    j["load_s"] = load_s;
+    j["load_cpu_s"] = load_cpu_s;
     if (*json) {
       std::printf("%s\n", j.dump().c_str());
       return;

@@ -119,7 +119,7 @@ void LshDatabase::hash(const Descriptor& descriptor, Eigen::VectorXf& projection
 }
 
 void LshDatabase::grow(Table& t) {
-  std::vector<Slot> old = std::move(t.slots);
+  auto old = std::move(t.slots);
   t.bits += 1;
   t.slots.assign(std::size_t{1} << t.bits, Slot{});
   const std::size_t mask = t.slots.size() - 1;

@@ -16,6 +16,7 @@
 #include <limits>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/huge_page_allocator.hpp"
 #include "lshloc/io/config_json.hpp"
 
 namespace lshloc::io {
@@ -65,7 +66,28 @@ void sync_directory_of(const std::string& path) {
   if (rc != 0) throw Error(system_error(name, "cannot sync the directory"));
 }
 
-std::vector<std::uint8_t> read_whole_file(const std::string& path) {
+/// A file's bytes in one buffer, not zero-filled first, on huge pages when
+/// large (a 100 MB map loads in fewer page faults).
+class FileBytes {
+ public:
+  explicit FileBytes(std::size_t capacity)
+      : capacity_(capacity), data_(capacity ? alloc_.allocate(capacity) : nullptr) {}
+  ~FileBytes() {
+    if (data_ != nullptr) alloc_.deallocate(data_, capacity_);
+  }
+  FileBytes(const FileBytes&) = delete;
+  FileBytes& operator=(const FileBytes&) = delete;
+  std::uint8_t* data() { return data_; }
+  std::span<const std::uint8_t> bytes() const { return {data_, size_}; }
+  void set_size(std::size_t n) { size_ = n; }
+
+ private:
+  HugePageAllocator<std::uint8_t> alloc_;
+  std::size_t capacity_ = 0, size_ = 0;
+  std::uint8_t* data_ = nullptr;
+};
+
+std::unique_ptr<FileBytes> read_whole_file(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw Error(system_error(path, "cannot open the map"));
   struct stat st {};
@@ -77,10 +99,11 @@ std::vector<std::uint8_t> read_whole_file(const std::string& path) {
     ::close(fd);
     throw Error(path + ": not a regular file; expected an lshloc map file");
   }
-  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(st.st_size));
+  auto file = std::make_unique<FileBytes>(static_cast<std::size_t>(st.st_size));
+  const std::size_t size = static_cast<std::size_t>(st.st_size);
   std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
+  while (done < size) {
+    const ssize_t n = ::read(fd, file->data() + done, size - done);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
       ::close(fd);
@@ -90,8 +113,8 @@ std::vector<std::uint8_t> read_whole_file(const std::string& path) {
     done += static_cast<std::size_t>(n);
   }
   ::close(fd);
-  bytes.resize(done);
-  return bytes;
+  file->set_size(done);
+  return file;
 }
 
 // --- Encoding ---
@@ -394,8 +417,8 @@ void save_map(const std::string& path, const GlobalMap& map, const nlohmann::jso
 }
 
 LoadedMap load_map(const std::string& path) {
-  const std::vector<std::uint8_t> file = read_whole_file(path);
-  return load_parsed(parse_map_file(file, path), path);
+  const auto file = read_whole_file(path);
+  return load_parsed(parse_map_file(file->bytes(), path), path);
 }
 
 bool looks_like_map_file(const std::string& path) {
@@ -441,8 +464,8 @@ void MapAppender::open_file() {
     throw Error(path_ + ": another process is appending to this map (its lock is held)");
   }
   try {
-    const std::vector<std::uint8_t> file = read_whole_file(path_);
-    const ParsedFile parsed = parse_map_file(file, path_);
+    const auto file = read_whole_file(path_);
+    const ParsedFile parsed = parse_map_file(file->bytes(), path_);
     LoadedMap loaded = load_parsed(parsed, path_);
     map_ = std::move(loaded.map);
     opened_ = loaded.info;

@@ -114,7 +114,7 @@ void PoseGridHashMap::mark_cell(std::uint64_t xy, int itheta, CellFlags flags) {
 void PoseGridHashMap::grow() {
   if (slots_.size() >= (std::size_t{1} << 32))
     throw Error("pose grid: table would exceed 2^32 slots (32 GiB); use larger cells or fewer submaps");
-  std::vector<std::uint64_t> old;
+  Slots old;
   old.swap(slots_);
   set_capacity(old.size() * 2);
   const TableView table = table_view();

@@ -12,6 +12,7 @@
 
 #include "lshloc/appearance/feature.hpp"
 #include "lshloc/common/byte_codec.hpp"
+#include "lshloc/common/huge_page_allocator.hpp"
 
 namespace lshloc {
 
@@ -170,10 +171,10 @@ class LshDatabase {
     std::uint32_t size_class = 0;  ///< the block holds 2^size_class ids
   };
   struct Table {
-    std::vector<Slot> slots;                              ///< open addressing, linear probing, power-of-two size
-    std::vector<std::uint32_t> pool;                      ///< the buckets' id blocks
-    std::vector<std::vector<std::uint32_t>> free_blocks;  ///< per size class: offsets of released blocks
-    std::size_t used = 0;                                 ///< non-empty slots
+    std::vector<Slot, HugePageAllocator<Slot>> slots;  ///< open addressing, linear probing, power-of-two size
+    std::vector<std::uint32_t, HugePageAllocator<std::uint32_t>> pool;  ///< the buckets' id blocks
+    std::vector<std::vector<std::uint32_t>> free_blocks;                ///< per size class: offsets of released blocks
+    std::size_t used = 0;                                               ///< non-empty slots
     int bits = 0;
   };
 
@@ -200,8 +201,8 @@ class LshDatabase {
   std::uint32_t capacity_class_ = 0;
   std::uint64_t rng_state_ = 0;  ///< reservoir sampling
   std::size_t sketch_words_ = 0;
-  std::size_t sketch_ids_ = 0;           ///< ids 0..sketch_ids_-1 have a sketch slot
-  std::vector<std::uint64_t> sketches_;  ///< sketch_words_ per id
+  std::size_t sketch_ids_ = 0;                                             ///< ids 0..sketch_ids_-1 have a sketch slot
+  std::vector<std::uint64_t, HugePageAllocator<std::uint64_t>> sketches_;  ///< sketch_words_ per id
   Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>
       sketch_a_;  ///< bucket capacity = 2^capacity_class_
   Eigen::VectorXf insert_projections_;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "lshloc/common/byte_codec.hpp"
+#include "lshloc/common/huge_page_allocator.hpp"
 
 namespace lshloc {
 
@@ -243,7 +244,8 @@ class PoseGridHashMap {
   std::uint64_t hash_a_ = 1, hash_b_ = 0;
   unsigned shift_ = 54;
   std::size_t mask_ = 0;
-  std::vector<std::uint64_t> slots_;
+  using Slots = std::vector<std::uint64_t, HugePageAllocator<std::uint64_t>>;
+  Slots slots_;
   std::size_t used_ = 0;
   std::size_t rehashes_ = 0;
   std::size_t marks_ = 0;

@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# Map store speed and size (BENCHMARKS.md, "Map store"): for the 15-building
+# real map (eval fr079 R = 15) and synthetic maps of R = 40 and 100 submaps
+# (eval adds synthetic buildings beyond the 15 real ones):
+#   - the whole-process CPU of a 5-scan eval that builds the map from its
+#     logs (and saves it), against one that loads the saved map;
+#   - save and load times (load: `map info --json`, timed inside), file bytes
+#     per feature;
+# and the append throughput of `map append` at several fsync batch sizes.
+# Writes results/map_store.jsonl (one line per measurement) and prints a table.
+# Environment: LSHLOC (binary), LSHLOC_DATA, SUBMAPS ("15 40 100"), OUT (results/map_store.jsonl).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+LSHLOC=${LSHLOC:-build/bin/lshloc}
+export LSHLOC_DATA=${LSHLOC_DATA:-../shared/data}
+SUBMAPS=${SUBMAPS:-"15 40 100"}
+OUT=${OUT:-results/map_store.jsonl}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+mkdir -p "$(dirname "$OUT")"
+: >"$OUT"
+
+cpu_of() { awk '{print $2 + $3}' "$1"; }  # /usr/bin/time -f '%e %U %S': user + system
+
+for r in $SUBMAPS; do
+  echo "R = $r: building the map from its logs, saving it ..." >&2
+  /usr/bin/time -f '%e %U %S' -o "$work/t_build" "$LSHLOC" eval --building fr079 --submaps "$r" --length 5 \
+    --save-map "$work/r$r.map" --json >"$work/build.json" 2>"$work/build.err"
+  /usr/bin/time -f '%e %U %S' -o "$work/t_load" "$LSHLOC" eval --building fr079 --submaps "$r" --length 5 \
+    --load-map "$work/r$r.map" --json >"$work/load.json" 2>"$work/load.err"
+  best_load=""
+  for _ in 1 2 3; do  # the machine is noisy: the best of three loads
+    "$LSHLOC" map info "$work/r$r.map" --json >"$work/info.json"
+    l=$(python3 -c "import json; print(json.load(open('$work/info.json'))['load_cpu_s'])")
+    if [ -z "$best_load" ] || python3 -c "import sys; sys.exit(not $l < $best_load)"; then best_load=$l; cp "$work/info.json" "$work/best.json"; fi
+  done
+  python3 - "$r" "$work/build.json" "$work/load.json" "$work/best.json" "$(cpu_of "$work/t_build")" \
+    "$(cpu_of "$work/t_load")" >>"$OUT" <<'EOF'
+import json, sys
+r, build, load, info = int(sys.argv[1]), *(json.load(open(p)) for p in sys.argv[2:5])
+build_cpu, load_cpu = float(sys.argv[5]), float(sys.argv[6])
+f = info["features"]
+print(json.dumps({
+    "kind": "map", "submaps": r, "features": f, "file_bytes": info["bytes"],
+    "file_bytes_per_feature": info["bytes"] / f, "memory_bytes_per_feature": info["memory_bytes_per_feature"],
+    "sections_bytes_per_feature": {s["name"]: s["bytes"] / f for s in info["sections"]},
+    "map_build_s": build["map_build_s"], "save_s": build["map_save_s"],
+    "load_s": info["load_s"], "load_cpu_s": info["load_cpu_s"], "load_s_per_1e6_features": info["load_s"] * 1e6 / f,
+    "eval5_cpu_building_s": build_cpu, "eval5_cpu_loading_s": load_cpu, "eval5_cpu_ratio": build_cpu / load_cpu,
+    "same_final_estimate": build["final_error_m"] == load["final_error_m"],
+}))
+EOF
+done
+
+echo "append throughput ..." >&2
+"$LSHLOC" map build --out "$work/base.map" "$LSHLOC_DATA/intel/intel.gfs.log.gz" >/dev/null 2>&1
+for n in 1 16 256; do
+  cp "$work/base.map" "$work/a.map"
+  "$LSHLOC" map append "$work/a.map" "$LSHLOC_DATA/fr079/fr079-complete.gfs.log.gz" --sync-every "$n" --json |
+    python3 -c "import json,sys; j=json.load(sys.stdin); print(json.dumps({'kind': 'append', 'sync_every': j['sync_every'], 'scans': j['appended_scans'], 'seconds': j['seconds'], 'scans_per_s': j['scans_per_s']}))" >>"$OUT"
+done
+
+python3 - "$OUT" <<'EOF'
+import json, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+print("| R | features | file B/feature | memory B/feature | build map [s] | save [s] | load [s] | load per 1e6 [s] | 5-scan eval CPU: build / load [s] | ratio |")
+print("|---|---|---|---|---|---|---|---|---|---|")
+for r in rows:
+    if r["kind"] != "map": continue
+    print(f"| {r['submaps']} | {r['features']:,} | {r['file_bytes_per_feature']:.1f} | {r['memory_bytes_per_feature']:.0f} | "
+          f"{r['map_build_s']:.1f} | {r['save_s']:.2f} | {r['load_s']:.2f} | {r['load_s_per_1e6_features']:.2f} | "
+          f"{r['eval5_cpu_building_s']:.1f} / {r['eval5_cpu_loading_s']:.2f} | {r['eval5_cpu_ratio']:.0f}x |")
+print()
+print("| fsync every | scans | scans/s |")
+print("|---|---|---|")
+for r in rows:
+    if r["kind"] == "append": print(f"| {r['sync_every']} | {r['scans']} | {r['scans_per_s']:.0f} |")
+EOF
