@@ -6,7 +6,9 @@
 #     logs (and saves it), against one that loads the saved map;
 #   - save and load times (load: `map info --json`, timed inside), file bytes
 #     per feature;
-# and the append throughput of `map append` at several fsync batch sizes.
+# the append throughput of `map append` at several fsync batch sizes; and
+# `lshloc localize` of 100 fr079 scans in the 15 buildings' logs against the
+# same map built once and saved (whole-process CPU, trajectories compared).
 # Writes results/map_store.jsonl (one line per measurement) and prints a table.
 # Environment: LSHLOC (binary), LSHLOC_DATA, SUBMAPS ("15 40 100"), OUT (results/map_store.jsonl).
 set -euo pipefail
@@ -52,6 +54,22 @@ print(json.dumps({
 EOF
 done
 
+echo "saved vs built maps: per-scan traces of the default scenarios at R = 15 ..." >&2
+for b in ${IDENTITY_BUILDINGS:-fr079 fr101 intel aces}; do
+  "$LSHLOC" eval --building "$b" --submaps 15 --save-map "$work/$b.map" --trace "$work/$b-built.csv" --json \
+    >"$work/$b-built.json" 2>/dev/null
+  "$LSHLOC" eval --building "$b" --submaps 15 --load-map "$work/$b.map" --trace "$work/$b-loaded.csv" --json \
+    >"$work/$b-loaded.json" 2>/dev/null
+  same=false; cmp -s "$work/$b-built.csv" "$work/$b-loaded.csv" && same=true
+  python3 -c "
+import json, sys
+a, b = json.load(open(sys.argv[2])), json.load(open(sys.argv[3]))
+print(json.dumps({'kind': 'identity', 'building': sys.argv[1], 'submaps': 15, 'scans': sum(1 for _ in open(sys.argv[5])) - 1,
+                  'trace_identical': sys.argv[4] == 'true', 'success': a['success'], 'final_error_m': a['final_error_m'],
+                  'map_build_s': a['map_build_s'], 'map_load_s': b['map_load_s']}))" \
+    "$b" "$work/$b-built.json" "$work/$b-loaded.json" "$same" "$work/$b-built.csv" >>"$OUT"
+done
+
 echo "append throughput ..." >&2
 "$LSHLOC" map build --out "$work/base.map" "$LSHLOC_DATA/intel/intel.gfs.log.gz" >/dev/null 2>&1
 for n in 1 16 256; do
@@ -59,6 +77,29 @@ for n in 1 16 256; do
   "$LSHLOC" map append "$work/a.map" "$LSHLOC_DATA/fr079/fr079-complete.gfs.log.gz" --sync-every "$n" --json |
     python3 -c "import json,sys; j=json.load(sys.stdin); print(json.dumps({'kind': 'append', 'sync_every': j['sync_every'], 'scans': j['appended_scans'], 'seconds': j['seconds'], 'scans_per_s': j['scans_per_s']}))" >>"$OUT"
 done
+
+echo "localize: 15 logs against the saved map ..." >&2
+D=$LSHLOC_DATA
+logs=("$D/intel/intel.gfs.log.gz" "$D/aces/aces-corrected.log.gz" "$D/fr101/fr101.carmen.gfs.log.gz"
+      "$D/mit-csail/csail.corrected.log.gz" "$D/fr079/fr079-complete.gfs.log.gz")
+for f in "$D"/radish-gfs-corrected/*-corrected.log.gz; do logs+=("$f"); done
+logs+=("$D/fr-clinic/fr-clinic.recon-from-bag.log.gz,slam" "$D/mit-killian/mit-killian.recon-from-bag.log.gz,slam")
+maps=(); for l in "${logs[@]}"; do maps+=(--map "$l"); done
+"$LSHLOC" map build --out "$work/all.map" "${logs[@]}" >/dev/null 2>&1
+target=(--target "$D/fr079/fr079.recon-from-bag.log.gz" --start 2000 --length 100)
+/usr/bin/time -f '%e %U %S' -o "$work/t_logs" "$LSHLOC" localize "${maps[@]}" "${target[@]}" --out "$work/logs.tum" --json \
+  >"$work/logs.json" 2>/dev/null
+/usr/bin/time -f '%e %U %S' -o "$work/t_saved" "$LSHLOC" localize --map "$work/all.map" "${target[@]}" \
+  --out "$work/saved.tum" --json >"$work/saved.json" 2>/dev/null
+same=false; cmp -s "$work/logs.tum" "$work/saved.tum" && cmp -s "$work/logs.tum.csv" "$work/saved.tum.csv" && same=true
+python3 -c "
+import json, sys
+logs, saved = float(sys.argv[1]), float(sys.argv[2])
+j = json.load(open(sys.argv[4]))
+print(json.dumps({'kind': 'localize', 'submaps': j['submaps'], 'map_features': j['map_features'], 'scans': j['scans'],
+                  'cpu_s_logs': logs, 'cpu_s_saved_map': saved, 'cpu_ratio': logs / saved,
+                  'same_trajectory': sys.argv[3] == 'true', 'localized': j['localized']}))" \
+  "$(cpu_of "$work/t_logs")" "$(cpu_of "$work/t_saved")" "$same" "$work/saved.json" >>"$OUT"
 
 python3 - "$OUT" <<'EOF'
 import json, sys
@@ -75,4 +116,14 @@ print("| fsync every | scans | scans/s |")
 print("|---|---|---|")
 for r in rows:
     if r["kind"] == "append": print(f"| {r['sync_every']} | {r['scans']} | {r['scans_per_s']:.0f} |")
+print()
+print("| building (R = 15) | scans | per-scan trace identical | success | map built [s] | map loaded [s] |")
+print("|---|---|---|---|---|---|")
+for r in rows:
+    if r["kind"] == "identity":
+        print(f"| {r['building']} | {r['scans']} | {r['trace_identical']} | {r['success']} | {r['map_build_s']:.1f} | {r['map_load_s']:.2f} |")
+for r in rows:
+    if r["kind"] == "localize":
+        print(f"\nlocalize {r['scans']} scans, {r['submaps']} submaps ({r['map_features']:,} features): CPU {r['cpu_s_logs']:.1f} s "
+              f"from the logs, {r['cpu_s_saved_map']:.2f} s from the saved map ({r['cpu_ratio']:.0f}x); same trajectory: {r['same_trajectory']}")
 EOF

@@ -46,7 +46,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
                                  "poses from a `timestamp x y theta` file; --map FILE.map loads a saved map.\n"
                                  "Writes the estimated trajectory (TUM; a side CSV names the submap of each scan).");
   cmd->add_option("--map", opt->maps,
-                  "map log[,poses file], or a saved map file (at most one); repeat for several submaps")
+                  "map log (LOG, LOG,POSES or LOG,slam), or a saved map file (at most one); repeat for several "
+                  "submaps")
       ->required();
   cmd->add_option("--target", opt->target, "the target robot's raw log (odometry + scans)")->required();
   cmd->add_option("--start", opt->start, "first scan of the target log to localize")->capture_default_str();

@@ -99,8 +99,10 @@ void add_build(CLI::App& map_cmd) {
       "build",
       "Build a global map from mapped logs, one submap per log, and save it (an atomic write: the file holds\n"
       "the old map or the whole new one). LOG takes the log's own FLASER poses (a corrected log; with --slam, a\n"
-      "raw log posed by lshloc's SLAM); LOG,POSES takes poses from a `timestamp x y theta` file.");
-  cmd->add_option("logs", opt->logs, "map logs: LOG or LOG,POSES")->required();
+      "raw log posed by lshloc's SLAM); LOG,slam poses that raw log by SLAM; LOG,POSES takes poses from a\n"
+      "`timestamp x y theta` file.");
+  cmd->add_option("logs", opt->logs, "map logs: LOG, LOG,POSES or LOG,slam (this raw log posed by lshloc's SLAM)")
+      ->required();
   cmd->add_option("--out", opt->out, "the map file to write")->required();
   cmd->add_option("--name", opt->names, "submap names, one per log in order (default: each log's file name)");
   cmd->add_flag("--slam", opt->slam, "pose raw logs given without a poses file by lshloc's SLAM");
@@ -161,7 +163,7 @@ void add_append(CLI::App& map_cmd) {
       "NAME of a submap the map has: the poses must be in its frame). Each scan is acknowledged once its journal\n"
       "record is fsync'ed (every --sync-every scans); a crash loses no acknowledged scan.");
   cmd->add_option("map", opt->map, "the map file")->required();
-  cmd->add_option("log", opt->log, "LOG or LOG,POSES, as for `map build`")->required();
+  cmd->add_option("log", opt->log, "LOG, LOG,POSES or LOG,slam, as for `map build`")->required();
   cmd->add_option("--submap", opt->submap, "submap to add to (default: a new one named after the log)");
   cmd->add_option("--from", opt->from, "first scan of the log to append (to resume an interrupted append)")
       ->capture_default_str();

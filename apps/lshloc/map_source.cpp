@@ -22,8 +22,9 @@ Submap load_map_argument(const std::string& arg, bool slam) {
   io::CarmenLog log = io::read_carmen_log(log_path);
   std::vector<LaserScan> scans = std::move(log.scans);
   if (scans.empty()) throw Error(log_path + ": the map log has no laser scans (FLASER / ROBOTLASER1)");
-  if (comma == std::string::npos) {
-    if (slam) {
+  const bool slam_this = comma != std::string::npos && arg.substr(comma + 1) == "slam";
+  if (comma == std::string::npos || slam_this) {
+    if (slam || slam_this) {
       s.scans = slam_mapped_scans(scans, log.front_laser_offset());
       s.poses_from_slam = true;
     } else {

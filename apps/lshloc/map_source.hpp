@@ -10,9 +10,10 @@
 namespace lshloc::app {
 
 /// "LOG" (poses from the log's own FLASER poses, or with `slam` from
-/// lshloc's SLAM over the raw log) or "LOG,POSES" (poses from a
-/// `timestamp x y theta` file joined to the log's scans within 1 ms). The
-/// submap is named after the log's file name.
+/// lshloc's SLAM over the raw log), "LOG,slam" (this raw log posed by
+/// lshloc's SLAM) or "LOG,POSES" (poses from a `timestamp x y theta` file
+/// joined to the log's scans within 1 ms; a poses file named "slam" is
+/// given as ./slam). The submap is named after the log's file name.
 Submap load_map_argument(const std::string& arg, bool slam);
 
 /// Loads a saved map for a run with `config`: prints the file's warnings

@@ -310,7 +310,8 @@ void ScanContext::write_snapshot(ByteWriter& out) const {
 
 void ScanContext::read_snapshot(ByteReader& in) {
   if (!surfaces_.empty()) throw Error("ScanContext::read_snapshot: the context is not empty");
-  const auto count = static_cast<std::size_t>(in.varint_at_most(scans_, "a count of context scans"));
+  const auto count = static_cast<std::size_t>(
+      in.varint_at_most(std::min<std::size_t>(scans_, in.remaining() / 32), "a count of context scans"));
   surfaces_.resize(count);
   for (ScanSurface& s : surfaces_) {
     s.sensor_pose = {in.f64(), in.f64(), in.f64()};

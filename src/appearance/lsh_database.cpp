@@ -389,11 +389,18 @@ void LshDatabase::read_snapshot(ByteReader& in, std::uint64_t id_limit) {
     const int bits = in.u8();
     if (bits < t.bits || bits > 32)
       in.fail("a table size of 2^" + std::to_string(t.bits) + "..2^32 slots, got 2^" + std::to_string(bits));
+    const std::size_t size = std::size_t{1} << bits;
+    // At most 70% full, as insert() keeps it (linear probing must find an
+    // empty slot), and about a third full once grown (a corrupt size
+    // must not allocate gigabytes); a bucket takes 3 bytes or more.
+    const auto count = static_cast<std::size_t>(
+        in.varint_at_most(std::min(7 * size / 10, in.remaining() / 3), "a bucket count within the table's load"));
+    if (bits > t.bits && 4 * count + 4 < size)
+      in.fail("a table grown only past 70% load (" + std::to_string(count) + " buckets in 2^" + std::to_string(bits) +
+              " slots)");
     t.bits = bits;
-    t.slots.assign(std::size_t{1} << bits, Slot{});
-    const std::size_t mask = t.slots.size() - 1;
-    // At most 70% full, as insert() keeps it: linear probing must find an empty slot.
-    const auto count = static_cast<std::size_t>(in.varint_at_most(7 * t.slots.size() / 10, "a bucket count"));
+    t.slots.assign(size, Slot{});
+    const std::size_t mask = size - 1;
     std::uint64_t tag = 0;
     for (std::size_t b = 0; b < count; ++b) {
       const std::uint64_t step = in.varint();

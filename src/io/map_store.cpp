@@ -421,6 +421,10 @@ LoadedMap load_map(const std::string& path) {
   return load_parsed(parse_map_file(file->bytes(), path), path);
 }
 
+LoadedMap load_map_bytes(std::span<const std::uint8_t> bytes, const std::string& source) {
+  return load_parsed(parse_map_file(bytes, source), source);
+}
+
 bool looks_like_map_file(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return false;

@@ -181,7 +181,7 @@ void PoseGridHashMap::read_snapshot(ByteReader& in, std::uint32_t submap_limit) 
   if (bits < std::countr_zero(slots_.size()) || bits > 32)
     in.fail("a table of 2^" + std::to_string(std::countr_zero(slots_.size())) + "..2^32 slots, got 2^" +
             std::to_string(bits));
-  set_capacity(std::size_t{1} << bits);
+  const std::size_t initial = slots_.size(), size = std::size_t{1} << bits;
   rehashes_ = static_cast<std::size_t>(in.varint_at_most(64, "a rehash count"));
   marks_ = static_cast<std::size_t>(in.varint());
   const auto boxes = static_cast<std::size_t>(in.varint_at_most(submap_limit, "a submap count"));
@@ -193,8 +193,15 @@ void PoseGridHashMap::read_snapshot(ByteReader& in, std::uint32_t submap_limit) 
       *v = static_cast<std::int32_t>(value);
     }
   }
-  const auto max_cells = static_cast<std::size_t>(config_.max_load_factor * static_cast<double>(slots_.size()));
-  const auto count = static_cast<std::size_t>(in.varint_at_most(max_cells, "a cell count within the load bound"));
+  const auto max_cells = static_cast<std::size_t>(config_.max_load_factor * static_cast<double>(size));
+  const auto count = static_cast<std::size_t>(
+      in.varint_at_most(std::min(max_cells, in.remaining() / 2), "a cell count within the load bound"));
+  // A grown table holds more than max_load / 2 of its capacity: a corrupt
+  // size must not allocate gigabytes.
+  if (size > initial && static_cast<double>(count) < 0.5 * config_.max_load_factor * static_cast<double>(size) - 1.0)
+    in.fail("a table grown only past its load bound (" + std::to_string(count) + " cells in 2^" + std::to_string(bits) +
+            " slots)");
+  set_capacity(size);
   std::uint64_t key = 0;
   const TableView table = table_view();
   for (std::size_t n = 0; n < count; ++n) {

@@ -11,6 +11,7 @@
 // scans acknowledged so far, and a record being written reads as a torn tail.
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,10 @@ void save_map(const std::string& path, const GlobalMap& map, const nlohmann::jso
 /// an empty file) throws lshloc::Error naming the file, the section or
 /// record, and what was expected.
 LoadedMap load_map(const std::string& path);
+
+/// load_map() of a map file's bytes already in memory (e.g. received over
+/// the network); `source` names them in errors.
+LoadedMap load_map_bytes(std::span<const std::uint8_t> bytes, const std::string& source);
 
 /// Whether the file starts with the map magic number (false when it cannot
 /// be read or is shorter).
