@@ -6,7 +6,10 @@
 #                                (database vs random hypotheses), starts
 #                                (20 evenly spaced starts per building at R = 15)
 # Environment: LSHLOC (the executable, default build/bin/lshloc), JOBS
-# (parallel runs, default 2), LSHLOC_DATA (the data directory).
+# (parallel runs, default 2), LSHLOC_DATA (the data directory), MAP_CACHE (a
+# directory: each scenario's map is built once, saved there with
+# `eval --save-map`, and loaded by every later run of the same scenario,
+# e.g. the order rules and the ablation's two hypothesis sources).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 LSHLOC=${LSHLOC:-build/bin/lshloc}
@@ -18,6 +21,12 @@ parts=("$@")
 run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
   local out=$1; shift
   local line
+  if [ -n "${MAP_CACHE:-}" ]; then  # the scenario's map: the arguments without the localizer's switches
+    local key
+    key=$(printf '%s ' "$@" | sed -E 's/--(order-rule|hypotheses) [^ ]+//g; s/[^A-Za-z0-9._-]+/_/g')
+    if [ -f "$MAP_CACHE/$key.map" ]; then set -- "$@" --load-map "$MAP_CACHE/$key.map"
+    else set -- "$@" --save-map "$MAP_CACHE/$key.map"; fi
+  fi
   if line=$("$LSHLOC" eval --json "$@" 2>/dev/null | tail -n 1); then
     echo "$line" >>"$out"
   else
@@ -25,7 +34,8 @@ run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
   fi
 }
 export -f run
-export LSHLOC
+export LSHLOC MAP_CACHE=${MAP_CACHE:-}
+[ -n "$MAP_CACHE" ] && mkdir -p "$MAP_CACHE"
 
 jobs_for() {  # jobs_for PART: one line per eval to run
   case $1 in

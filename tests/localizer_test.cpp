@@ -11,22 +11,13 @@
 #include "lshloc/localization/localizer.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
+#include "test_support.hpp"
 
 namespace lshloc {
 namespace {
 
-sim::SyntheticScenarioConfig small_world() {
-  sim::SyntheticScenarioConfig c;
-  c.seed = 11;
-  c.buildings = 3;
-  c.target_building = 1;
-  c.map_scans = 900;
-  c.target_scans = 300;
-  return c;
-}
-
 TEST(Localizer, FindsTheRightBuildingAndPoseInASyntheticWorld) {
-  const Scenario sc = sim::synthetic_scenario(small_world());
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
   const ScenarioRun run = run_scenario(sc, ScenarioRunConfig{});
   const auto m = evaluate_localization(run.scan_estimates(), sc.target.truth, 1);
   ASSERT_TRUE(m.final_error_m.has_value()) << "the final estimate is in the wrong building or absent";
@@ -43,7 +34,7 @@ TEST(Localizer, FindsTheRightBuildingAndPoseInASyntheticWorld) {
 TEST(Localizer, MapperScansMayArriveWhileTheTargetLocalizes) {
   // Half of every submap is mapped before the target starts; the rest
   // arrives between target scans, and the target still localizes.
-  const Scenario sc = sim::synthetic_scenario(small_world());
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
   ScenarioRunConfig config;
   config.map_share_before_target = 0.5;
   const ScenarioRun run = run_scenario(sc, config);
@@ -56,7 +47,7 @@ TEST(Localizer, MapperScansMayArriveWhileTheTargetLocalizes) {
 TEST(Localizer, SaysNotLocalizedInABuildingThatIsNotInTheMap) {
   // The target tours building 1, but the map holds buildings 0 and 2 only:
   // whatever the best hypothesis, the localizer must not be confident.
-  Scenario sc = sim::synthetic_scenario(small_world());
+  Scenario sc = sim::synthetic_scenario(test::small_world());
   sc.submaps.erase(sc.submaps.begin() + 1);
   const ScenarioRun run = run_scenario(sc, ScenarioRunConfig{});
   std::size_t confident = 0;
@@ -91,7 +82,7 @@ TEST(Localizer, RecoversWhenCarriedToAnotherBuilding) {
   // into building 2 while its odometry reports a normal step. Its local map
   // now joins two buildings; the old half still supports the old place, so
   // the recovery rests on the recent data-points (duel_recent_margin).
-  sim::SyntheticScenarioConfig c = small_world();
+  sim::SyntheticScenarioConfig c = test::small_world();
   const Scenario first = sim::synthetic_scenario(c);  // its map: building 1 without the first run's window
   c.target_building = 2;
   TargetRun second = sim::synthetic_scenario(c).target;
@@ -157,7 +148,7 @@ TEST(Localizer, KeepsItsPlaceWhileDrivingWhereTheMapKnowsNothing) {
   // the last third of the target's run (as aces' mappers never drove where
   // its default window ends): after localizing, the target drives where its
   // map holds little, and keeps its place by its own local map.
-  Scenario sc = sim::synthetic_scenario(small_world());
+  Scenario sc = sim::synthetic_scenario(test::small_world());
   const TargetRun& target = sc.target;
   const std::size_t from = 2 * target.scans.size() / 3;
   ASSERT_GT(unmap_the_end_of_the_run(sc, from, 4.0).size(), 100u) << "the test needs a sizeable unmapped part";
@@ -177,7 +168,7 @@ TEST(Localizer, GivesUpAWellSupportedPlaceOnlyForASupportedChallenger) {
   // scans within 4 m of the last third of the run and over 3 m from the
   // rest, each pose jittered by 0.2 m and 4 deg): a look-alike of the newest
   // scans that fits them better than the true place's thin map, but poorly.
-  Scenario sc = sim::synthetic_scenario(small_world());
+  Scenario sc = sim::synthetic_scenario(test::small_world());
   const TargetRun& target = sc.target;
   const std::size_t from = 2 * target.scans.size() / 3;
   std::vector<LaserScan> copy = unmap_the_end_of_the_run(sc, from, 4.0);

@@ -22,18 +22,8 @@
 namespace lshloc {
 namespace {
 
-sim::SyntheticScenarioConfig small_world() {
-  sim::SyntheticScenarioConfig c;
-  c.seed = 11;
-  c.buildings = 3;
-  c.target_building = 1;
-  c.map_scans = 600;
-  c.target_scans = 120;
-  return c;
-}
-
 const Scenario& world() {
-  static const Scenario sc = sim::synthetic_scenario(small_world());
+  static const Scenario sc = sim::synthetic_scenario(test::small_world(600, 120));
   return sc;
 }
 

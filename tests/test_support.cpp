@@ -12,6 +12,16 @@
 
 namespace lshloc::test {
 
+sim::SyntheticScenarioConfig small_world(std::size_t map_scans, std::size_t target_scans) {
+  sim::SyntheticScenarioConfig c;
+  c.seed = 11;
+  c.buildings = 3;
+  c.target_building = 1;
+  c.map_scans = map_scans;
+  c.target_scans = target_scans;
+  return c;
+}
+
 std::optional<std::string> data_dir() {
   std::error_code ec;
   if (const char* env = std::getenv("LSHLOC_DATA"); env && *env && std::filesystem::is_directory(env, ec)) return env;

@@ -2,6 +2,8 @@
 #include <optional>
 #include <string>
 
+#include "lshloc/sim/synthetic_scenario.hpp"
+
 namespace lshloc::test {
 
 /// The shared data directory if it exists ($LSHLOC_DATA, else ../shared/data
@@ -11,6 +13,10 @@ std::optional<std::string> data_dir();
 /// A fresh temporary file path with the given suffix (removed at exit is not
 /// guaranteed; files are small).
 std::string temp_path(const std::string& suffix);
+
+/// Three synthetic buildings (seed 11), the target touring building 1: the
+/// small world the end-to-end tests localize in.
+sim::SyntheticScenarioConfig small_world(std::size_t map_scans = 900, std::size_t target_scans = 300);
 
 /// Writes `text` to `path`, gzip-compressed when the path ends in .gz.
 void write_file(const std::string& path, const std::string& text);
