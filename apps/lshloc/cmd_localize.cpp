@@ -1,23 +1,25 @@
 // `lshloc localize`: global localization on a user's own logs. Each --map log
-// is one submap; the target log is localized from scratch against them.
+// is one submap (or --map loads a saved map); the target log is localized from
+// scratch against them. Answers in words, or in JSON with --json.
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <numbers>
 
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "localizer_options.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/trajectory_writer.hpp"
 #include "map_source.hpp"
 #include "scenario_report.hpp"
-#include "lshloc/common/error.hpp"
-#include "lshloc/geometry/time_join.hpp"
-#include "lshloc/io/carmen_reader.hpp"
-#include "lshloc/io/ground_truth.hpp"
-#include "lshloc/io/trajectory_writer.hpp"
 
 namespace lshloc::app {
 
@@ -31,30 +33,159 @@ struct LocalizeOptions {
   bool map_slam = false;
   std::size_t start = 0;
   std::size_t length = 0;
+  std::optional<double> from_s, to_s;
   LocalizerOptions localizer;
 };
+
+double degrees(double radians) { return radians * 180.0 / std::numbers::pi; }
+
+/// Opens `path` for writing now, so that a bad output path fails before the run.
+std::ofstream open_output(const std::string& path) {
+  std::ofstream f(path);
+  if (!f) throw Error(path + ": cannot write here (does the directory exist?)");
+  return f;
+}
+
+/// The target's window of the log: --start/--length in scans or --from/--to
+/// in seconds from the log's first scan.
+TargetRun select_target(io::CarmenLog& log, const LocalizeOptions& opt) {
+  auto& scans = log.scans;
+  if (scans.empty()) throw Error(opt.target + ": the target log has no laser scans (FLASER / ROBOTLASER1)");
+  std::size_t begin = opt.start, end = opt.length == 0 ? scans.size() : std::min(scans.size(), opt.start + opt.length);
+  if (opt.from_s || opt.to_s) {
+    const double t0 = scans.front().timestamp;
+    const double from = opt.from_s.value_or(0.0), to = opt.to_s.value_or(1e300);
+    begin = scans.size(), end = 0;
+    for (std::size_t i = 0; i < scans.size(); ++i) {
+      const double t = scans[i].timestamp - t0;
+      if (t >= from && t < to) begin = std::min(begin, i), end = i + 1;
+    }
+    if (begin >= end)
+      throw Error(opt.target + ": no scan lies between --from " + std::to_string(from) + " s and --to " +
+                  std::to_string(to) + " s (the log spans " +
+                  std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
+  } else if (begin >= scans.size()) {
+    throw Error(opt.target + ": --start " + std::to_string(begin) + " is past the log's " +
+                std::to_string(scans.size()) + " laser scans");
+  }
+  // Time stamps that go backwards usually mean merged or re-stamped logs.
+  std::size_t backwards = 0, first_backwards = 0;
+  for (std::size_t i = begin + 1; i < end; ++i) {
+    if (scans[i].timestamp < scans[i - 1].timestamp && backwards++ == 0) first_backwards = i;
+  }
+  if (backwards > 0)
+    std::fprintf(stderr,
+                 "lshloc: warning: %s: %zu scans have a time stamp earlier than the scan before (first: scan %zu, line "
+                 "%zu); they are localized in log order\n",
+                 opt.target.c_str(), backwards, first_backwards, scans[first_backwards].source_line);
+  TargetRun target;
+  target.building = opt.target;
+  target.start = begin;
+  target.scans.assign(std::make_move_iterator(scans.begin() + static_cast<std::ptrdiff_t>(begin)),
+                      std::make_move_iterator(scans.begin() + static_cast<std::ptrdiff_t>(end)));
+  target.truth.assign(target.scans.size(), std::nullopt);
+  target.laser_offset = log.front_laser_offset();
+  return target;
+}
+
+/// Per-scan CSV (one row per target scan) and TUM files of the confident
+/// poses: OUT holds those in the final answer's submap, OUT.<submap>.tum
+/// those in any other.
+void write_outputs(const std::string& out, std::ofstream& csv, const GlobalMap& map, const TargetRun& target,
+                   const ScenarioRun& run) {
+  csv << "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,score,scored,margin\n";
+  std::map<std::uint32_t, std::vector<StampedPose>> confident;
+  char buf[256];
+  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
+    const auto& e = run.estimates[i];
+    const double t = target.scans[i].timestamp;
+    if (e.has_estimate) {
+      std::snprintf(buf, sizeof buf, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%u,%.4f\n", i, target.start + i, t,
+                    map.submap_name(e.submap).c_str(), e.submap, e.pose.x, e.pose.y, degrees(e.pose.theta),
+                    e.localized ? 1 : 0, e.mean_score, e.scored, e.margin);
+      if (e.localized) confident[e.submap].push_back({t, e.pose});
+    } else {
+      std::snprintf(buf, sizeof buf, "%zu,%zu,%.6f,,,,,,0,,,\n", i, target.start + i, t);
+    }
+    csv << buf;
+  }
+  csv.close();
+  if (!csv) throw Error(out + ".csv: cannot write");
+  const auto& last = run.estimates.back();
+  const std::uint32_t main = last.has_estimate ? last.submap : (confident.empty() ? 0 : confident.begin()->first);
+  io::write_tum_trajectory(out, confident[main]);
+  for (const auto& [submap, poses] : confident) {
+    if (submap == main) continue;
+    std::string name = map.submap_name(submap);
+    for (char& c : name)
+      if (c == '/' || c == ' ') c = '_';
+    io::write_tum_trajectory(out + "." + name + ".tum", poses);
+  }
+}
+
+void print_answer(const nlohmann::json& j) {
+  const double scans = j["scans"].get<double>();
+  if (j["localized"].get<bool>()) {
+    std::printf("Localized in %s: x %.3f m, y %.3f m, heading %.1f deg (the laser, in that submap's frame)\n",
+                j["final_submap"].get<std::string>().c_str(), j["final_pose"][0].get<double>(),
+                j["final_pose"][1].get<double>(), j["final_heading_deg"].get<double>());
+    std::printf("  confident since scan %zu (%.1f s into the run), at %zu of %.0f scans\n",
+                j["first_localized_at"].get<std::size_t>(), j["first_localized_time_s"].get<double>(),
+                j["confident_scans"].get<std::size_t>(), scans);
+  } else if (!j["final_submap"].is_null()) {
+    std::printf(
+        "Not localized: no confident answer at the last of %.0f scans. Best guess (not confident): %s, x %.3f "
+        "m, y %.3f m, heading %.1f deg\n",
+        scans, j["final_submap"].get<std::string>().c_str(), j["final_pose"][0].get<double>(),
+        j["final_pose"][1].get<double>(), j["final_heading_deg"].get<double>());
+    if (!j["first_localized_at"].is_null())
+      std::printf("  it was confident at %zu scans, first at scan %zu\n", j["confident_scans"].get<std::size_t>(),
+                  j["first_localized_at"].get<std::size_t>());
+  } else {
+    std::printf("Not localized: no hypothesis in %.0f scans (is this building in the map?)\n", scans);
+  }
+  std::printf(
+      "  confidence at the last scan: mean score %.3f over %u points, lead %.3f over the best place elsewhere\n",
+      j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(), j["final_margin"].get<double>());
+  std::printf(
+      "  cost: %.0f scans (%.1f s of log) in %.2f s CPU: %.2f ms per scan, %.0fx real time; the map took %.1f s\n",
+      scans, j["log_s"].get<double>(), j["localize_cpu_s"].get<double>(), j["ms_per_scan"].get<double>(),
+      j["realtime_factor"].get<double>(), j["map_s"].get<double>());
+}
 
 }  // namespace
 
 void add_localize_command(CLI::App& app, GlobalOptions& global) {
   auto opt = std::make_shared<LocalizeOptions>();
-  auto* cmd = app.add_subcommand("localize",
-                                 "Localize a target robot's log in a global map made of one or more mapped logs,\n"
-                                 "or of a saved map (`lshloc map build`) and more logs.\n"
-                                 "Each --map LOG is a submap posed by its own FLASER poses (a corrected log; with\n"
-                                 "--map-slam, a raw log posed by lshloc's SLAM), or --map LOG,POSES takes the\n"
-                                 "poses from a `timestamp x y theta` file; --map FILE.map loads a saved map.\n"
-                                 "Writes the estimated trajectory (TUM; a side CSV names the submap of each scan).");
+  auto* cmd = app.add_subcommand(
+      "localize",
+      "Localize a target robot's log in a global map made of one or more mapped logs,\n"
+      "or of a saved map (`lshloc map build`) and more logs, from no initial guess.\n"
+      "Each --map LOG is a submap posed by its own FLASER poses (a corrected log), --map LOG,slam\n"
+      "(or --map-slam) poses a raw log by lshloc's SLAM, --map LOG,POSES takes the poses from a\n"
+      "`timestamp x y theta` file (laser poses) or a TUM trajectory (robot poses, as `lshloc slam\n"
+      "--out` writes); --map FILE.map loads a saved map.\n"
+      "Prints where the robot is (submap, x, y, heading), since when it is confident and what it cost;\n"
+      "--json prints the same as one JSON line. --out T.tum writes T.tum.csv (one row per target scan)\n"
+      "and T.tum: the confident poses in the final answer's submap (those in other submaps, if any,\n"
+      "in T.tum.<submap>.tum).");
   cmd->add_option("--map", opt->maps,
                   "map log (LOG, LOG,POSES or LOG,slam), or a saved map file (at most one); repeat for several "
                   "submaps")
       ->required();
   cmd->add_option("--target", opt->target, "the target robot's raw log (odometry + scans)")->required();
-  cmd->add_option("--start", opt->start, "first scan of the target log to localize")->capture_default_str();
-  cmd->add_option("--length", opt->length, "scans of the target log to localize (0: to the end)")
-      ->capture_default_str();
-  cmd->add_option("--out", opt->out, "estimated trajectory, TUM format (plus OUT.csv with submap per scan)");
-  cmd->add_flag("--json", opt->json, "print a JSON summary line");
+  auto* start =
+      cmd->add_option("--start", opt->start, "first scan of the target log to localize")->capture_default_str();
+  auto* length = cmd->add_option("--length", opt->length, "scans of the target log to localize (0: to the end)")
+                     ->capture_default_str();
+  cmd->add_option("--from", opt->from_s, "[s] localize from this time after the log's first scan")
+      ->excludes(start)
+      ->excludes(length);
+  cmd->add_option("--to", opt->to_s, "[s] ... up to this time after the log's first scan")
+      ->excludes(start)
+      ->excludes(length);
+  cmd->add_option("--out", opt->out, "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan");
+  cmd->add_flag("--json", opt->json, "print the answer as one JSON line");
   cmd->add_flag("--map-slam", opt->map_slam,
                 "map logs given without a poses file are raw logs: pose their scans by lshloc's SLAM (scan matching "
                 "and loop closure) instead of taking their FLASER poses");
@@ -62,6 +193,15 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   cmd->callback([opt, &global] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
+    // Output paths first: a typo must not cost a whole run.
+    std::ofstream csv;
+    if (!opt->out.empty()) {
+      open_output(opt->out).close();
+      csv = open_output(opt->out + ".csv");
+    }
+    io::CarmenLog target_log = io::read_carmen_log(opt->target);
+    TargetRun target = select_target(target_log, *opt);
+
     ScenarioRunConfig config = make_run_config(opt->localizer);
     const auto t0 = std::chrono::steady_clock::now();
     std::unique_ptr<GlobalMap> map;
@@ -79,19 +219,6 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     if (!logs.empty()) MapFeeder(*map, logs).feed_until(1.0);
     const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-    io::CarmenLog target_log = io::read_carmen_log(opt->target);
-    if (target_log.scans.size() <= opt->start)
-      throw Error(opt->target + ": --start " + std::to_string(opt->start) + " is past the log's " +
-                  std::to_string(target_log.scans.size()) + " laser scans");
-    TargetRun target;
-    target.building = opt->target;
-    target.start = opt->start;
-    const std::size_t end =
-        opt->length == 0 ? target_log.scans.size() : std::min(target_log.scans.size(), opt->start + opt->length);
-    target.scans.assign(std::make_move_iterator(target_log.scans.begin() + static_cast<std::ptrdiff_t>(opt->start)),
-                        std::make_move_iterator(target_log.scans.begin() + static_cast<std::ptrdiff_t>(end)));
-    target.truth.assign(target.scans.size(), std::nullopt);
-    target.laser_offset = target_log.front_laser_offset();
     const bool tty = isatty(fileno(stderr));
     ScenarioRun run = localize_target(*map, target, config.localizer, [&](std::size_t done, std::size_t total) {
       if (tty && (done % 25 == 0 || done == total)) {
@@ -100,45 +227,44 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       }
     });
     run.map_build_s = map_s;
+    if (!opt->out.empty()) write_outputs(opt->out, csv, *map, target, run);
+
     std::optional<std::size_t> first_localized;
+    std::size_t confident = 0;
     for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-      if (run.estimates[i].localized) {
-        first_localized = i;
-        break;
-      }
-    }
-    if (!opt->out.empty()) {
-      std::vector<StampedPose> trajectory;
-      std::ofstream csv(opt->out + ".csv");
-      if (!csv) throw Error(opt->out + ".csv: cannot write");
-      csv << "# timestamp,submap,submap_name,localized,x,y,theta,mean_score\n";
-      for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-        const auto& e = run.estimates[i];
-        if (!e.has_estimate) continue;
-        trajectory.push_back({target.scans[i].timestamp, e.pose});
-        csv << std::to_string(target.scans[i].timestamp) << ',' << e.submap << ',' << map->submap_name(e.submap) << ','
-            << (e.localized ? 1 : 0) << ',' << e.pose.x << ',' << e.pose.y << ',' << e.pose.theta << ',' << e.mean_score
-            << '\n';
-      }
-      io::write_tum_trajectory(opt->out, trajectory);
+      if (!run.estimates[i].localized) continue;
+      ++confident;
+      if (!first_localized) first_localized = i;
     }
     const auto& last = run.estimates.back();
+    const double t_first = target.scans.front().timestamp;
     nlohmann::json j;
+    j["target"] = opt->target;
+    j["start"] = target.start;
     j["scans"] = run.estimates.size();
     j["submaps"] = map->submap_count();
     j["map_features"] = run.map.features;
     j["localized"] = last.localized;
+    j["confident_scans"] = confident;
     j["first_localized_at"] = first_localized ? nlohmann::json(*first_localized) : nlohmann::json();
+    j["first_localized_time_s"] =
+        first_localized ? nlohmann::json(target.scans[*first_localized].timestamp - t_first) : nlohmann::json();
     j["final_submap"] = last.has_estimate ? nlohmann::json(map->submap_name(last.submap)) : nlohmann::json();
+    j["final_submap_id"] = last.has_estimate ? nlohmann::json(last.submap) : nlohmann::json();
     j["final_pose"] =
         last.has_estimate ? nlohmann::json({last.pose.x, last.pose.y, last.pose.theta}) : nlohmann::json();
+    j["final_heading_deg"] = last.has_estimate ? nlohmann::json(degrees(last.pose.theta)) : nlohmann::json();
     j["final_mean_score"] = last.mean_score;
+    j["final_scored"] = last.scored;
+    j["final_margin"] = last.margin;
+    j["log_s"] = run.log_duration_s;
+    j["localize_cpu_s"] = run.localize_cpu_s;
     j["map_s"] = map_s;
     add_localizer_cost(j, run);
     if (opt->json) {
       std::printf("%s\n", j.dump().c_str());
     } else {
-      std::printf("%s\n", j.dump(2).c_str());
+      print_answer(j);
     }
   });
 }

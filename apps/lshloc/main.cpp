@@ -4,6 +4,7 @@
 #include <exception>
 
 #include "commands.hpp"
+#include "lshloc/io/map_store.hpp"
 #include "lshloc/common/error.hpp"
 
 int main(int argc, char** argv) {
@@ -11,6 +12,8 @@ int main(int argc, char** argv) {
       "lshloc: finds a 2D-laser robot's building and pose (x, y, heading) in a global map of many\n"
       "buildings that mapper robots are still building (LSH-RANSAC: an incremental LSH appearance\n"
       "database proposes poses, incremental preemptive RANSAC verifies them).\n"};
+  app.set_version_flag(
+      "--version", "lshloc " LSHLOC_VERSION " (map file format " + std::to_string(lshloc::io::kMapFormatVersion) + ")");
   app.require_subcommand(1);
   lshloc::app::GlobalOptions global;
   app.add_option("--data", global.data_dir,

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -11,8 +12,50 @@
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/ground_truth.hpp"
+#include "lshloc/io/line_reader.hpp"
+#include "lshloc/io/trajectory_writer.hpp"
 
 namespace lshloc::app {
+
+namespace {
+
+/// The fields of the first data line of a text file (0: no data line).
+std::size_t first_line_fields(const std::string& path) {
+  io::LineReader lines(path);
+  std::string line;
+  while (lines.next(line)) {
+    std::istringstream in(line);
+    std::string field;
+    std::size_t n = 0;
+    while (in >> field) {
+      if (n == 0 && field.front() == '#') break;
+      ++n;
+    }
+    if (n > 0) return n;
+  }
+  return 0;
+}
+
+/// Laser poses from a poses file: `timestamp x y theta` lines (laser poses,
+/// as the benchmark's pose files hold them) or a TUM trajectory (`timestamp
+/// x y z qx qy qz qw`, robot poses as `lshloc slam --out` and most SLAM
+/// tools write them, turned into laser poses by the log's laser offset).
+std::vector<StampedPose> read_map_poses(const std::string& path, const Pose2& laser_offset) {
+  const std::size_t fields = first_line_fields(path);
+  if (fields == 8) {
+    std::fprintf(stderr, "lshloc: %s: read as a TUM trajectory of robot poses\n", path.c_str());
+    std::vector<StampedPose> poses = io::read_tum_trajectory(path);
+    for (StampedPose& p : poses) p.pose = p.pose * laser_offset;
+    return poses;
+  }
+  if (fields == 4) return io::read_pose_file(path);
+  throw Error(path +
+              ": expected a poses file of `timestamp x y theta` lines (laser poses) or a TUM trajectory "
+              "(`timestamp x y z qx qy qz qw`, robot poses); its first line has " +
+              std::to_string(fields) + " fields");
+}
+
+}  // namespace
 
 Submap load_map_argument(const std::string& arg, bool slam) {
   const auto comma = arg.find(',');
@@ -28,12 +71,19 @@ Submap load_map_argument(const std::string& arg, bool slam) {
       s.scans = slam_mapped_scans(scans, log.front_laser_offset());
       s.poses_from_slam = true;
     } else {
+      if (!log.gmapping_corrected()) {
+        std::fprintf(stderr,
+                     "lshloc: warning: %s: its submap takes the log's own scan poses, and the log has no GMapping "
+                     "marks (NEFF): if it is a raw log these are odometry, which drifts. Give LOG,POSES, LOG,slam or "
+                     "--map-slam for a raw log.\n",
+                     log_path.c_str());
+      }
       s.scans = std::move(scans);
     }
     return s;
   }
   const std::string poses_path = arg.substr(comma + 1);
-  const auto poses = io::read_pose_file(poses_path);
+  const auto poses = read_map_poses(poses_path, log.front_laser_offset());
   std::vector<double> query, reference;
   for (const auto& sc : scans) query.push_back(sc.timestamp);
   for (const auto& p : poses) reference.push_back(p.timestamp);

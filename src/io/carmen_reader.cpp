@@ -150,7 +150,8 @@ bool CarmenReader::next(CarmenRecord& record) {
         if (v > 0.0 && std::isfinite(v)) flaser_max_range_ = v;
       }
     } else {
-      continue;  // NEFF, SYNC, RAWLASER*, ...: not ours
+      ++skipped_[std::string(type)];  // NEFF, SYNC, RAWLASER*, ...: not ours, but telling (NEFF: GMapping)
+      continue;
     }
     record.message = type;
     if (record.type == CarmenRecord::Type::kLaser) record.scan.source_line = lines_.line_number();
@@ -189,6 +190,7 @@ CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& con
         break;
     }
   }
+  log.skipped_messages = reader.skipped();
   return log;
 }
 

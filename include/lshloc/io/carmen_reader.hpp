@@ -51,6 +51,9 @@ class CarmenReader {
   bool next(CarmenRecord& record);
 
   const std::string& path() const { return lines_.path(); }
+  /// Messages of other types passed over so far, by type (e.g. NEFF, which
+  /// GMapping writes into the logs it corrects).
+  const std::map<std::string, std::size_t>& skipped() const { return skipped_; }
 
  private:
   void parse_flaser(const std::string& where, CarmenRecord& record);
@@ -63,6 +66,7 @@ class CarmenReader {
   double flaser_max_range_;
   std::string line_;
   std::vector<std::string_view> fields_;
+  std::map<std::string, std::size_t> skipped_;
 };
 
 /// A whole log in memory (the scans, odometry and parameters).
@@ -71,6 +75,11 @@ struct CarmenLog {
   std::vector<LaserScan> scans;
   std::vector<OdometryReading> odometry;
   std::map<std::string, std::string> params;
+  std::map<std::string, std::size_t> skipped_messages;  ///< other message types, counted by type
+
+  /// Whether GMapping corrected the log (it writes NEFF messages): its scan
+  /// poses are then map poses, not odometry.
+  bool gmapping_corrected() const { return skipped_messages.count("NEFF") != 0; }
 
   /// The front laser's mounting pose on the robot (PARAM
   /// robot_frontlaser_offset, metres forward), identity when absent.
