@@ -36,6 +36,21 @@ assert rows[-1]["submap"] == j["final_submap"] == "sim-3-001-corrected.log.gz"
 assert abs(float(rows[-1]["heading_deg"]) - j["final_heading_deg"]) < 1e-3
 PY
 
+# The target from stdin: each scan's estimate as it arrives, the same as from the file.
+# (Reading stops after 150 scans, so zcat may end by SIGPIPE: not a pipeline.)
+"$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 150 >"$d/stream.csv" 2>"$d/stream.err" \
+  < <(zcat "$b/sim-3-001.log.gz")
+python3 - "$d/stream.csv" "$d/t.tum.csv" <<'PY' || fail "the stdin stream differs from the file run"
+import csv, sys
+stream = list(csv.DictReader(open(sys.argv[1])))
+rows = list(csv.DictReader(open(sys.argv[2])))
+assert len(stream) == len(rows) == 150, (len(stream), len(rows))
+for s, r in zip(stream, rows):
+    for k in ("log_scan", "submap", "x", "y", "heading_deg", "confident"):
+        assert s[k] == r[k], (k, s[k], r[k])
+PY
+grep -q "^Localized in" "$d/stream.err" || fail "no answer after the stream: $(cat "$d/stream.err")"
+
 # A bad output path fails at once, before anything is read.
 if "$LSHLOC" localize "${maps[@]}" "${target[@]}" --out "$d/no/such/dir/t.tum" >/dev/null 2>"$d/err.txt"; then
   fail "an unwritable --out was accepted"

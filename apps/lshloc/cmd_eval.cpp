@@ -42,13 +42,6 @@ struct EvalOptions {
   LocalizerOptions localizer;
 };
 
-std::size_t default_start(const std::string& building) {
-  static const std::map<std::string, std::size_t> starts = {
-      {"fr079", 2000}, {"fr101", 2000}, {"intel", 5000}, {"aces", 3000}};
-  const auto it = starts.find(building);
-  return it == starts.end() ? 0 : it->second;
-}
-
 struct TruthRank {
   std::size_t near = 0;  ///< active hypotheses within 0.5 m / 5 deg of the truth
   std::size_t rank = 0;  ///< preference rank of the best of them (0 = reported)
@@ -267,7 +260,7 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
   add_localizer_options(*cmd, opt->localizer, /*research_flags=*/true);
   cmd->callback([&global, opt, cmd] {
     if (print_config_if_asked(opt->localizer)) return;
-    if (cmd->count("--start") == 0) opt->scenario.start = default_start(opt->scenario.building);
+    if (cmd->count("--start") == 0) opt->scenario.start = default_window_start(opt->scenario.building);
     const io::DatasetCatalog catalog(global.resolved_data_dir());
     std::vector<io::ErrorSeries> curves;
     if ((!opt->save_map.empty() || !opt->load_map.empty()) && opt->submaps.size() > 1)

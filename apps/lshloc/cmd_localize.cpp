@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,8 @@
 #include "commands.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/figures/figures.hpp"
+#include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
 #include "map_source.hpp"
@@ -29,6 +32,7 @@ struct LocalizeOptions {
   std::vector<std::string> maps;
   std::string target;
   std::string out;
+  std::string plot_dir;
   bool json = false;
   bool map_slam = false;
   std::size_t start = 0;
@@ -123,6 +127,97 @@ void write_outputs(const std::string& out, std::ofstream& csv, const GlobalMap& 
   }
 }
 
+/// --plot: the run over the final answer's submap (its walls from the map
+/// log's scans, or its features for a saved map) and the confidence over time.
+void write_plots(const std::string& dir, const std::string& target_path, const GlobalMap& map,
+                 const std::vector<Submap>& logs, std::uint32_t first_log_submap, const ScenarioRun& run) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw Error(dir + ": cannot create the figure directory: " + ec.message());
+  std::string stem = std::filesystem::path(target_path).filename().string();
+  for (const char* ext : {".gz", ".log", ".clf"})
+    if (stem.ends_with(ext)) stem.resize(stem.size() - std::strlen(ext));
+  stem = dir + "/" + stem;
+  const auto& last = run.estimates.back();
+  const std::uint32_t submap = last.has_estimate ? last.submap : 0;
+  io::MapFigure fig;
+  fig.title = std::string(last.localized ? "localized in " : "not localized; best guess in ") +
+              map.submap_name(submap) + ": confident estimates (blue), guesses (orange)";
+  if (submap >= first_log_submap && submap - first_log_submap < logs.size()) {
+    for (const LaserScan& scan : logs[submap - first_log_submap].scans)
+      for (const Point2& p : scan.endpoints(0.05, 20.0)) fig.map_points.push_back(scan.pose.transform(p));
+  } else {
+    for (const MapLocation& l : map.locations().locations())
+      if (l.submap == submap) fig.map_points.emplace_back(l.x, l.y);
+  }
+  thin_to_voxels(fig.map_points, 0.05);
+  io::ConfidenceSeries confidence;
+  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
+    const auto& e = run.estimates[i];
+    confidence.scan.push_back(static_cast<double>(i));
+    confidence.mean_score.push_back(e.has_estimate ? e.mean_score : 0.0);
+    confidence.confident.push_back(e.localized);
+    if (e.has_estimate && e.submap == submap)
+      (e.localized ? fig.estimated_trajectory : fig.guesses).push_back(e.pose.translation());
+  }
+  for (const char* ext : {".png", ".svg"}) {
+    io::plot_map_figure(stem + "-map" + ext, fig);
+    io::plot_confidence(stem + "-confidence" + ext, "confidence over the run", confidence);
+  }
+  std::fprintf(stderr, "figures: %s-{map,confidence}.{png,svg}\n", stem.c_str());
+}
+
+/// The target from stdin ("-"): each scan is localized as it arrives and its
+/// estimate printed at once (a CSV row, or a JSON line with --json); the
+/// answer follows on stderr at the end of the stream.
+void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const LocalizeOptions& opt) {
+  io::CarmenReader reader("-");
+  io::CarmenLog params;  // the PARAM lines seen before the first scan (the laser offset)
+  std::unique_ptr<Localizer> localizer;
+  io::CarmenRecord rec;
+  std::size_t index = 0, done = 0, confident = 0;
+  std::optional<std::size_t> first_confident;
+  LocalizationEstimate last;
+  if (!opt.json) std::printf("scan,log_scan,time,submap,x,y,heading_deg,confident,score\n");
+  while ((opt.length == 0 || done < opt.length) && reader.next(rec)) {
+    if (rec.type == io::CarmenRecord::Type::kParam) params.params[rec.param_name] = rec.param_value;
+    if (rec.type != io::CarmenRecord::Type::kLaser || index++ < opt.start) continue;
+    if (!localizer)
+      localizer = std::make_unique<Localizer>(map, with_target_laser_offset(config, params.front_laser_offset()));
+    const LocalizationEstimate e = localizer->add_scan(rec.scan);
+    const std::string submap = e.has_estimate ? map.submap_name(e.submap) : "";
+    if (opt.json) {
+      nlohmann::json j = {
+          {"scan", done}, {"log_scan", index - 1}, {"time", rec.scan.timestamp}, {"confident", e.localized}};
+      if (e.has_estimate)
+        j.update({{"submap", submap},
+                  {"pose", {e.pose.x, e.pose.y, e.pose.theta}},
+                  {"heading_deg", degrees(e.pose.theta)},
+                  {"score", e.mean_score}});
+      std::printf("%s\n", j.dump().c_str());
+    } else if (e.has_estimate) {
+      std::printf("%zu,%zu,%.6f,%s,%.4f,%.4f,%.3f,%d,%.4f\n", done, index - 1, rec.scan.timestamp, submap.c_str(),
+                  e.pose.x, e.pose.y, degrees(e.pose.theta), e.localized ? 1 : 0, e.mean_score);
+    } else {
+      std::printf("%zu,%zu,%.6f,,,,,0,\n", done, index - 1, rec.scan.timestamp);
+    }
+    std::fflush(stdout);
+    if (e.localized && !first_confident) first_confident = done;
+    confident += e.localized;
+    last = e;
+    ++done;
+  }
+  if (done == 0)
+    throw Error("stdin: no laser scan (FLASER / ROBOTLASER1) after the first " + std::to_string(opt.start));
+  if (last.localized)
+    std::fprintf(stderr,
+                 "Localized in %s: x %.3f m, y %.3f m, heading %.1f deg; confident since scan %zu, at %zu of %zu\n",
+                 map.submap_name(last.submap).c_str(), last.pose.x, last.pose.y, degrees(last.pose.theta),
+                 *first_confident, confident, done);
+  else
+    std::fprintf(stderr, "Not localized after %zu scans\n", done);
+}
+
 void print_answer(const nlohmann::json& j) {
   const double scans = j["scans"].get<double>();
   if (j["localized"].get<bool>()) {
@@ -173,7 +268,10 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
                   "map log (LOG, LOG,POSES or LOG,slam), or a saved map file (at most one); repeat for several "
                   "submaps")
       ->required();
-  cmd->add_option("--target", opt->target, "the target robot's raw log (odometry + scans)")->required();
+  cmd->add_option("--target", opt->target,
+                  "the target robot's raw log (odometry + scans); - reads a plain-text log from stdin and prints each "
+                  "scan's estimate as it arrives")
+      ->required();
   auto* start =
       cmd->add_option("--start", opt->start, "first scan of the target log to localize")->capture_default_str();
   auto* length = cmd->add_option("--length", opt->length, "scans of the target log to localize (0: to the end)")
@@ -186,6 +284,9 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       ->excludes(length);
   cmd->add_option("--out", opt->out, "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan");
   cmd->add_flag("--json", opt->json, "print the answer as one JSON line");
+  cmd->add_option("--plot", opt->plot_dir,
+                  "write figures (PNG and SVG) into this directory: the run over the answer's submap, and the "
+                  "confidence over time");
   cmd->add_flag("--map-slam", opt->map_slam,
                 "map logs given without a poses file are raw logs: pose their scans by lshloc's SLAM (scan matching "
                 "and loop closure) instead of taking their FLASER poses");
@@ -199,8 +300,15 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       open_output(opt->out).close();
       csv = open_output(opt->out + ".csv");
     }
-    io::CarmenLog target_log = io::read_carmen_log(opt->target);
-    TargetRun target = select_target(target_log, *opt);
+    const bool stream = opt->target == "-";
+    if (stream && (opt->from_s || opt->to_s || !opt->out.empty() || !opt->plot_dir.empty()))
+      throw Error("--target -: the stream is localized scan by scan; --from/--to, --out and --plot need a log file");
+    io::CarmenLog target_log;
+    TargetRun target;
+    if (!stream) {
+      target_log = io::read_carmen_log(opt->target);
+      target = select_target(target_log, *opt);
+    }
 
     ScenarioRunConfig config = make_run_config(opt->localizer);
     const auto t0 = std::chrono::steady_clock::now();
@@ -216,9 +324,14 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       }
     }
     if (!map) map = std::make_unique<GlobalMap>(config.map);
+    const auto first_log_submap = static_cast<std::uint32_t>(map->submap_count());
     if (!logs.empty()) MapFeeder(*map, logs).feed_until(1.0);
     const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
+    if (stream) {
+      localize_stream(*map, config.localizer, *opt);
+      return;
+    }
     const bool tty = isatty(fileno(stderr));
     ScenarioRun run = localize_target(*map, target, config.localizer, [&](std::size_t done, std::size_t total) {
       if (tty && (done % 25 == 0 || done == total)) {
@@ -228,6 +341,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     });
     run.map_build_s = map_s;
     if (!opt->out.empty()) write_outputs(opt->out, csv, *map, target, run);
+    if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, opt->target, *map, logs, first_log_submap, run);
 
     std::optional<std::size_t> first_localized;
     std::size_t confident = 0;

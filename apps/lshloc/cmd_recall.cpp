@@ -90,7 +90,8 @@ void add_recall_command(CLI::App& app, GlobalOptions& global) {
                          "beside exact-L2 recall and the per-feature insert and query times.");
   auto opt = std::make_shared<RecallOptions>();
   cmd->add_option("--building", opt->scenario.building, "target building")->capture_default_str();
-  cmd->add_option("--start", opt->scenario.start, "first raw scan of the target window")->capture_default_str();
+  cmd->add_option("--start", opt->scenario.start,
+                  "first raw scan of the target window (default: the building's default window, as for eval)");
   cmd->add_option("--length", opt->scenario.length, "raw scans in the target window")->capture_default_str();
   cmd->add_option("--submaps", opt->scenario.submaps, "R: submaps in the global map")->capture_default_str();
   cmd->add_option("--k", opt->k, "locations retrieved per query (recall_at_k)")->capture_default_str();
@@ -107,7 +108,8 @@ void add_recall_command(CLI::App& app, GlobalOptions& global) {
          "JSON file of settings (the shape --print-config writes; any subset): extractor, lsh, context, match radii")
       ->trigger_on_parse();
   cmd->add_flag("--print-config", opt->print_config, "print the effective settings as JSON and exit");
-  cmd->callback([&global, opt] {
+  cmd->callback([&global, opt, cmd] {
+    if (cmd->count("--start") == 0) opt->scenario.start = default_window_start(opt->scenario.building);
     if (opt->print_config) {
       std::printf("%s\n", nlohmann::json(static_cast<const PlaceRecallConfig&>(*opt)).dump(2).c_str());
       return;

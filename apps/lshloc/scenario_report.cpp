@@ -85,7 +85,7 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
 
   io::MapFigure fig;
   fig.title = sc.config.building + " (submap " + std::to_string(sc.target_submap) +
-              "): true (green) and estimated (blue) trajectory";
+              "): true trajectory (green), confident estimates (blue), guesses (orange)";
   // One point per 5 cm cell: the figure shows the walls, and its SVG stays
   // small. (A run on a saved map has no submap scans: no walls drawn.)
   if (sc.target_submap < sc.submaps.size()) {
@@ -97,7 +97,8 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     if (sc.target.truth[i]) fig.true_trajectory.push_back(sc.target.truth[i]->translation());
     const auto& e = run.estimates[i];
-    if (e.has_estimate && e.submap == sc.target_submap) fig.estimated_trajectory.push_back(e.pose.translation());
+    if (e.has_estimate && e.submap == sc.target_submap)
+      (e.localized ? fig.estimated_trajectory : fig.guesses).push_back(e.pose.translation());
   }
   if (!run.estimates.empty() && run.estimates.back().submap == sc.target_submap) {
     fig.inlier_points = run.final_inliers;

@@ -17,6 +17,13 @@ const std::vector<std::string>& canonical_building_order() {
   return order;
 }
 
+std::size_t default_window_start(const std::string& building) {
+  if (building == "fr079" || building == "fr101") return 2000;
+  if (building == "intel") return 5000;
+  if (building == "aces") return 3000;
+  return 0;
+}
+
 std::vector<std::string> other_buildings(const ScenarioConfig& config) {
   const auto& all = canonical_building_order();
   if (std::find(all.begin(), all.end(), config.building) == all.end()) {

@@ -41,25 +41,28 @@ void MapFeeder::feed_until(double share) {
   }
 }
 
-ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
-                            const Progress& progress, const LocalizerObserver& observer,
-                            const BeforeScan& before_scan) {
-  ScenarioRun run;
+LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& target_offset) {
   // The laser offset comes from the target's log; a config may give one for
   // a log without it, but never another one than the log's.
   const Pose2& given = config.scan_matcher.laser_offset;
   const bool config_sets = given.x != 0.0 || given.y != 0.0 || given.theta != 0.0;
-  const bool log_sets =
-      target.laser_offset.x != 0.0 || target.laser_offset.y != 0.0 || target.laser_offset.theta != 0.0;
+  const bool log_sets = target_offset.x != 0.0 || target_offset.y != 0.0 || target_offset.theta != 0.0;
   if (config_sets && log_sets &&
-      (given.x != target.laser_offset.x || given.y != target.laser_offset.y ||
-       given.theta != target.laser_offset.theta)) {
+      (given.x != target_offset.x || given.y != target_offset.y || given.theta != target_offset.theta)) {
     throw Error("LocalizerConfig.scan_matcher.laser_offset: expected none or the target log's (" +
-                std::to_string(target.laser_offset.x) + ", " + std::to_string(target.laser_offset.y) + ", " +
-                std::to_string(target.laser_offset.theta) + "), got (" + std::to_string(given.x) + ", " +
+                std::to_string(target_offset.x) + ", " + std::to_string(target_offset.y) + ", " +
+                std::to_string(target_offset.theta) + "), got (" + std::to_string(given.x) + ", " +
                 std::to_string(given.y) + ", " + std::to_string(given.theta) + ")");
   }
-  if (!config_sets) config.scan_matcher.laser_offset = target.laser_offset;
+  if (!config_sets) config.scan_matcher.laser_offset = target_offset;
+  return config;
+}
+
+ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
+                            const Progress& progress, const LocalizerObserver& observer,
+                            const BeforeScan& before_scan) {
+  ScenarioRun run;
+  config = with_target_laser_offset(config, target.laser_offset);
   Localizer localizer(map, config);
   const auto& scans = target.scans;
   run.estimates.reserve(scans.size());

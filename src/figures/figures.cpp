@@ -116,7 +116,9 @@ struct Axes {
     }
     const double span = hi - lo, raw = span / 6, mag = std::pow(10.0, std::floor(std::log10(raw)));
     const double step = raw / mag < 2 ? 2 * mag : raw / mag < 5 ? 5 * mag : 10 * mag;
-    for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * span; v += step) t.push_back(v);
+    // A tick at zero is 0, not "-0" (ceil of a small negative) or "1e-17" (sums of steps).
+    for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * span; v += step)
+      t.push_back(std::abs(v) < 1e-9 * step ? 0.0 : v);
     return t;
   }
   void draw(Figure& f, const std::string& title, const std::string& xlabel, const std::string& ylabel) const {
@@ -187,6 +189,31 @@ void plot_error_curves(const std::string& path, const std::string& title, const 
   f.close();
 }
 
+void plot_confidence(const std::string& path, const std::string& title, const ConfidenceSeries& s) {
+  Figure f(path);
+  double xmax = 1, ymax = 1;
+  for (double x : s.scan) xmax = std::max(xmax, x);
+  for (double y : s.mean_score) ymax = std::max(ymax, y);
+  const Axes ax{0, xmax, 0, ymax * 1.1, false, false};
+  ax.draw(f, title, "target scan", "mean score of the answer (green band: confident)");
+  cairo_t* cr = f.cr();
+  cairo_set_source_rgb(cr, 0.1, 0.6, 0.1);
+  const double step = (ax.tx(xmax) - ax.tx(0)) / std::max<double>(1.0, static_cast<double>(s.scan.size()));
+  for (std::size_t i = 0; i < s.scan.size() && i < s.confident.size(); ++i)
+    if (s.confident[i]) cairo_rectangle(cr, ax.tx(s.scan[i]) - step / 2, ax.ty(ax.y1), step + 0.5, 8);
+  cairo_fill(cr);
+  cairo_set_source_rgb(cr, 0.12, 0.47, 0.71);
+  cairo_set_line_width(cr, 1.4);
+  for (std::size_t i = 0; i < s.scan.size() && i < s.mean_score.size(); ++i) {
+    if (i == 0)
+      cairo_move_to(cr, ax.tx(s.scan[i]), ax.ty(s.mean_score[i]));
+    else
+      cairo_line_to(cr, ax.tx(s.scan[i]), ax.ty(s.mean_score[i]));
+  }
+  cairo_stroke(cr);
+  f.close();
+}
+
 void plot_cost_curves(const std::string& path, const std::string& title, const std::string& y_label,
                       const std::vector<CostSeries>& series) {
   Figure f(path);
@@ -231,7 +258,7 @@ void plot_map_figure(const std::string& path, const MapFigure& fig) {
     for (const auto& p : pts)
       x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x()), y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
   };
-  grow(fig.map_points), grow(fig.true_trajectory), grow(fig.estimated_trajectory);
+  grow(fig.map_points), grow(fig.true_trajectory), grow(fig.estimated_trajectory), grow(fig.guesses);
   if (!(x1 > x0)) x0 = -1, x1 = 1;
   if (!(y1 > y0)) y0 = -1, y1 = 1;
   // Equal scale on both axes.
@@ -259,19 +286,23 @@ void plot_map_figure(const std::string& path, const MapFigure& fig) {
     }
     cairo_stroke(cr);
   };
+  const Rgb truth{0.1, 0.55, 0.1}, estimate{0.12, 0.47, 0.71}, guess{0.95, 0.6, 0.2};
   dots(fig.map_points, {0.6, 0.6, 0.6}, 0.6);
-  line(fig.true_trajectory, {0.17, 0.63, 0.17}, 2.5);
-  dots(fig.estimated_trajectory, {0.12, 0.47, 0.71}, 1.6);
+  dots(fig.guesses, guess, 1.2);
+  dots(fig.estimated_trajectory, estimate, 2.0);
+  line(fig.true_trajectory, truth, 1.2);  // on top, thin: visible beside and under the estimate
   dots(fig.outlier_points, {0.84, 0.15, 0.16}, 1.5);
   dots(fig.inlier_points, {0.12, 0.3, 0.9}, 1.5);
   cairo_reset_clip(cr);
+  std::vector<std::pair<const char*, Rgb>> keys;
+  if (!fig.true_trajectory.empty()) keys.push_back({"true trajectory", truth});
+  keys.push_back({"confident estimate", estimate});
+  if (!fig.guesses.empty()) keys.push_back({"guess, not confident", guess});
+  if (!fig.inlier_points.empty()) keys.push_back({"inlier local points", {0.12, 0.3, 0.9}});
+  if (!fig.outlier_points.empty()) keys.push_back({"outlier local points", {0.84, 0.15, 0.16}});
   cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_rectangle(cr, kWidth - kRight - 160, kTop + 4, 156, 78);
+  cairo_rectangle(cr, kWidth - kRight - 160, kTop + 4, 156, 10 + 17 * static_cast<double>(keys.size()));
   cairo_fill(cr);
-  const std::pair<const char*, Rgb> keys[] = {{"true trajectory", {0.17, 0.63, 0.17}},
-                                              {"estimate", {0.12, 0.47, 0.71}},
-                                              {"inlier local points", {0.12, 0.3, 0.9}},
-                                              {"outlier local points", {0.84, 0.15, 0.16}}};
   double y = kTop + 20;
   for (const auto& [label, c] : keys) {
     cairo_set_source_rgb(cr, c.r, c.g, c.b);

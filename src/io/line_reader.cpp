@@ -1,5 +1,7 @@
 #include "lshloc/io/line_reader.hpp"
 
+#include <unistd.h>
+
 #include <zlib.h>
 
 #include <cerrno>
@@ -17,6 +19,10 @@ gzFile as_gz(void* p) { return static_cast<gzFile>(p); }
 }  // namespace
 
 LineReader::LineReader(std::string path) : path_(std::move(path)), buffer_(1 << 16) {
+  if (path_ == "-") {  // stdin, read as it arrives (zlib would wait for a whole buffer)
+    from_stdin_ = true;
+    return;
+  }
   std::error_code ec;
   if (!std::filesystem::exists(path_, ec)) throw Error(path_ + ": no such file");
   if (std::filesystem::is_directory(path_, ec)) throw Error(path_ + ": is a directory, expected a log file");
@@ -29,7 +35,33 @@ LineReader::~LineReader() {
   if (gz_ != nullptr) gzclose(as_gz(gz_));
 }
 
-std::string LineReader::where() const { return path_ + ":" + std::to_string(line_number_); }
+std::string LineReader::where() const {
+  return (from_stdin_ ? std::string("stdin") : path_) + ":" + std::to_string(line_number_);
+}
+
+bool LineReader::next_from_stdin(std::string& line) {
+  for (;;) {
+    const std::size_t newline = pending_.find('\n');
+    if (newline != std::string::npos) {
+      line.assign(pending_, 0, newline);
+      pending_.erase(0, newline + 1);
+      break;
+    }
+    const ssize_t n = ::read(STDIN_FILENO, buffer_.data(), buffer_.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(std::string("stdin: cannot read: ") + std::strerror(errno));
+    if (n == 0) {
+      if (pending_.empty()) return false;
+      line.swap(pending_);  // last line without a newline
+      pending_.clear();
+      break;
+    }
+    pending_.append(buffer_.data(), static_cast<std::size_t>(n));
+  }
+  while (!line.empty() && line.back() == '\r') line.pop_back();
+  ++line_number_;
+  return true;
+}
 
 void LineReader::check_stream_error() {
   int err = Z_OK;
@@ -43,6 +75,7 @@ void LineReader::check_stream_error() {
 
 bool LineReader::next(std::string& line) {
   line.clear();
+  if (from_stdin_) return next_from_stdin(line);
   for (;;) {
     char* got = gzgets(as_gz(gz_), buffer_.data(), static_cast<int>(buffer_.size()));
     if (got == nullptr) {

@@ -65,6 +65,10 @@ struct Scenario {
 /// alphabetically, then the logs with no corrected poses).
 const std::vector<std::string>& canonical_building_order();
 
+/// The first raw scan of a building's default window (RESULTS.md): fr079
+/// and fr101 2000, intel 5000, aces 3000, any other building 0.
+std::size_t default_window_start(const std::string& building);
+
 /// Names of the R-1 other buildings for a target, in the order config.seed gives.
 std::vector<std::string> other_buildings(const ScenarioConfig& config);
 

@@ -74,6 +74,11 @@ class MapFeeder {
 /// Called before target scan i; its CPU time is not counted as the target's.
 using BeforeScan = std::function<void(std::size_t)>;
 
+/// `config` with the target's laser offset: the target log's, or the
+/// config's for a log without one; a config offset other than the log's
+/// throws lshloc::Error.
+LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& target_offset);
+
 /// Runs a target's scans through a new Localizer over `map` (its scan
 /// matcher takes the target's laser offset, unless the config gives one for
 /// a target without; a config offset other than the target's is an error).

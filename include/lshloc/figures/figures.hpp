@@ -31,12 +31,24 @@ struct MapFigure {
   std::string title;
   std::vector<Point2> map_points;            ///< grey: the map (e.g. the target's submap)
   std::vector<Point2> true_trajectory;       ///< green
-  std::vector<Point2> estimated_trajectory;  ///< blue; estimates in a wrong submap are left out
+  std::vector<Point2> estimated_trajectory;  ///< blue: confident estimates in this submap
+  std::vector<Point2> guesses;               ///< orange: estimates in this submap while not confident
   std::vector<Point2> inlier_points;         ///< blue dots: local features that agree with the map
   std::vector<Point2> outlier_points;        ///< red dots
 };
 
 void plot_map_figure(const std::string& path, const MapFigure& figure);
+
+/// A localization run's confidence over time: per target scan the mean
+/// score of the reported hypothesis, and whether the answer was confident.
+struct ConfidenceSeries {
+  std::vector<double> scan;
+  std::vector<double> mean_score;
+  std::vector<bool> confident;
+};
+/// The mean score against the scan (a line), with a green band along the top
+/// where the answer was confident.
+void plot_confidence(const std::string& path, const std::string& title, const ConfidenceSeries& series);
 
 /// Per-feature cost against map size (the paper's Fig. 4): one series per cost.
 struct CostSeries {

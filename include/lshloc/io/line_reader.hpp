@@ -12,7 +12,8 @@
 namespace lshloc::io {
 
 /// Streams the lines of a text file, plain or gzip-compressed (detected from
-/// the content, not the name). Only one line is held in memory at a time.
+/// the content, not the name); the path "-" reads plain text from stdin, each
+/// line as soon as it arrives. Only one line is held in memory at a time.
 /// A truncated or corrupt gzip stream throws lshloc::Error naming the file and
 /// the line where the data ended. Not thread-safe; one reader per thread.
 class LineReader {
@@ -34,8 +35,11 @@ class LineReader {
 
  private:
   void check_stream_error();
+  bool next_from_stdin(std::string& line);
   std::string path_;
-  void* gz_ = nullptr;  // gzFile, kept opaque so that zlib.h stays private
+  bool from_stdin_ = false;  ///< path "-": plain text from stdin, line by line as it arrives
+  std::string pending_;      ///< stdin bytes read past the last line returned
+  void* gz_ = nullptr;       // gzFile, kept opaque so that zlib.h stays private
   std::size_t line_number_ = 0;
   std::vector<char> buffer_;
 };
