@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# Installs dependencies, builds lshloc (Release), runs the whole test suite
-# (the layer check included), then installs into a temporary prefix and builds
+# Installs dependencies, builds lshloc (Release) with its Python bindings,
+# runs the whole test suite (the layer check and pytest included), then installs into a temporary prefix and builds
 # and runs examples/embed against it (find_package(lshloc)).
 # Tests that need the real logs skip when ../shared/data is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DLSHLOC_BUILD_PYTHON=ON >/dev/null
 cmake --build build -j"$(nproc)"
 ctest --test-dir build -j"$(nproc)" --output-on-failure
 prefix=$(mktemp -d)

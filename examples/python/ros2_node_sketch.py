@@ -1,0 +1,62 @@
+#!/usr/bin/env python3
+"""A sketch of a ROS 2 node around lshloc: subscribes to /scan and /odom,
+localizes globally in a saved lshloc map, and publishes the pose once
+confident. UNTESTED HERE: ROS 2 is not packaged for this system (Debian 12),
+so this file is a starting point, not a tested component.
+
+    ros2 run <your_package> lshloc_node --ros-args -p map:=/path/to/building.map
+"""
+import math
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from sensor_msgs.msg import LaserScan
+
+import lshloc
+
+
+def yaw_of(q):
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+class LshlocNode(Node):
+    def __init__(self):
+        super().__init__("lshloc")
+        self.declare_parameter("map", "")
+        self.gmap = lshloc.load_map(self.get_parameter("map").value)
+        self.localizer = lshloc.Localizer(self.gmap)  # pass laser_offset=(x, y, yaw) of base_link -> laser
+        self.odom = (0.0, 0.0, 0.0)
+        self.create_subscription(Odometry, "odom", self.on_odom, 50)
+        self.create_subscription(LaserScan, "scan", self.on_scan, 10)
+        self.pub = self.create_publisher(PoseWithCovarianceStamped, "lshloc/pose", 10)
+
+    def on_odom(self, msg):
+        p = msg.pose.pose
+        self.odom = (p.position.x, p.position.y, yaw_of(p.orientation))
+
+    def on_scan(self, msg):
+        scan = lshloc.LaserScan(np.asarray(msg.ranges, dtype=np.float32), msg.angle_min, msg.angle_increment,
+                                max_range=msg.range_max, timestamp=msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
+                                odometry=self.odom)
+        e = self.localizer.add_scan(scan)
+        if not e["localized"]:
+            return
+        out = PoseWithCovarianceStamped()
+        out.header.stamp = msg.header.stamp
+        out.header.frame_id = e["submap_name"]  # one frame per submap (building)
+        x, y, theta = e["pose"]
+        out.pose.pose.position.x, out.pose.pose.position.y = x, y
+        out.pose.pose.orientation.z, out.pose.pose.orientation.w = math.sin(theta / 2), math.cos(theta / 2)
+        self.pub.publish(out)
+
+
+def main():
+    rclpy.init()
+    rclpy.spin(LshlocNode())
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,101 @@
+"""The Python bindings against known answers: simulated buildings with
+ground truth, a bit-identical save and load, and a real scenario that must
+give the CLI's estimates scan by scan."""
+import csv
+import math
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+
+import lshloc
+
+CLI = os.environ.get("LSHLOC_CLI", "lshloc")
+DATA = pathlib.Path(os.environ.get("LSHLOC_DATA", pathlib.Path(__file__).resolve().parents[3] / "shared" / "data"))
+
+
+def feed(gmap, submaps):
+    """One scan of each submap in turn, as `lshloc localize` feeds its map logs."""
+    ids = [gmap.add_submap(name) for name, _ in submaps]
+    for i in range(max(len(scans) for _, scans in submaps)):
+        for sid, (_, scans) in zip(ids, submaps):
+            if i < len(scans):
+                gmap.add_scan(sid, scans[i], scans[i].pose)
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sim")
+    subprocess.run([CLI, "simulate", "--out", str(d), "--buildings", "2", "--seed", "3", "--scans", "1200"],
+                   check=True, capture_output=True)
+    return d
+
+
+def test_a_scan_is_numpy_in_and_out():
+    ranges = np.array([1.0, 2.0, np.nan, 4.0], dtype=np.float32)
+    scan = lshloc.LaserScan(ranges, angle_min=-0.5, angle_increment=0.25, pose=(1.0, 2.0, 0.5))
+    assert np.array_equal(scan.ranges[[0, 1, 3]], ranges[[0, 1, 3]]) and np.isnan(scan.ranges[2])
+    assert np.allclose(scan.angles, [-0.5, -0.25, 0.0, 0.25])
+    assert scan.pose == (1.0, 2.0, 0.5)
+    with pytest.raises(lshloc.Error):
+        lshloc.LaserScan(np.zeros((2, 2), dtype=np.float32), 0.0, 0.1)
+
+
+def test_localizes_in_the_right_building_against_ground_truth(world):
+    a = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000-corrected.log.gz"))
+    b = lshloc.read_carmen_log(str(world / "sim-3-001" / "sim-3-001-corrected.log.gz"))
+    target = lshloc.read_carmen_log(str(world / "sim-3-001" / "sim-3-001.log.gz"))
+    gmap = lshloc.GlobalMap()
+    feed(gmap, [("a", a.scans), ("b", b.scans)])
+    assert gmap.submap_count == 2 and gmap.stats()["features"] > 1000
+    loc = lshloc.Localizer(gmap, laser_offset=target.laser_offset)
+    for scan in target.scans[300:450]:
+        e = loc.add_scan(scan)
+    assert e["localized"] and e["submap_name"] == "b"
+    # The target's truth: its corrected log holds the true laser pose of the same scan.
+    truth = b.scans[449].pose
+    assert math.hypot(e["pose"][0] - truth[0], e["pose"][1] - truth[1]) < 0.3
+
+
+def test_a_saved_map_loads_to_the_same_estimates(world, tmp_path):
+    a = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000-corrected.log.gz"))
+    target = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000.log.gz"))
+    gmap = lshloc.GlobalMap()
+    feed(gmap, [("a", a.scans)])
+    gmap.save(str(tmp_path / "a.map"))
+    loaded = lshloc.load_map(str(tmp_path / "a.map"))
+    assert loaded.stats()["features"] == gmap.stats()["features"]
+    one, two = lshloc.Localizer(gmap), lshloc.Localizer(loaded)
+    for scan in target.scans[100:160]:
+        assert one.add_scan(scan) == two.add_scan(scan)
+    (tmp_path / "bad.map").write_bytes(b"not a map at all")
+    with pytest.raises(lshloc.Error, match="not an lshloc map"):
+        lshloc.load_map(str(tmp_path / "bad.map"))
+
+
+@pytest.mark.skipif(not (DATA / "intel").is_dir(), reason="shared data directory not found (set LSHLOC_DATA)")
+def test_a_real_scenario_gives_the_cli_estimates(tmp_path):
+    maps = [DATA / "intel" / "intel.gfs.log.gz", DATA / "aces" / "aces-corrected.log.gz"]
+    target_path = DATA / "intel" / "intel.recon-from-bag.log.gz"
+    out = tmp_path / "t.tum"
+    args = [CLI, "localize", "--target", str(target_path), "--start", "5000", "--length", "200", "--out", str(out)]
+    for m in maps:
+        args += ["--map", str(m)]
+    subprocess.run(args, check=True, capture_output=True)
+    rows = list(csv.DictReader(open(str(out) + ".csv")))
+
+    gmap = lshloc.GlobalMap()
+    feed(gmap, [(m.name, lshloc.read_carmen_log(str(m)).scans) for m in maps])
+    target = lshloc.read_carmen_log(str(target_path))
+    loc = lshloc.Localizer(gmap, laser_offset=target.laser_offset)
+    assert len(rows) == 200
+    for row, scan in zip(rows, target.scans[5000:5200]):
+        e = loc.add_scan(scan)
+        assert (row["confident"] == "1") == e["localized"]
+        if e["has_estimate"]:
+            assert row["submap"] == e["submap_name"]
+            assert row["x"] == f"{e['pose'][0]:.4f}" and row["y"] == f"{e['pose'][1]:.4f}"
+            assert row["heading_deg"] == f"{math.degrees(e['pose'][2]):.3f}"
+    assert e["localized"] and e["submap_name"] == "intel.gfs.log.gz"
