@@ -14,6 +14,8 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/map_store.hpp"
+#include "lshloc/io/ros_map.hpp"
+#include "lshloc/slam/occupancy_grid.hpp"
 #include "map_source.hpp"
 
 namespace lshloc::app {
@@ -285,6 +287,34 @@ void add_verify(CLI::App& map_cmd) {
   });
 }
 
+void add_to_grid(CLI::App& map_cmd) {
+  struct Options {
+    std::string log, out;
+    bool slam = false;
+    OccupancyGridConfig grid;
+  };
+  auto opt = std::make_shared<Options>();
+  auto* cmd = map_cmd.add_subcommand(
+      "to-grid",
+      "Write a mapped log's submap as a ROS occupancy grid (map_server's OUT.yaml + OUT.pgm, as AMCL and nav2\n"
+      "load): cells where beams ended are occupied, cells they crossed free, the rest unknown.");
+  cmd->add_option("log", opt->log, "LOG, LOG,POSES or LOG,slam, as for `map build`")->required();
+  cmd->add_option("--out", opt->out, "path stem: writes OUT.yaml and OUT.pgm")->required();
+  cmd->add_option("--resolution", opt->grid.resolution, "[m] cell edge")->capture_default_str();
+  cmd->add_option("--max-range", opt->grid.max_range, "[m] returns beyond are not used")->capture_default_str();
+  cmd->add_flag("--slam", opt->slam, "pose a raw log given without a poses file by lshloc's SLAM");
+  cmd->callback([opt] {
+    const Submap submap = load_map_argument(opt->log, opt->slam);
+    const OccupancyGrid grid = build_occupancy_grid(submap.scans, opt->grid);
+    io::write_ros_map(opt->out, grid);
+    std::size_t occupied = 0, free = 0;
+    for (const std::int8_t c : grid.cells) occupied += c == occupancy::kOccupied, free += c == occupancy::kFree;
+    std::printf("%s.{yaml,pgm}: %zu x %zu cells of %.3f m, origin (%.2f, %.2f); %zu occupied, %zu free\n",
+                opt->out.c_str(), grid.width, grid.height, grid.resolution, grid.origin.x(), grid.origin.y(), occupied,
+                free);
+  });
+}
+
 void add_compact(CLI::App& map_cmd) {
   auto path = std::make_shared<std::string>();
   auto* cmd = map_cmd.add_subcommand(
@@ -316,6 +346,7 @@ void add_map_command(CLI::App& app, GlobalOptions& global) {
   add_info(*cmd);
   add_verify(*cmd);
   add_compact(*cmd);
+  add_to_grid(*cmd);
 }
 
 }  // namespace lshloc::app
