@@ -1,6 +1,6 @@
 // libFuzzer target: any bytes given to the map loader either load or are
 // refused with lshloc::Error; never a crash, a hang or a runaway allocation.
-// Build: cmake -DLSHLOC_FUZZERS=ON -DCMAKE_CXX_COMPILER=clang++ (fuzz/CMakeLists.txt).
+// Build: cmake -DLSHLOC_BUILD_FUZZERS=ON -DCMAKE_CXX_COMPILER=clang++ (fuzz/CMakeLists.txt).
 #include <cstddef>
 #include <cstdint>
 #include <span>

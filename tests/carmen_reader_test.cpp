@@ -171,5 +171,43 @@ TEST(CarmenReaderRealData, MitCsailOdometryComesFromFlaser) {
   EXPECT_NEAR(log.scans[0].max_range, 81.0, 1e-9);  // no PARAM: the default
 }
 
+TEST(CarmenReaderBadInput, ANulByteIsRefusedNotMergedIntoTheNextLine) {
+  std::string text = flaser_line(3, 1.0, 10.0) + flaser_line(3, 1.0, 11.0);
+  text[5] = '\0';
+  const std::string e = expect_error(text);
+  EXPECT_NE(e.find(":1: a NUL byte at column 6"), std::string::npos) << e;
+}
+
+TEST(CarmenReaderBadInput, AByteOrderMarkAndCarriageReturnsAreHandled) {
+  const std::string path = test::temp_path(".log");
+  // A UTF-8 BOM before the first line (a PARAM that must not be lost), then
+  // CR-only and CRLF line endings.
+  test::write_file(path, "\xEF\xBB\xBFPARAM robot_front_laser_max 30.0 nohost 0\r" + flaser_line(3, 1.0, 10.0) +
+                             "\r\n" + flaser_line(3, 1.0, 11.0));
+  const CarmenLog log = read_carmen_log(path);
+  ASSERT_EQ(log.scans.size(), 2u);
+  EXPECT_NEAR(log.scans[0].max_range, 30.0, 1e-9);
+  EXPECT_NEAR(log.scans[1].timestamp, 11.0, 1e-9);
+}
+
+TEST(CarmenReaderBadInput, AFileWithoutCarmenMessagesIsAnError) {
+  const std::string e = expect_error("# lshloc\nThis is a README, not a log.\nIt has no messages.\n");
+  EXPECT_NE(e.find("no CARMEN message"), std::string::npos) << e;
+  EXPECT_NE(e.find("3 lines"), std::string::npos) << e;
+}
+
+TEST(CarmenReaderBadInput, ABeamCountTwoTooLowIsAmbiguousAndRefused) {
+  // 3 ranges, two poses and one time stamp, but a beam count of 1: read as
+  // 1 beam with hostname "0.1" it would shift every field.
+  const std::string e = expect_error("FLASER 1 1.0 2.0 3.0 0.5 0.6 0.1 0.5 0.6 0.1 100.25\n");
+  EXPECT_NE(e.find("ambiguous"), std::string::npos) << e;
+  EXPECT_NE(e.find("3 beams"), std::string::npos) << e;
+}
+
+TEST(CarmenReaderBadInput, AnEndlessLineIsRefused) {
+  const std::string e = expect_error(std::string(17u << 20, 'x'));
+  EXPECT_NE(e.find("longer than 16 MiB"), std::string::npos) << e;
+}
+
 }  // namespace
 }  // namespace lshloc::io

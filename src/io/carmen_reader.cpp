@@ -61,6 +61,19 @@ void CarmenReader::parse_flaser(const std::string& where, CarmenRecord& record) 
                                 " beams (FLASER n, n ranges, laser pose, odometry pose, "
                                 "ipc_timestamp hostname logger_timestamp)"));
   }
+  // With the full tail, the hostname is a word; a number there means the
+  // line also reads as n + 2 beams without hostname and logger time stamp
+  // (a beam count 2 too low): refuse rather than guess.
+  if (f.size() == n + 11) {
+    double number = 0.0;
+    const std::string_view host = f[9 + n];
+    if (std::from_chars(host.data(), host.data() + host.size(), number).ptr == host.data() + host.size()) {
+      throw Error(where + ": FLASER is ambiguous: read as " + std::to_string(n) + " beams with hostname '" +
+                  std::string(host) + "' (a number), or as " + std::to_string(n + 2) +
+                  " beams without hostname and logger time stamp; expected a hostname that is a word, or a beam "
+                  "count that matches the ranges");
+    }
+  }
   LaserScan& s = record.scan;
   s.ranges.resize(n);
   for (std::size_t i = 0; i < n; ++i) s.ranges[i] = parse_range(f[2 + i], where, 2 + i);
@@ -150,7 +163,12 @@ bool CarmenReader::next(CarmenRecord& record) {
         if (v > 0.0 && std::isfinite(v)) flaser_max_range_ = v;
       }
     } else {
-      ++skipped_[std::string(type)];  // NEFF, SYNC, RAWLASER*, ...: not ours, but telling (NEFF: GMapping)
+      // NEFF, SYNC, RAWLASER*, ...: not ours, but telling (NEFF: GMapping).
+      // Message names are upper case; other text is no message at all.
+      const bool message = std::all_of(type.begin(), type.end(), [](char c) {
+        return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+      });
+      if (message) ++skipped_[std::string(type)];
       continue;
     }
     record.message = type;
@@ -191,6 +209,9 @@ CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& con
     }
   }
   log.skipped_messages = reader.skipped();
+  if (log.scans.empty() && log.odometry.empty() && log.params.empty() && log.skipped_messages.empty())
+    throw Error(path + ": no CARMEN message (FLASER, ROBOTLASER1, ODOM, PARAM, ...) in " +
+                std::to_string(reader.lines_read()) + " lines; expected a CARMEN log");
   return log;
 }
 

@@ -39,30 +39,6 @@ std::string LineReader::where() const {
   return (from_stdin_ ? std::string("stdin") : path_) + ":" + std::to_string(line_number_);
 }
 
-bool LineReader::next_from_stdin(std::string& line) {
-  for (;;) {
-    const std::size_t newline = pending_.find('\n');
-    if (newline != std::string::npos) {
-      line.assign(pending_, 0, newline);
-      pending_.erase(0, newline + 1);
-      break;
-    }
-    const ssize_t n = ::read(STDIN_FILENO, buffer_.data(), buffer_.size());
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) throw Error(std::string("stdin: cannot read: ") + std::strerror(errno));
-    if (n == 0) {
-      if (pending_.empty()) return false;
-      line.swap(pending_);  // last line without a newline
-      pending_.clear();
-      break;
-    }
-    pending_.append(buffer_.data(), static_cast<std::size_t>(n));
-  }
-  while (!line.empty() && line.back() == '\r') line.pop_back();
-  ++line_number_;
-  return true;
-}
-
 void LineReader::check_stream_error() {
   int err = Z_OK;
   const char* msg = gzerror(as_gz(gz_), &err);
@@ -73,27 +49,72 @@ void LineReader::check_stream_error() {
               "; the file is incomplete or damaged, fetch or copy it again");
 }
 
-bool LineReader::next(std::string& line) {
-  line.clear();
-  if (from_stdin_) return next_from_stdin(line);
-  for (;;) {
-    char* got = gzgets(as_gz(gz_), buffer_.data(), static_cast<int>(buffer_.size()));
-    if (got == nullptr) {
-      check_stream_error();
-      if (line.empty()) return false;
-      break;  // last line without a newline
-    }
-    const std::size_t n = std::strlen(got);
-    line.append(got, n);
-    if (n > 0 && got[n - 1] == '\n') break;
-    // A partial line: either longer than the buffer, or the end of the data.
-    if (gzeof(as_gz(gz_))) {
-      check_stream_error();
+bool LineReader::fill() {
+  if (start_ > 0) {  // drop the lines already returned before appending
+    pending_.erase(0, start_);
+    start_ = 0;
+  }
+  std::size_t got = 0;
+  if (from_stdin_) {
+    for (;;) {
+      const ssize_t n = ::read(STDIN_FILENO, buffer_.data(), buffer_.size());
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) throw Error(std::string("stdin: cannot read: ") + std::strerror(errno));
+      got = static_cast<std::size_t>(n);
       break;
     }
+  } else {
+    const int n = gzread(as_gz(gz_), buffer_.data(), static_cast<unsigned>(buffer_.size()));
+    if (n <= 0) check_stream_error();
+    got = n > 0 ? static_cast<std::size_t>(n) : 0;
   }
-  while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+  if (got == 0) return false;
+  pending_.append(buffer_.data(), got);
+  return true;
+}
+
+std::size_t LineReader::line_end(std::size_t from) const {
+  // memchr twice (vectorized) rather than one find_first_of: reading logs is
+  // line splitting above all.
+  const char* data = pending_.data();
+  const std::size_t size = pending_.size();
+  if (from >= size) return std::string::npos;
+  const auto* nl = static_cast<const char*>(std::memchr(data + from, '\n', size - from));
+  const std::size_t limit = nl ? static_cast<std::size_t>(nl - data) : size;
+  const auto* cr = static_cast<const char*>(std::memchr(data + from, '\r', limit - from));
+  if (cr != nullptr) return static_cast<std::size_t>(cr - data);
+  return nl ? limit : std::string::npos;
+}
+
+bool LineReader::next(std::string& line) {
+  line.clear();
+  std::size_t from = 0;  // where to look for the line's end, relative to start_
+  for (;;) {
+    const std::size_t end = line_end(start_ + from);
+    // A '\r' as the last byte read may be the first half of "\r\n": decide once more is read.
+    if (end != std::string::npos && !(pending_[end] == '\r' && end + 1 == pending_.size() && !at_end_)) {
+      const bool crlf = pending_[end] == '\r' && end + 1 < pending_.size() && pending_[end + 1] == '\n';
+      line.assign(pending_, start_, end - start_);
+      start_ = end + (crlf ? 2 : 1);
+      break;
+    }
+    from = (end != std::string::npos ? end : pending_.size()) - start_;
+    if (from > kMaxLineBytes)
+      throw Error(path_ + ":" + std::to_string(line_number_ + 1) + ": a line longer than " +
+                  std::to_string(kMaxLineBytes >> 20) + " MiB; expected a text log");
+    if (!at_end_ && fill()) continue;
+    at_end_ = true;
+    if (end != std::string::npos) continue;  // a final lone '\r' ends the last line
+    if (start_ >= pending_.size()) return false;
+    line.assign(pending_, start_, std::string::npos);  // the last line, without a line end
+    start_ = pending_.size();
+    break;
+  }
   ++line_number_;
+  if (line_number_ == 1 && line.starts_with("\xEF\xBB\xBF")) line.erase(0, 3);  // a UTF-8 byte-order mark
+  if (const std::size_t nul = line.find('\0'); nul != std::string::npos)
+    throw Error(where() + ": a NUL byte at column " + std::to_string(nul + 1) +
+                "; expected a text line (is this a binary file?)");
   return true;
 }
 

@@ -51,6 +51,7 @@ class CarmenReader {
   bool next(CarmenRecord& record);
 
   const std::string& path() const { return lines_.path(); }
+  std::size_t lines_read() const { return lines_.line_number(); }
   /// Messages of other types passed over so far, by type (e.g. NEFF, which
   /// GMapping writes into the logs it corrects).
   const std::map<std::string, std::size_t>& skipped() const { return skipped_; }
@@ -86,6 +87,8 @@ struct CarmenLog {
   Pose2 front_laser_offset() const;
 };
 
+/// Reads a whole log. Throws lshloc::Error for a file without any CARMEN
+/// message (e.g. a README or a binary file), besides what CarmenReader throws.
 CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config = {});
 
 }  // namespace lshloc::io

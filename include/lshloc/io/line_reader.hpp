@@ -13,7 +13,9 @@ namespace lshloc::io {
 
 /// Streams the lines of a text file, plain or gzip-compressed (detected from
 /// the content, not the name); the path "-" reads plain text from stdin, each
-/// line as soon as it arrives. Only one line is held in memory at a time.
+/// line as soon as it arrives. Lines end at "\n", "\r\n" or a lone "\r"; a
+/// UTF-8 byte-order mark before the first line is dropped; a NUL byte, or a
+/// line over 16 MiB, throws lshloc::Error naming file:line.
 /// A truncated or corrupt gzip stream throws lshloc::Error naming the file and
 /// the line where the data ended. Not thread-safe; one reader per thread.
 class LineReader {
@@ -35,13 +37,19 @@ class LineReader {
 
  private:
   void check_stream_error();
-  bool next_from_stdin(std::string& line);
+  /// Appends the next chunk of the input to pending_; false at its end.
+  bool fill();
+  /// The first '\n' or '\r' in pending_ at or after `from` (npos: none).
+  std::size_t line_end(std::size_t from) const;
+  static constexpr std::size_t kMaxLineBytes = std::size_t{16} << 20;
   std::string path_;
   bool from_stdin_ = false;  ///< path "-": plain text from stdin, line by line as it arrives
-  std::string pending_;      ///< stdin bytes read past the last line returned
   void* gz_ = nullptr;       // gzFile, kept opaque so that zlib.h stays private
   std::size_t line_number_ = 0;
   std::vector<char> buffer_;
+  std::string pending_;    ///< bytes read, from the next line on (from start_)
+  std::size_t start_ = 0;  ///< where the next line starts in pending_
+  bool at_end_ = false;    ///< the input has no more bytes
 };
 
 /// Splits a line into whitespace-separated fields (views into `line`).
