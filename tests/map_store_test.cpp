@@ -233,6 +233,24 @@ TEST(MapStore, ATornLastRecordIsDroppedWithAWarningAndCutOffOnAppend) {
   expect_same_contents(*expected, *repaired.map);
 }
 
+TEST(MapStore, AFailedAppendLeavesTheFileAsItWasAcknowledged) {
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, *map_of_first(50));
+  {
+    io::MapAppender appender(path);
+    appender.add_scan(0, world().submaps[0].scans[50], world().submaps[0].scans[50].pose);
+    // 100 km away: beyond the pose grid, so GlobalMap::add_scan throws half-way.
+    EXPECT_THROW(appender.add_scan(0, world().submaps[0].scans[51], Pose2(1e5, 0.0, 0.0)), Error);
+    EXPECT_THROW(appender.add_scan(0, world().submaps[0].scans[52], world().submaps[0].scans[52].pose), Error);
+    EXPECT_THROW(appender.compact({}), Error);  // the half-added scan never becomes a snapshot
+  }
+  const io::LoadedMap loaded = io::load_map(path);
+  EXPECT_EQ(loaded.info.journal_scans, 1u);
+  auto expected = map_of_first(50);
+  expected->add_scan(0, world().submaps[0].scans[50], world().submaps[0].scans[50].pose);
+  expect_same_contents(*expected, *loaded.map);
+}
+
 TEST(MapStore, ASecondWriterIsRefused) {
   const std::string path = test::temp_path(".map");
   io::save_map(path, *map_of_first(10));

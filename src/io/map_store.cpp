@@ -499,6 +499,7 @@ MapAppender::~MapAppender() {
 }
 
 std::uint32_t MapAppender::add_submap(const std::string& name) {
+  if (broken_) throw Error(path_ + ": an earlier append failed half-way; reopen the map to append again");
   if (name.size() > 4096) throw Error(path_ + ": a submap name of at most 4096 bytes expected");
   if (map_->submap_count() >= PoseGridHashMap::kMaxSubmaps)
     throw Error(path_ + ": the map holds 16382 submaps already");
@@ -542,6 +543,8 @@ void MapAppender::sync() {
 }
 
 void MapAppender::compact(const nlohmann::json& meta) {
+  // A map an append failed in may hold part of a scan: never make it the snapshot.
+  if (broken_) throw Error(path_ + ": an earlier append failed half-way; reopen the map to compact it");
   sync();
   const std::vector<std::uint8_t> bytes = encode_snapshot(*map_, meta);
   const std::string tmp = path_ + ".tmp." + std::to_string(::getpid());
