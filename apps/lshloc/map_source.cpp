@@ -2,7 +2,6 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -23,15 +22,10 @@ namespace {
 std::size_t first_line_fields(const std::string& path) {
   io::LineReader lines(path);
   std::string line;
+  std::vector<std::string_view> fields;
   while (lines.next(line)) {
-    std::istringstream in(line);
-    std::string field;
-    std::size_t n = 0;
-    while (in >> field) {
-      if (n == 0 && field.front() == '#') break;
-      ++n;
-    }
-    if (n > 0) return n;
+    io::split_fields(line, fields);
+    if (!fields.empty() && fields.front().front() != '#') return fields.size();
   }
   return 0;
 }

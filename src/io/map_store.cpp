@@ -394,26 +394,34 @@ LoadedMap load_parsed(const ParsedFile& p, const std::string& path) {
 
 }  // namespace
 
-void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta) {
-  const std::vector<std::uint8_t> bytes = encode_snapshot(map, meta);
+namespace {
+
+/// Writes `bytes` to a temporary file beside `path`, fsyncs it, renames it
+/// over `path` and fsyncs the directory: `path` holds its old content or all
+/// of `bytes`. Returns the new file's descriptor, locked (flock) and at its
+/// end, for a writer that goes on appending.
+int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw Error(system_error(tmp, "cannot create the map"));
   try {
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw Error(system_error(tmp, "cannot lock the new map"));
     write_all(fd, bytes, tmp);
     if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync the map"));
+    if (::rename(tmp.c_str(), path.c_str()) != 0) throw Error(system_error(path, "cannot replace the map with " + tmp));
   } catch (...) {
     ::close(fd);
     ::unlink(tmp.c_str());
     throw;
   }
-  ::close(fd);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string message = system_error(path, "cannot replace the map with " + tmp);
-    ::unlink(tmp.c_str());
-    throw Error(message);
-  }
   sync_directory_of(path);
+  return fd;
+}
+
+}  // namespace
+
+void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta) {
+  ::close(replace_file(path, encode_snapshot(map, meta)));
 }
 
 LoadedMap load_map(const std::string& path) {
@@ -546,21 +554,7 @@ void MapAppender::compact(const nlohmann::json& meta) {
   // A map an append failed in may hold part of a scan: never make it the snapshot.
   if (broken_) throw Error(path_ + ": an earlier append failed half-way; reopen the map to compact it");
   sync();
-  const std::vector<std::uint8_t> bytes = encode_snapshot(*map_, meta);
-  const std::string tmp = path_ + ".tmp." + std::to_string(::getpid());
-  const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error(system_error(tmp, "cannot create the compacted map"));
-  try {
-    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw Error(system_error(tmp, "cannot lock the compacted map"));
-    write_all(fd, bytes, tmp);
-    if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync the compacted map"));
-    if (::rename(tmp.c_str(), path_.c_str()) != 0) throw Error(system_error(path_, "cannot replace the map"));
-  } catch (...) {
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    throw;
-  }
-  sync_directory_of(path_);
+  const int fd = replace_file(path_, encode_snapshot(*map_, meta));
   ::close(fd_);
   fd_ = fd;  // locked, positioned at the end: the new, empty journal
 }
