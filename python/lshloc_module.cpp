@@ -1,5 +1,5 @@
 // Python bindings (`import lshloc`): the global map, the localizer, the map
-// store and CARMEN logs. Scans are numpy arrays of ranges with their beam
+// store, CARMEN logs and ROS occupancy grids. Scans are numpy arrays of ranges with their beam
 // angles; poses are (x, y, theta) tuples [m, m, rad]. The heavy calls
 // (adding scans, localizing, loading and saving maps) release the GIL.
 // Thread safety: as the C++ classes (docs/design.md section 5): a GlobalMap
@@ -17,8 +17,11 @@
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/map_store.hpp"
+#include "lshloc/io/ros_map.hpp"
 #include "lshloc/localization/global_map.hpp"
+#include "lshloc/localization/grid_submap.hpp"
 #include "lshloc/localization/localizer.hpp"
+#include "lshloc/slam/occupancy_grid.hpp"
 
 namespace py = pybind11;
 using namespace lshloc;
@@ -91,6 +94,52 @@ PYBIND11_MODULE(lshloc, m) {
       "read_carmen_log", [](const std::string& path) { return io::read_carmen_log(path); }, py::arg("path"),
       py::call_guard<py::gil_scoped_release>(), "Reads a CARMEN log (plain or .gz)");
 
+  py::class_<OccupancyGrid>(m, "OccupancyGrid",
+                            "An occupancy grid as nav_msgs has it: cells[row, col] is -1 (unknown), 0 (free) or 100 "
+                            "(occupied), row 0 at the origin's y")
+      .def(py::init([](const py::array_t<std::int8_t, py::array::c_style | py::array::forcecast>& cells,
+                       double resolution, const PoseTuple& origin) {
+             if (cells.ndim() != 2)
+               throw Error("OccupancyGrid: cells must be a 2-D array (rows, columns), got " +
+                           std::to_string(cells.ndim()) + "-D");
+             OccupancyGrid g;
+             g.resolution = resolution;
+             g.origin = {std::get<0>(origin), std::get<1>(origin)};
+             g.origin_yaw = std::get<2>(origin);
+             g.height = static_cast<std::size_t>(cells.shape(0)), g.width = static_cast<std::size_t>(cells.shape(1));
+             g.cells.assign(cells.data(), cells.data() + cells.size());
+             for (std::int8_t& v : g.cells)
+               if (v != occupancy::kFree && v != occupancy::kOccupied) v = occupancy::kUnknown;
+             if (!(resolution > 0.0)) throw Error("OccupancyGrid: resolution must be > 0 m");
+             return g;
+           }),
+           py::arg("cells"), py::arg("resolution"), py::arg("origin") = PoseTuple{0, 0, 0},
+           "cells: 2-D int8 array; values other than 0 and 100 read as unknown")
+      .def_readonly("resolution", &OccupancyGrid::resolution)
+      .def_property_readonly("origin",
+                             [](const OccupancyGrid& g) {
+                               return PoseTuple{g.origin.x(), g.origin.y(), g.origin_yaw};
+                             })
+      .def_property_readonly("cells", [](const OccupancyGrid& g) {
+        return py::array_t<std::int8_t>({g.height, g.width}, g.cells.data());
+      });
+  m.def(
+      "read_ros_map", [](const std::string& path) { return io::read_ros_map(path); }, py::arg("yaml_path"),
+      py::call_guard<py::gil_scoped_release>(), "Reads a ROS map_server map (MAP.yaml and its PGM)");
+  m.def(
+      "write_ros_map", [](const std::string& stem, const OccupancyGrid& g) { io::write_ros_map(stem, g); },
+      py::arg("stem"), py::arg("grid"), py::call_guard<py::gil_scoped_release>(),
+      "Writes STEM.yaml and STEM.pgm as map_server reads them");
+  m.def(
+      "occupancy_grid_from_scans",
+      [](const std::vector<LaserScan>& scans, double resolution) {
+        OccupancyGridConfig c;
+        c.resolution = resolution;
+        return build_occupancy_grid(scans, c);
+      },
+      py::arg("scans"), py::arg("resolution") = 0.05, py::call_guard<py::gil_scoped_release>(),
+      "The occupancy grid of posed scans (each scan's pose is its laser pose), as `lshloc map to-grid`");
+
   py::class_<GlobalMap, std::shared_ptr<GlobalMap>>(m, "GlobalMap",
                                                     "The global map mapper robots feed, one scan at a time")
       .def(py::init([](const std::string& config_json) {
@@ -107,6 +156,30 @@ PYBIND11_MODULE(lshloc, m) {
           },
           py::arg("submap"), py::arg("scan"), py::arg("laser_pose"), py::call_guard<py::gil_scoped_release>(),
           "Adds a mapper scan at its laser pose in the submap's frame; returns the features it added")
+      .def(
+          "add_grid_submap",
+          [](GlobalMap& g, const std::string& name, const OccupancyGrid& grid, double pose_spacing,
+             std::size_t headings, std::size_t beams, double field_of_view, double max_range) {
+            GridSubmapConfig c;
+            c.pose_spacing = pose_spacing, c.headings = headings, c.beams = beams, c.field_of_view = field_of_view,
+            c.max_range = max_range;
+            GridSubmapStats st;
+            std::uint32_t id = 0;
+            {
+              py::gil_scoped_release release;
+              id = g.add_submap(name);
+              st = add_grid_submap(g, id, grid, c);
+            }
+            return py::make_tuple(
+                id, py::dict(py::arg("positions") = st.positions, py::arg("virtual_scans") = st.virtual_scans,
+                             py::arg("features") = st.features, py::arg("cpu_s") = st.cpu_s));
+          },
+          py::arg("name"), py::arg("grid"), py::arg("pose_spacing") = GridSubmapConfig{}.pose_spacing,
+          py::arg("headings") = GridSubmapConfig{}.headings, py::arg("beams") = GridSubmapConfig{}.beams,
+          py::arg("field_of_view") = GridSubmapConfig{}.field_of_view,
+          py::arg("max_range") = GridSubmapConfig{}.max_range,
+          "Adds a submap built from an occupancy grid (virtual scans of the given laser from free positions); "
+          "returns (submap id, stats)")
       .def_property_readonly("submap_count", &GlobalMap::submap_count)
       .def("submap_name", &GlobalMap::submap_name, py::arg("submap"))
       .def("submap_scans", &GlobalMap::submap_scans, py::arg("submap"))

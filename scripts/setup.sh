@@ -3,7 +3,7 @@
 # Idempotent and quiet when everything is already there.
 set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev
-          libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev python3 clang-format
+          libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev libyaml-dev python3 clang-format
           pybind11-dev python3-dev python3-numpy python3-pytest)
 missing=()
 for p in "${packages[@]}"; do

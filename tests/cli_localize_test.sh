@@ -3,7 +3,8 @@
 # names the building, --json counts line up with the CSV (one row per target
 # scan) and the TUM (one row per confident scan), a bad output path fails
 # before the run, a raw log as a map gets its warning, a TUM trajectory is
-# read as robot poses, and --version answers.
+# read as robot poses, maps from ROS occupancy grids localize, and --version
+# answers.
 # Usage: cli_localize_test.sh LSHLOC
 set -euo pipefail
 LSHLOC=$1
@@ -74,6 +75,24 @@ PY
 grep -q "read as a TUM trajectory" "$d/tum.err" || fail "the TUM poses file was not recognised: $(cat "$d/tum.err")"
 python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['localized']" "$d/tum.json" ||
   fail "not localized on a map posed by a TUM trajectory"
+
+# Maps from ROS occupancy grids: `map to-grid` writes them, `localize --map
+# MAP.yaml` and `map from-grid` (a saved map) read them; both localize the
+# target in the right building, and the saved map gives the same answer.
+"$LSHLOC" map to-grid "$a/sim-3-000-corrected.log.gz" --out "$d/ga" >/dev/null
+"$LSHLOC" map to-grid "$b/sim-3-001-corrected.log.gz" --out "$d/gb" >/dev/null
+"$LSHLOC" localize --map "$d/ga.yaml" --map "$d/gb.yaml" "${target[@]}" --json >"$d/grid.json" 2>/dev/null
+"$LSHLOC" map from-grid "$d/ga.yaml" "$d/gb.yaml" --out "$d/g.map" --grid-laser-of "$b/sim-3-001.log.gz" >/dev/null 2>&1
+"$LSHLOC" localize --map "$d/g.map" "${target[@]}" --json >"$d/gridmap.json" 2>/dev/null
+python3 - "$d/grid.json" "$d/gridmap.json" <<'PY' || fail "maps from occupancy grids"
+import json, sys
+one, two = (json.load(open(p)) for p in sys.argv[1:])
+assert one["localized"] and one["final_submap"] == "gb", one
+for k in ("final_submap", "final_pose", "final_heading_deg", "first_localized_at"):
+    assert one[k] == two[k], (k, one[k], two[k])
+PY
+if "$LSHLOC" map append "$d/g.map" "$d/ga.yaml" >/dev/null 2>"$d/err.txt"; then fail "a YAML was appended as a log"; fi
+grep -q "ga.yaml: a ROS map (YAML) is no log" "$d/err.txt" || fail "YAML as a log: $(cat "$d/err.txt")"
 
 "$LSHLOC" --version | grep -q "^lshloc [0-9]" || fail "--version"
 echo "cli_localize_test: all checks passed"

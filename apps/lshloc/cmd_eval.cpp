@@ -14,6 +14,8 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/figures/figures.hpp"
+#include "lshloc/localization/grid_submap.hpp"
+#include "lshloc/slam/occupancy_grid.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
@@ -39,6 +41,8 @@ struct EvalOptions {
   std::string save_map;
   std::string load_map;
   std::vector<std::size_t> submaps{1};
+  bool grid_maps = false;
+  GridMapOptions grid;
   LocalizerOptions localizer;
 };
 
@@ -130,6 +134,28 @@ std::uint32_t check_saved_scenario(const nlohmann::json& meta, const ScenarioCon
 /// --save-map) or loaded with --load-map.
 ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOptions& opt, const Progress& progress,
                      const LocalizerObserver& observer, nlohmann::json& map_store) {
+  if (opt.grid_maps) {
+    // Each submap as a user without logs would have it: its occupancy grid
+    // (`map to-grid`) turned back into a submap (`map from-grid`), with the
+    // target's laser as the virtual one.
+    const auto t0 = std::chrono::steady_clock::now();
+    GlobalMap map(run_config.map);
+    const GridSubmapConfig grid = opt.grid.resolve(sc.target.scans.empty() ? nullptr : &sc.target.scans[0]);
+    nlohmann::json grids = nlohmann::json::array();
+    for (const Submap& submap : sc.submaps) {
+      const OccupancyGrid occupancy = build_occupancy_grid(submap.scans);
+      const GridSubmapStats st = add_grid_submap(map, map.add_submap(submap.name), occupancy, grid);
+      grids.push_back({{"submap", submap.name},
+                       {"cells", occupancy.cells.size()},
+                       {"virtual_scans", st.virtual_scans},
+                       {"features", st.features},
+                       {"cpu_s", st.cpu_s}});
+    }
+    map_store["grid_maps"] = grids;
+    ScenarioRun run = localize_target(map, sc.target, run_config.localizer, progress, observer);
+    run.map_build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - run.localize_s;
+    return run;
+  }
   if (opt.save_map.empty() && opt.load_map.empty()) return run_scenario(sc, run_config, progress, observer);
   std::unique_ptr<GlobalMap> map;
   const auto t0 = std::chrono::steady_clock::now();
@@ -257,6 +283,12 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
                   "run on a map saved by --save-map for this scenario (or one whose window holds this one's) "
                   "instead of building it; reads only the target's logs")
       ->excludes("--save-map");
+  cmd->add_flag("--grid-maps", opt->grid_maps,
+                "rebuild every submap from its own occupancy grid (`map to-grid` then `map from-grid`): the "
+                "scenario as a user with only ROS maps has it")
+      ->excludes("--save-map")
+      ->excludes("--load-map");
+  add_grid_map_options(*cmd, opt->grid);
   add_localizer_options(*cmd, opt->localizer, /*research_flags=*/true);
   cmd->callback([&global, opt, cmd] {
     if (print_config_if_asked(opt->localizer)) return;

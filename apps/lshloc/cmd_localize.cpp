@@ -39,6 +39,7 @@ struct LocalizeOptions {
   std::size_t length = 0;
   std::optional<double> from_s, to_s;
   LocalizerOptions localizer;
+  GridMapOptions grid;
 };
 
 double degrees(double radians) { return radians * 180.0 / std::numbers::pi; }
@@ -128,9 +129,10 @@ void write_outputs(const std::string& out, std::ofstream& csv, const GlobalMap& 
 }
 
 /// --plot: the run over the final answer's submap (its walls from the map
-/// log's scans, or its features for a saved map) and the confidence over time.
+/// log's scans or grid, or its features for a saved map) and the confidence
+/// over time.
 void write_plots(const std::string& dir, const std::string& target_path, const GlobalMap& map,
-                 const std::vector<Submap>& logs, std::uint32_t first_log_submap, const ScenarioRun& run) {
+                 const MapSources& sources, const ScenarioRun& run) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw Error(dir + ": cannot create the figure directory: " + ec.message());
@@ -143,10 +145,8 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
   io::MapFigure fig;
   fig.title = std::string(last.localized ? "localized in " : "not localized; best guess in ") +
               map.submap_name(submap) + ": confident estimates (blue), guesses (orange)";
-  if (submap >= first_log_submap && submap - first_log_submap < logs.size()) {
-    for (const LaserScan& scan : logs[submap - first_log_submap].scans)
-      for (const Point2& p : scan.endpoints(0.05, 20.0)) fig.map_points.push_back(scan.pose.transform(p));
-  } else {
+  fig.map_points = sources.wall_points(submap);
+  if (fig.map_points.empty()) {
     for (const MapLocation& l : map.locations().locations())
       if (l.submap == submap) fig.map_points.emplace_back(l.x, l.y);
   }
@@ -259,14 +259,15 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "Each --map LOG is a submap posed by its own FLASER poses (a corrected log), --map LOG,slam\n"
       "(or --map-slam) poses a raw log by lshloc's SLAM, --map LOG,POSES takes the poses from a\n"
       "`timestamp x y theta` file (laser poses) or a TUM trajectory (robot poses, as `lshloc slam\n"
-      "--out` writes); --map FILE.map loads a saved map.\n"
+      "--out` writes); --map MAP.yaml builds a submap from a ROS occupancy grid (map_server's YAML + PGM,\n"
+      "as gmapping, slam_toolbox and Cartographer save it); --map FILE.map loads a saved map.\n"
       "Prints where the robot is (submap, x, y, heading), since when it is confident and what it cost;\n"
       "--json prints the same as one JSON line. --out T.tum writes T.tum.csv (one row per target scan)\n"
       "and T.tum: the confident poses in the final answer's submap (those in other submaps, if any,\n"
       "in T.tum.<submap>.tum).");
   cmd->add_option("--map", opt->maps,
-                  "map log (LOG, LOG,POSES or LOG,slam), or a saved map file (at most one); repeat for several "
-                  "submaps")
+                  "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "
+                  "repeat for several submaps")
       ->required();
   cmd->add_option("--target", opt->target,
                   "the target robot's raw log (odometry + scans); - reads a plain-text log from stdin and prints each "
@@ -291,6 +292,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
                 "map logs given without a poses file are raw logs: pose their scans by lshloc's SLAM (scan matching "
                 "and loop closure) instead of taking their FLASER poses");
   add_localizer_options(*cmd, opt->localizer);
+  add_grid_map_options(*cmd, opt->grid);
   cmd->callback([opt, &global] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
@@ -313,19 +315,19 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     ScenarioRunConfig config = make_run_config(opt->localizer);
     const auto t0 = std::chrono::steady_clock::now();
     std::unique_ptr<GlobalMap> map;
-    std::vector<Submap> logs;
+    std::vector<std::string> built;
     for (const auto& m : opt->maps) {
-      const bool saved = io::looks_like_map_file(m) || m.ends_with(".map");
+      const bool saved = !is_grid_argument(m) && (io::looks_like_map_file(m) || m.ends_with(".map"));
       if (saved && map) throw Error(m + ": only one saved map can be given (" + opt->maps.front() + " was another)");
       if (saved) {
         map = open_saved_map(m, config).map;
       } else {
-        logs.push_back(load_map_argument(m, opt->map_slam));
+        built.push_back(m);
       }
     }
     if (!map) map = std::make_unique<GlobalMap>(config.map);
-    const auto first_log_submap = static_cast<std::uint32_t>(map->submap_count());
-    if (!logs.empty()) MapFeeder(*map, logs).feed_until(1.0);
+    const MapSources sources = add_map_arguments(*map, built, opt->map_slam,
+                                                 opt->grid.resolve(target.scans.empty() ? nullptr : &target.scans[0]));
     const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     if (stream) {
@@ -341,7 +343,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     });
     run.map_build_s = map_s;
     if (!opt->out.empty()) write_outputs(opt->out, csv, *map, target, run);
-    if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, opt->target, *map, logs, first_log_submap, run);
+    if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, opt->target, *map, sources, run);
 
     std::optional<std::size_t> first_localized;
     std::size_t confident = 0;

@@ -74,6 +74,7 @@ struct BuildOptions {
   bool slam = false;
   bool json = false;
   bool print_config = false;
+  GridMapOptions grid;
 };
 
 struct AppendOptions {
@@ -95,6 +96,57 @@ GlobalMapConfig map_settings(const std::string& config_path) {
   return c;
 }
 
+/// The options `map build` and `map from-grid` share.
+void add_build_options(CLI::App& cmd, BuildOptions& opt) {
+  cmd.add_option("--out", opt.out, "the map file to write")->required();
+  cmd.add_option("--name", opt.names, "submap names, one per map argument in order (default: each file's name)");
+  cmd.add_option("--config", opt.config,
+                 "JSON file of map settings (GlobalMapConfig fields; the shape --print-config writes)");
+  cmd.add_flag("--print-config", opt.print_config, "print the effective map settings as JSON and exit");
+  cmd.add_flag("--json", opt.json, "print one JSON line (the fields of `map info --json`) instead of text");
+  add_grid_map_options(cmd, opt.grid);
+}
+
+void run_build(const BuildOptions& opt, const char* made_by) {
+  const GlobalMapConfig config = map_settings(opt.config);
+  if (opt.print_config) {
+    std::printf("%s\n", nlohmann::json(config).dump(2).c_str());
+    return;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  GlobalMap map(config);
+  std::fprintf(stderr, "map build: reading and adding %zu submaps\n", opt.logs.size());
+  const MapSources built = add_map_arguments(map, opt.logs, opt.slam, opt.grid.resolve(nullptr), opt.names);
+  nlohmann::json sources = nlohmann::json::array();
+  for (std::uint32_t id = 0; id < map.submap_count(); ++id) {
+    nlohmann::json s = {{"submap", map.submap_name(id)}, {"source", opt.logs[id]}};
+    for (std::size_t i = 0; i < built.log_ids.size(); ++i)
+      if (built.log_ids[i] == id)
+        s["scans"] = built.logs[i].scans.size(), s["poses_from_slam"] = built.logs[i].poses_from_slam;
+    for (std::size_t i = 0; i < built.grid_ids.size(); ++i)
+      if (built.grid_ids[i] == id) s["virtual_scans"] = built.grid_stats[i].virtual_scans;
+    sources.push_back(s);
+  }
+  const double build_s = seconds_since(t0);
+  const auto t1 = std::chrono::steady_clock::now();
+  io::save_map(opt.out, map, {{"made_by", made_by}, {"submaps", sources}});
+  const double save_s = seconds_since(t1);
+  const io::LoadedMap check = io::load_map(opt.out);  // what was written reads back
+  nlohmann::json j = map_json(opt.out, *check.map, check.info);
+  j["build_s"] = build_s;
+  j["save_s"] = save_s;
+  if (opt.json) {
+    std::printf("%s\n", j.dump().c_str());
+  } else {
+    std::printf(
+        "%s: %zu submaps, %zu scans, %zu features, %llu bytes (%.1f per feature); built in %.1f s, saved in "
+        "%.2f s\n",
+        opt.out.c_str(), map.submap_count(), map.stats().scans, map.stats().features,
+        static_cast<unsigned long long>(check.info.file_bytes), j["file_bytes_per_feature"].get<double>(), build_s,
+        save_s);
+  }
+}
+
 void add_build(CLI::App& map_cmd) {
   auto opt = std::make_shared<BuildOptions>();
   auto* cmd = map_cmd.add_subcommand(
@@ -102,58 +154,31 @@ void add_build(CLI::App& map_cmd) {
       "Build a global map from mapped logs, one submap per log, and save it (an atomic write: the file holds\n"
       "the old map or the whole new one). LOG takes the log's own FLASER poses (a corrected log; with --slam, a\n"
       "raw log posed by lshloc's SLAM); LOG,slam poses that raw log by SLAM; LOG,POSES takes poses from a\n"
-      "`timestamp x y theta` file.");
-  cmd->add_option("logs", opt->logs, "map logs: LOG, LOG,POSES or LOG,slam (this raw log posed by lshloc's SLAM)")
+      "`timestamp x y theta` file; MAP.yaml builds a submap from a ROS occupancy grid (see `map from-grid`).");
+  cmd->add_option("logs", opt->logs,
+                  "map logs: LOG, LOG,POSES or LOG,slam (this raw log posed by lshloc's SLAM), or ROS maps MAP.yaml")
       ->required();
-  cmd->add_option("--out", opt->out, "the map file to write")->required();
-  cmd->add_option("--name", opt->names, "submap names, one per log in order (default: each log's file name)");
   cmd->add_flag("--slam", opt->slam, "pose raw logs given without a poses file by lshloc's SLAM");
-  cmd->add_option("--config", opt->config,
-                  "JSON file of map settings (GlobalMapConfig fields; the shape --print-config writes)");
-  cmd->add_flag("--print-config", opt->print_config, "print the effective map settings as JSON and exit");
-  cmd->add_flag("--json", opt->json, "print one JSON line (the fields of `map info --json`) instead of text");
+  add_build_options(*cmd, *opt);
+  cmd->callback([opt] { run_build(*opt, "lshloc map build"); });
+}
+
+void add_from_grid(CLI::App& map_cmd) {
+  auto opt = std::make_shared<BuildOptions>();
+  auto* cmd = map_cmd.add_subcommand(
+      "from-grid",
+      "Build a global map from ROS occupancy grids (map_server's MAP.yaml + its PGM: resolution, origin,\n"
+      "thresholds, negate, mode), one submap per grid, and save it. Virtual laser scans ray-cast from free\n"
+      "positions (a lattice, several headings each) fill the appearance database; the occupied cells, with\n"
+      "their surface normals, fill the pose grid and the free cells the free-space grid. The virtual laser\n"
+      "should match the robot's that will localize (--grid-beams, --grid-fov-deg, --grid-max-range).\n"
+      "`localize --map MAP.yaml` builds the same submap on the fly with the target's laser.");
+  cmd->add_option("grids", opt->logs, "ROS map YAML files")->required();
+  add_build_options(*cmd, *opt);
   cmd->callback([opt] {
-    const GlobalMapConfig config = map_settings(opt->config);
-    if (opt->print_config) {
-      std::printf("%s\n", nlohmann::json(config).dump(2).c_str());
-      return;
-    }
-    if (!opt->names.empty() && opt->names.size() != opt->logs.size())
-      throw Error("--name: expected one name per log (" + std::to_string(opt->logs.size()) + "), got " +
-                  std::to_string(opt->names.size()));
-    const auto t0 = std::chrono::steady_clock::now();
-    std::vector<Submap> submaps;
-    nlohmann::json sources = nlohmann::json::array();
-    for (std::size_t i = 0; i < opt->logs.size(); ++i) {
-      std::fprintf(stderr, "map build: reading %s\n", opt->logs[i].c_str());
-      submaps.push_back(load_map_argument(opt->logs[i], opt->slam));
-      if (!opt->names.empty()) submaps.back().name = opt->names[i];
-      sources.push_back({{"submap", submaps.back().name},
-                         {"source", opt->logs[i]},
-                         {"scans", submaps.back().scans.size()},
-                         {"poses_from_slam", submaps.back().poses_from_slam}});
-    }
-    GlobalMap map(config);
-    std::fprintf(stderr, "map build: adding %zu submaps\n", submaps.size());
-    MapFeeder(map, submaps).feed_until(1.0);
-    const double build_s = seconds_since(t0);
-    const auto t1 = std::chrono::steady_clock::now();
-    io::save_map(opt->out, map, {{"made_by", "lshloc map build"}, {"submaps", sources}});
-    const double save_s = seconds_since(t1);
-    const io::LoadedMap check = io::load_map(opt->out);  // what was written reads back
-    nlohmann::json j = map_json(opt->out, *check.map, check.info);
-    j["build_s"] = build_s;
-    j["save_s"] = save_s;
-    if (opt->json) {
-      std::printf("%s\n", j.dump().c_str());
-    } else {
-      std::printf(
-          "%s: %zu submaps, %zu scans, %zu features, %llu bytes (%.1f per feature); built in %.1f s, saved in "
-          "%.2f s\n",
-          opt->out.c_str(), map.submap_count(), map.stats().scans, map.stats().features,
-          static_cast<unsigned long long>(check.info.file_bytes), j["file_bytes_per_feature"].get<double>(), build_s,
-          save_s);
-    }
+    for (const std::string& g : opt->logs)
+      if (!is_grid_argument(g)) throw Error(g + ": expected a ROS map YAML (.yaml/.yml); logs go to `map build`");
+    run_build(*opt, "lshloc map from-grid");
   });
 }
 
@@ -347,6 +372,7 @@ void add_map_command(CLI::App& app, GlobalOptions& global) {
   add_verify(*cmd);
   add_compact(*cmd);
   add_to_grid(*cmd);
+  add_from_grid(*cmd);
 }
 
 }  // namespace lshloc::app

@@ -12,6 +12,7 @@
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/ground_truth.hpp"
 #include "lshloc/io/line_reader.hpp"
+#include "lshloc/io/ros_map.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
 
 namespace lshloc::app {
@@ -54,6 +55,8 @@ std::vector<StampedPose> read_map_poses(const std::string& path, const Pose2& la
 Submap load_map_argument(const std::string& arg, bool slam) {
   const auto comma = arg.find(',');
   const std::string log_path = arg.substr(0, comma);
+  if (is_grid_argument(log_path))
+    throw Error(log_path + ": a ROS map (YAML) is no log; give it to `map build`, `map from-grid` or `localize --map`");
   Submap s;
   s.name = std::filesystem::path(log_path).filename().string();
   io::CarmenLog log = io::read_carmen_log(log_path);
@@ -108,6 +111,91 @@ io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config)
   config.localizer.features = built.features;
   io::require_localizer_fits_map(config.localizer, built, path);
   return loaded;
+}
+
+GridSubmapConfig GridMapOptions::resolve(const LaserScan* like) const {
+  io::CarmenRecord record;
+  if (!laser_of.empty()) {
+    io::CarmenReader reader(laser_of);
+    while (reader.next(record) && record.type != io::CarmenRecord::Type::kLaser) {
+    }
+    if (record.type != io::CarmenRecord::Type::kLaser || record.scan.size() == 0)
+      throw Error(laser_of + ": --grid-laser-of: expected a CARMEN log with a laser scan");
+    like = &record.scan;
+  }
+  GridSubmapConfig c = like ? with_laser_of(config, *like) : config;
+  if (beams) c.beams = *beams;
+  if (fov_deg) c.field_of_view = *fov_deg * std::numbers::pi / 180.0;
+  if (max_range) c.max_range = *max_range;
+  c.validate();
+  return c;
+}
+
+void add_grid_map_options(CLI::App& cmd, GridMapOptions& o) {
+  const std::string group = "Maps from occupancy grids (MAP.yaml)";
+  cmd.add_option("--grid-spacing", o.config.pose_spacing, "[m] between virtual laser positions")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--grid-headings", o.config.headings, "virtual scans per position, evenly over 360 degrees")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--grid-clearance", o.config.clearance, "[m] virtual positions keep this far from walls and unknown")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--grid-laser-of", o.laser_of,
+                 "a log of the robot that will localize: its laser (beams, field of view, range) is the virtual one")
+      ->group(group);
+  cmd.add_option("--grid-beams", o.beams, "virtual laser beams (default: the target's laser, else 181)")->group(group);
+  cmd.add_option("--grid-fov-deg", o.fov_deg, "[deg] virtual laser field of view (default: the target's, else 180)")
+      ->group(group);
+  cmd.add_option("--grid-max-range", o.max_range, "[m] virtual laser range (default: the target's, else 50)")
+      ->group(group);
+}
+
+bool is_grid_argument(const std::string& arg) { return io::is_ros_map_path(arg); }
+
+std::vector<Point2> MapSources::wall_points(std::uint32_t submap) const {
+  std::vector<Point2> out;
+  for (std::size_t i = 0; i < log_ids.size(); ++i) {
+    if (log_ids[i] != submap) continue;
+    for (const LaserScan& scan : logs[i].scans)
+      for (const Point2& p : scan.endpoints(0.05, 20.0)) out.push_back(scan.pose.transform(p));
+  }
+  for (std::size_t i = 0; i < grid_ids.size(); ++i) {
+    if (grid_ids[i] != submap) continue;
+    const OccupancyGrid& g = grids[i];
+    for (std::size_t r = 0; r < g.height; ++r)
+      for (std::size_t c = 0; c < g.width; ++c)
+        if (g.at(c, r) == occupancy::kOccupied) out.push_back(g.cell_centre(c, r));
+  }
+  return out;
+}
+
+MapSources add_map_arguments(GlobalMap& map, const std::vector<std::string>& args, bool slam,
+                             const GridSubmapConfig& grid, const std::vector<std::string>& names) {
+  if (!names.empty() && names.size() != args.size())
+    throw Error("--name: expected one name per map (" + std::to_string(args.size()) + "), got " +
+                std::to_string(names.size()));
+  MapSources out;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& arg = args[i];
+    if (is_grid_argument(arg)) {
+      out.grids.push_back(io::read_ros_map(arg));
+      out.grid_ids.push_back(map.add_submap(names.empty() ? std::filesystem::path(arg).stem().string() : names[i]));
+    } else {
+      out.logs.push_back(load_map_argument(arg, slam));
+      if (!names.empty()) out.logs.back().name = names[i];
+      out.log_ids.push_back(map.add_submap(out.logs.back().name));
+    }
+  }
+  for (std::size_t i = 0; i < out.grids.size(); ++i) {
+    out.grid_stats.push_back(add_grid_submap(map, out.grid_ids[i], out.grids[i], grid));
+    const GridSubmapStats& st = out.grid_stats.back();
+    std::fprintf(stderr, "lshloc: %s: %zu virtual scans from %zu positions, %zu features, %.1f s\n",
+                 map.submap_name(out.grid_ids[i]).c_str(), st.virtual_scans, st.positions, st.features, st.cpu_s);
+  }
+  if (!out.logs.empty()) MapFeeder(map, out.logs, out.log_ids).feed_until(1.0);
+  return out;
 }
 
 }  // namespace lshloc::app

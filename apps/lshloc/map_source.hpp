@@ -1,11 +1,17 @@
 #pragma once
 // Where the commands get a global map from: mapped logs (one submap each) or
 // a saved map file (docs/map-format.md).
+#include <optional>
 #include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "lshloc/eval/scenario.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/io/map_store.hpp"
+#include "lshloc/localization/grid_submap.hpp"
+#include "lshloc/slam/occupancy_grid.hpp"
 
 namespace lshloc::app {
 
@@ -21,5 +27,42 @@ Submap load_map_argument(const std::string& arg, bool slam);
 /// settings, and throws lshloc::Error when `config` asks for map settings
 /// other than the map's or the localizer cannot use the map.
 io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config);
+
+/// Command-line settings of submaps built from occupancy grids (a ROS map
+/// YAML given where a map log goes). The virtual laser is the target's
+/// unless given here.
+struct GridMapOptions {
+  GridSubmapConfig config;
+  std::optional<std::size_t> beams;
+  std::optional<double> fov_deg, max_range;
+  std::string laser_of;  ///< a log whose first scan's laser is the virtual one
+  /// The settings, with the laser of `laser_of`, else of `like` (if any),
+  /// where none was given.
+  GridSubmapConfig resolve(const LaserScan* like) const;
+};
+void add_grid_map_options(CLI::App& cmd, GridMapOptions& options);
+
+/// The submaps that map arguments (logs or ROS map YAMLs) added to a map,
+/// with what each was made from (for figures).
+struct MapSources {
+  std::vector<Submap> logs;
+  std::vector<std::uint32_t> log_ids;
+  std::vector<OccupancyGrid> grids;
+  std::vector<std::uint32_t> grid_ids;
+  std::vector<GridSubmapStats> grid_stats;
+  /// Endpoints [m] of `submap`'s walls: its log's scans or its grid's
+  /// occupied cells; empty for a submap from elsewhere.
+  std::vector<Point2> wall_points(std::uint32_t submap) const;
+};
+
+/// Whether a map argument names a ROS map_server YAML.
+bool is_grid_argument(const std::string& arg);
+
+/// Adds one submap per argument to `map`, in the arguments' order: logs
+/// (load_map_argument) fed as mapper robots working in parallel, grids
+/// (map_server YAMLs) by add_grid_submap with `grid`. `names` (empty, or
+/// one per argument) name the submaps instead of the files.
+MapSources add_map_arguments(GlobalMap& map, const std::vector<std::string>& args, bool slam,
+                             const GridSubmapConfig& grid, const std::vector<std::string>& names = {});
 
 }  // namespace lshloc::app

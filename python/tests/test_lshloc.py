@@ -75,6 +75,32 @@ def test_a_saved_map_loads_to_the_same_estimates(world, tmp_path):
         lshloc.load_map(str(tmp_path / "bad.map"))
 
 
+def test_a_map_from_ros_grids_localizes_against_ground_truth(world, tmp_path):
+    a = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000-corrected.log.gz"))
+    b = lshloc.read_carmen_log(str(world / "sim-3-001" / "sim-3-001-corrected.log.gz"))
+    target = lshloc.read_carmen_log(str(world / "sim-3-001" / "sim-3-001.log.gz"))
+    gmap = lshloc.GlobalMap()
+    first = target.scans[0]
+    for name, log in (("a", a), ("b", b)):
+        grid = lshloc.occupancy_grid_from_scans(log.scans)
+        lshloc.write_ros_map(str(tmp_path / name), grid)
+        back = lshloc.read_ros_map(str(tmp_path / (name + ".yaml")))
+        assert np.array_equal(back.cells, grid.cells) and back.origin == pytest.approx(grid.origin)
+        assert set(np.unique(back.cells)) <= {-1, 0, 100}
+        sid, stats = gmap.add_grid_submap(name, back, beams=len(first.ranges),
+                                          field_of_view=first.angles[-1] - first.angles[0])
+        assert stats["virtual_scans"] == 8 * stats["positions"] and stats["features"] > 100
+    loc = lshloc.Localizer(gmap, laser_offset=target.laser_offset)
+    for scan in target.scans[300:450]:
+        e = loc.add_scan(scan)
+    assert e["localized"] and e["submap_name"] == "b"
+    truth = b.scans[449].pose
+    assert math.hypot(e["pose"][0] - truth[0], e["pose"][1] - truth[1]) < 0.3
+    with pytest.raises(lshloc.Error, match="expected the key 'image'"):
+        (tmp_path / "bad.yaml").write_text("resolution: 0.05\norigin: [0, 0, 0]\n")
+        lshloc.read_ros_map(str(tmp_path / "bad.yaml"))
+
+
 @pytest.mark.skipif(not (DATA / "intel").is_dir(), reason="shared data directory not found (set LSHLOC_DATA)")
 def test_a_real_scenario_gives_the_cli_estimates(tmp_path):
     maps = [DATA / "intel" / "intel.gfs.log.gz", DATA / "aces" / "aces-corrected.log.gz"]

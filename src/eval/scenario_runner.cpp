@@ -24,6 +24,13 @@ MapFeeder::MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps)
   for (const Submap& s : submaps) ids_.push_back(map.add_submap(s.name));
 }
 
+MapFeeder::MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps, std::vector<std::uint32_t> ids)
+    : map_(map), submaps_(submaps), ids_(std::move(ids)), fed_(submaps.size(), 0) {
+  if (ids_.size() != submaps_.size())
+    throw Error("MapFeeder: expected one submap id per submap (" + std::to_string(submaps_.size()) + "), got " +
+                std::to_string(ids_.size()));
+}
+
 void MapFeeder::feed_until(double share) {
   bool any = true;
   while (any) {

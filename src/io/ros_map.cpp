@@ -1,8 +1,18 @@
 #include "lshloc/io/ros_map.hpp"
 
+#include <yaml.h>
+
+#include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
+#include <iterator>
+#include <map>
+#include <memory>
 
 #include "lshloc/common/error.hpp"
 
@@ -33,11 +43,226 @@ void write_ros_map(const std::string& stem, const OccupancyGrid& grid) {
   std::ofstream out(yaml);
   if (!out) throw Error(yaml + ": cannot write");
   char origin[96];
-  std::snprintf(origin, sizeof origin, "[%.6f, %.6f, 0.0]", grid.origin.x(), grid.origin.y());
+  std::snprintf(origin, sizeof origin, "[%.9g, %.9g, %.9g]", grid.origin.x(), grid.origin.y(), grid.origin_yaw);
   out << "image: " << std::filesystem::path(pgm).filename().string()
-      << "\nmode: trinary\nresolution: " << grid.resolution << "\norigin: " << origin
-      << "\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n";
+      << "\nmode: trinary\nresolution: " << std::setprecision(9) << grid.resolution << "\norigin: " << origin
+      << "\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
   if (!out) throw Error(yaml + ": cannot write");
+}
+
+namespace {
+
+/// A YAML value: a scalar's text or a flow/block sequence of scalars, with
+/// the line it stands on (1-based) for messages.
+struct YamlValue {
+  std::string scalar;
+  std::vector<std::string> items;
+  bool is_sequence = false;
+  std::size_t line = 0;
+};
+
+/// The top-level mapping of a map_server YAML file, key -> value.
+std::map<std::string, YamlValue> read_yaml_mapping(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path + ": cannot open");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (text.size() > (1u << 20))
+    throw Error(path + ": expected a map_server YAML of a few lines, got " + std::to_string(text.size()) + " bytes");
+  yaml_parser_t parser;
+  if (!yaml_parser_initialize(&parser)) throw Error(path + ": cannot start the YAML parser");
+  const std::unique_ptr<yaml_parser_t, void (*)(yaml_parser_t*)> parser_guard(&parser, yaml_parser_delete);
+  yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
+  yaml_document_t doc;
+  if (!yaml_parser_load(&parser, &doc)) {
+    throw Error(path + ":" + std::to_string(parser.problem_mark.line + 1) +
+                ": invalid YAML: " + (parser.problem ? parser.problem : "parse error"));
+  }
+  const std::unique_ptr<yaml_document_t, void (*)(yaml_document_t*)> doc_guard(&doc, yaml_document_delete);
+  const yaml_node_t* root = yaml_document_get_root_node(&doc);
+  if (root == nullptr || root->type != YAML_MAPPING_NODE)
+    throw Error(path + ": expected a YAML mapping (image, resolution, origin, ...)");
+  const auto scalar = [](const yaml_node_t* n) {
+    return std::string(reinterpret_cast<const char*>(n->data.scalar.value), n->data.scalar.length);
+  };
+  std::map<std::string, YamlValue> out;
+  for (const yaml_node_pair_t* pair = root->data.mapping.pairs.start; pair < root->data.mapping.pairs.top; ++pair) {
+    const yaml_node_t* key = yaml_document_get_node(&doc, pair->key);
+    const yaml_node_t* value = yaml_document_get_node(&doc, pair->value);
+    const std::string where = path + ":" + std::to_string(key->start_mark.line + 1);
+    if (key->type != YAML_SCALAR_NODE) throw Error(where + ": expected a plain key");
+    YamlValue v;
+    v.line = value->start_mark.line + 1;
+    if (value->type == YAML_SCALAR_NODE) {
+      v.scalar = scalar(value);
+    } else if (value->type == YAML_SEQUENCE_NODE) {
+      v.is_sequence = true;
+      for (const yaml_node_item_t* item = value->data.sequence.items.start; item < value->data.sequence.items.top;
+           ++item) {
+        const yaml_node_t* n = yaml_document_get_node(&doc, *item);
+        if (n->type != YAML_SCALAR_NODE) throw Error(where + ": " + scalar(key) + ": expected a list of numbers");
+        v.items.push_back(scalar(n));
+      }
+    } else {
+      continue;  // nested mappings belong to other tools (e.g. nav2's parameters)
+    }
+    if (!out.emplace(scalar(key), v).second) throw Error(where + ": key " + scalar(key) + " given twice");
+  }
+  return out;
+}
+
+double parse_number(const std::string& text, const std::string& where, const std::string& key) {
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE || !std::isfinite(v))
+    throw Error(where + ": " + key + ": expected a finite number, got '" + text + "'");
+  return v;
+}
+
+/// A PGM image (binary P5 or plain P2), grey values scaled to 0..255.
+struct GreyImage {
+  std::size_t width = 0, height = 0;
+  std::vector<unsigned char> pixels;  // row-major, row 0 at the top
+};
+
+GreyImage read_pgm(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path + ": cannot open the map image");
+  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::size_t pos = 0;
+  const auto skip_space = [&] {
+    while (pos < data.size()) {
+      if (data[pos] == '#') {
+        while (pos < data.size() && data[pos] != '\n') ++pos;
+      } else if (std::isspace(static_cast<unsigned char>(data[pos]))) {
+        ++pos;
+      } else {
+        break;
+      }
+    }
+  };
+  const auto header_number = [&](const char* what) {
+    skip_space();
+    std::size_t v = 0, digits = 0;
+    while (pos < data.size() && std::isdigit(static_cast<unsigned char>(data[pos])) && digits < 9)
+      v = v * 10 + static_cast<std::size_t>(data[pos++] - '0'), ++digits;
+    if (digits == 0 || (pos < data.size() && std::isdigit(static_cast<unsigned char>(data[pos]))))
+      throw Error(path + ": byte " + std::to_string(pos) + ": expected the PGM " + what + " (a number below 1e9)");
+    return v;
+  };
+  if (data.size() < 2 || data[0] != 'P' || (data[1] != '5' && data[1] != '2'))
+    throw Error(path +
+                ": expected a PGM image (P5 binary or P2 plain greyscale; convert PNG maps with e.g. "
+                "`convert map.png map.pgm`)");
+  const bool binary = data[1] == '5';
+  pos = 2;
+  GreyImage img;
+  img.width = header_number("width");
+  img.height = header_number("height");
+  const std::size_t maxval = header_number("maximum grey value");
+  if (img.width == 0 || img.height == 0 || maxval == 0 || maxval > 65535)
+    throw Error(path + ": expected a positive width and height and a maximum grey value in 1..65535");
+  if (static_cast<double>(img.width) * static_cast<double>(img.height) > static_cast<double>(1u << 28))
+    throw Error(path + ": " + std::to_string(img.width) + " x " + std::to_string(img.height) + " pixels exceed 2^28");
+  const std::size_t n = img.width * img.height;
+  img.pixels.resize(n);
+  const auto scaled = [&](std::size_t v) {
+    return static_cast<unsigned char>(maxval == 255 ? v : (v * 255 + maxval / 2) / maxval);
+  };
+  if (binary) {
+    ++pos;  // the one whitespace byte after maxval
+    const std::size_t bytes = maxval > 255 ? 2 : 1;
+    if (data.size() < pos + n * bytes)
+      throw Error(path + ": expected " + std::to_string(n * bytes) + " bytes of pixels after the header, got " +
+                  std::to_string(data.size() > pos ? data.size() - pos : 0));
+    for (std::size_t i = 0; i < n; ++i) {
+      std::size_t v = static_cast<unsigned char>(data[pos + i * bytes]);
+      if (bytes == 2) v = v << 8 | static_cast<unsigned char>(data[pos + i * bytes + 1]);
+      if (v > maxval) throw Error(path + ": pixel " + std::to_string(i) + " exceeds the maximum grey value");
+      img.pixels[i] = scaled(v);
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t v = header_number("pixel value");
+      if (v > maxval) throw Error(path + ": pixel " + std::to_string(i) + " exceeds the maximum grey value");
+      img.pixels[i] = scaled(v);
+    }
+  }
+  return img;
+}
+
+}  // namespace
+
+bool is_ros_map_path(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  return ext == ".yaml" || ext == ".yml";
+}
+
+OccupancyGrid read_ros_map(const std::string& yaml_path) {
+  const std::map<std::string, YamlValue> yaml = read_yaml_mapping(yaml_path);
+  const auto get = [&](const std::string& key, bool required) -> const YamlValue* {
+    const auto it = yaml.find(key);
+    if (it == yaml.end()) {
+      if (required) throw Error(yaml_path + ": expected the key '" + key + "' (map_server's map YAML)");
+      return nullptr;
+    }
+    return &it->second;
+  };
+  const auto where = [&](const YamlValue& v) { return yaml_path + ":" + std::to_string(v.line); };
+  const auto number = [&](const std::string& key, double fallback) {
+    const YamlValue* v = get(key, false);
+    if (v == nullptr) return fallback;
+    if (v->is_sequence) throw Error(where(*v) + ": " + key + ": expected a number, got a list");
+    return parse_number(v->scalar, where(*v), key);
+  };
+
+  const YamlValue& image = *get("image", true);
+  if (image.is_sequence || image.scalar.empty()) throw Error(where(image) + ": image: expected a file name");
+  OccupancyGrid grid;
+  const YamlValue& resolution = *get("resolution", true);
+  grid.resolution = number("resolution", 0.0);
+  if (!(grid.resolution > 0.0)) throw Error(where(resolution) + ": resolution: expected > 0 m per cell");
+  const YamlValue& origin = *get("origin", true);
+  if (!origin.is_sequence || origin.items.size() != 3) throw Error(where(origin) + ": origin: expected [x, y, yaw]");
+  grid.origin = {parse_number(origin.items[0], where(origin), "origin x"),
+                 parse_number(origin.items[1], where(origin), "origin y")};
+  grid.origin_yaw = parse_number(origin.items[2], where(origin), "origin yaw");
+  const double negate = number("negate", 0.0);
+  if (negate != 0.0 && negate != 1.0) throw Error(where(*get("negate", true)) + ": negate: expected 0 or 1");
+  const double occupied_thresh = number("occupied_thresh", 0.65), free_thresh = number("free_thresh", 0.196);
+  if (!(free_thresh >= 0.0 && free_thresh <= occupied_thresh && occupied_thresh <= 1.0))
+    throw Error(yaml_path + ": expected 0 <= free_thresh <= occupied_thresh <= 1, got " + std::to_string(free_thresh) +
+                " and " + std::to_string(occupied_thresh));
+  std::string mode = "trinary";
+  if (const YamlValue* m = get("mode", false)) {
+    mode = m->scalar;
+    if (mode != "trinary" && mode != "scale" && mode != "raw")
+      throw Error(where(*m) + ": mode: expected trinary, scale or raw, got '" + mode + "'");
+  }
+
+  std::filesystem::path image_path(image.scalar);
+  if (image_path.is_relative()) image_path = std::filesystem::path(yaml_path).parent_path() / image_path;
+  const GreyImage img = read_pgm(image_path.string());
+  grid.width = img.width, grid.height = img.height;
+  grid.cells.assign(img.width * img.height, occupancy::kUnknown);
+  for (std::size_t r = 0; r < img.height; ++r) {
+    // The image's top row is the grid's highest y.
+    const unsigned char* row = &img.pixels[(img.height - 1 - r) * img.width];
+    for (std::size_t c = 0; c < img.width; ++c) {
+      const double v = row[c];
+      std::int8_t& cell = grid.cells[r * img.width + c];
+      if (mode == "raw") {
+        if (v <= 100)
+          cell = v / 100.0 > occupied_thresh ? occupancy::kOccupied
+                 : v / 100.0 < free_thresh   ? occupancy::kFree
+                                             : occupancy::kUnknown;
+        continue;
+      }
+      const double p = negate != 0.0 ? v / 255.0 : (255.0 - v) / 255.0;
+      cell = p > occupied_thresh ? occupancy::kOccupied : p < free_thresh ? occupancy::kFree : occupancy::kUnknown;
+    }
+  }
+  return grid;
 }
 
 }  // namespace lshloc::io

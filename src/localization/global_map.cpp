@@ -47,11 +47,15 @@ std::uint32_t GlobalMap::add_submap(std::string name) {
   return static_cast<std::uint32_t>(submaps_.size() - 1);
 }
 
-std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose) {
+void GlobalMap::check_submap(std::uint32_t submap, const char* caller) const {
   if (submap >= submaps_.size()) {
-    throw Error("GlobalMap::add_scan: unknown submap " + std::to_string(submap) + " (there are " +
+    throw Error(std::string(caller) + ": unknown submap " + std::to_string(submap) + " (there are " +
                 std::to_string(submaps_.size()) + ")");
   }
+}
+
+std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, ScanGrids grids) {
+  check_submap(submap, "GlobalMap::add_scan");
   SubmapState& state = submaps_[submap];
   ++state.scans;
   ++stats_.scans;
@@ -66,9 +70,11 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   stats_.database_insert_s += watch.seconds();
   stats_.features += features.size();
 
-  watch = CpuStopwatch();
-  mark_grids(submap, scan, laser_pose, surface);
-  stats_.grid_s += watch.seconds();
+  if (grids == ScanGrids::kMark) {
+    watch = CpuStopwatch();
+    mark_grids(submap, scan, laser_pose, surface);
+    stats_.grid_s += watch.seconds();
+  }
 
   state.context.offer(surface);
   return features.size();
@@ -80,9 +86,7 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   // Occupancy: endpoints with their normal direction, thinned along the scan;
   // the free-space grid notes where the map has a normal (kNormal).
   for_each_spaced(surface.points, config_.endpoint_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
-    occupancy_.mark(submap, p.position.x(), p.position.y(), normal_towards(p.position, p.tangent, sensor),
-                    cell_flags::kOccupied);
-    free_space_.mark(submap, p.position.x(), p.position.y(), 0.0, cell_flags::kNormal);
+    mark_surface_point(submap, p.position, normal_towards(p.position, p.tangent, sensor));
   });
   // Free space: cells the beams crossed, stopping short of the endpoint; the
   // endpoints' cells and their neighbours are marked occupied in the same 2-D
@@ -121,9 +125,7 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
     reach = std::min(reach, config_.free_ray_max_range);
     const double a = scan.bearing(i);
     const double dx = c * std::cos(a) - s * std::sin(a), dy = s * std::cos(a) + c * std::sin(a);
-    for (double d = 0.0; d < reach; d += step) {
-      free_space_.mark(submap, sensor.x() + d * dx, sensor.y() + d * dy, 0.0, cell_flags::kFree);
-    }
+    for (double d = 0.0; d < reach; d += step) mark_free(submap, {sensor.x() + d * dx, sensor.y() + d * dy});
   }
   // Every return (not only the smooth segments' points: sparse returns from
   // far walls are no segments) marks its cell and neighbours occupied, and
@@ -133,15 +135,31 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   for (std::size_t i = 0; i < scan.size(); ++i) {
     if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range)
       continue;
-    const Point2 p = laser_pose.transform(beam_endpoints_[i]);
-    for (int ix = -1; ix <= 1; ++ix) {
-      for (int iy = -1; iy <= 1; ++iy) {
-        const bool own = ix == 0 && iy == 0;
-        free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0,
-                         own ? cell_flags::kOccupied | cell_flags::kReturn : cell_flags::kOccupied);
-      }
+    mark_return(submap, laser_pose.transform(beam_endpoints_[i]));
+  }
+}
+
+void GlobalMap::mark_surface_point(std::uint32_t submap, const Point2& p, double normal) {
+  check_submap(submap, "GlobalMap::mark_surface_point");
+  occupancy_.mark(submap, p.x(), p.y(), normal, cell_flags::kOccupied);
+  free_space_.mark(submap, p.x(), p.y(), 0.0, cell_flags::kNormal);
+}
+
+void GlobalMap::mark_return(std::uint32_t submap, const Point2& p) {
+  check_submap(submap, "GlobalMap::mark_return");
+  const double step = config_.free_space.cell_size;
+  for (int ix = -1; ix <= 1; ++ix) {
+    for (int iy = -1; iy <= 1; ++iy) {
+      const bool own = ix == 0 && iy == 0;
+      free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0,
+                       own ? cell_flags::kOccupied | cell_flags::kReturn : cell_flags::kOccupied);
     }
   }
+}
+
+void GlobalMap::mark_free(std::uint32_t submap, const Point2& p) {
+  check_submap(submap, "GlobalMap::mark_free");
+  free_space_.mark(submap, p.x(), p.y(), 0.0, cell_flags::kFree);
 }
 
 std::optional<std::uint32_t> GlobalMap::find_submap(std::string_view name) const {

@@ -59,6 +59,8 @@ class MapFeeder {
  public:
   /// Opens one submap of `map` per entry of `submaps` (which must outlive it).
   MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps);
+  /// Feeds submaps[i] into the map's existing submap ids[i] instead.
+  MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps, std::vector<std::uint32_t> ids);
   /// Feeds scans until this share (0..1) of every submap is in the map.
   void feed_until(double share);
   /// The map's id of submaps[i].

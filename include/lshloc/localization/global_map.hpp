@@ -93,9 +93,25 @@ class GlobalMap {
   /// Opens a new, empty submap and returns its id (0, 1, ...).
   std::uint32_t add_submap(std::string name);
 
+  /// What add_scan() does with a scan besides its features.
+  enum class ScanGrids : std::uint8_t {
+    kMark,  ///< marks its endpoints and rays in the occupancy and free-space grids
+    kSkip,  ///< features only: the caller marks the grids itself (maps from occupancy grids)
+  };
+
   /// Adds one mapper scan to `submap`; `laser_pose` is the scan's laser pose
   /// in the submap's frame. Returns the number of features it added.
-  std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose);
+  std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
+                       ScanGrids grids = ScanGrids::kMark);
+
+  // --- The grid marks add_scan() makes, one point at a time (for maps whose
+  // surface and free space come from elsewhere, e.g. an occupancy grid).
+  /// A surface point at `p` [m] whose normal points along `normal` [rad].
+  void mark_surface_point(std::uint32_t submap, const Point2& p, double normal);
+  /// A laser return at `p`: its free-space cell and the 8 around it read as occupied.
+  void mark_return(std::uint32_t submap, const Point2& p);
+  /// Free space seen at `p`.
+  void mark_free(std::uint32_t submap, const Point2& p);
 
   std::size_t submap_count() const { return submaps_.size(); }
   const std::string& submap_name(std::uint32_t submap) const { return submaps_.at(submap).name; }
@@ -134,6 +150,7 @@ class GlobalMap {
     std::size_t scans = 0;
   };
 
+  void check_submap(std::uint32_t submap, const char* caller) const;
   void mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
 
   GlobalMapConfig config_;

@@ -36,10 +36,21 @@ inline constexpr std::int8_t kOccupied = 100;
 struct OccupancyGrid {
   double resolution = 0.05;  ///< [m]
   Point2 origin{0.0, 0.0};   ///< [m] the lower left corner of cell (0, 0)
+  /// [rad] the grid's rotation about `origin` (map_server's origin yaw):
+  /// cell columns run along this direction.
+  double origin_yaw = 0.0;
   std::size_t width = 0, height = 0;
   std::vector<std::int8_t> cells;  ///< width * height: kUnknown, kFree or kOccupied
   std::int8_t at(std::size_t col, std::size_t row) const { return cells[row * width + col]; }
-  /// The cell holding point p, or false when it lies outside.
+  /// The pose of the grid's frame (cell (0, 0)'s lower left corner, x along
+  /// the rows) in the map frame.
+  Pose2 origin_pose() const { return {origin.x(), origin.y(), origin_yaw}; }
+  /// The centre of cell (col, row) in the map frame.
+  Point2 cell_centre(std::size_t col, std::size_t row) const {
+    return origin_pose().transform(
+        Point2((static_cast<double>(col) + 0.5) * resolution, (static_cast<double>(row) + 0.5) * resolution));
+  }
+  /// The cell holding point p (map frame), or false when it lies outside.
   bool cell_of(const Point2& p, std::size_t& col, std::size_t& row) const;
 };
 

@@ -1,0 +1,204 @@
+// Maps from occupancy grids: ROS map_server files read back as written and as
+// map_server classifies them, virtual scans against the exact distances of a
+// known room, and a robot localized (against the simulator's ground truth)
+// in a global map whose submaps were all built from grids.
+#include "lshloc/localization/grid_submap.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
+#include "lshloc/eval/scenario_runner.hpp"
+#include "lshloc/io/ros_map.hpp"
+#include "lshloc/matching/pose_grid.hpp"
+#include "lshloc/sim/synthetic_scenario.hpp"
+#include "test_support.hpp"
+
+namespace lshloc {
+namespace {
+
+/// A 10 x 6 m room (inner walls at x = 0, 10 and y = 0, 6), walls one cell
+/// thick, unknown outside, at 0.05 m per cell with the origin at (-1, -1).
+OccupancyGrid room_grid(double yaw = 0.0) {
+  OccupancyGrid g;
+  g.resolution = 0.05;
+  g.origin = {-1.0, -1.0};
+  g.origin_yaw = yaw;
+  g.width = 240, g.height = 160;  // 12 x 8 m
+  g.cells.assign(g.width * g.height, occupancy::kUnknown);
+  for (std::size_t r = 0; r < g.height; ++r) {
+    for (std::size_t c = 0; c < g.width; ++c) {
+      // Grid-frame coordinates of the cell centre relative to the room's corner.
+      const double x = (static_cast<double>(c) + 0.5) * g.resolution - 1.0;
+      const double y = (static_cast<double>(r) + 0.5) * g.resolution - 1.0;
+      const bool inside = x > 0.0 && x < 10.0 && y > 0.0 && y < 6.0;
+      const bool wall = !inside && x > -0.05 && x < 10.05 && y > -0.05 && y < 6.05;
+      g.cells[r * g.width + c] = inside ? occupancy::kFree : wall ? occupancy::kOccupied : occupancy::kUnknown;
+    }
+  }
+  return g;
+}
+
+std::string write_text(const std::string& suffix, const std::string& text) {
+  const std::string path = test::temp_path(suffix);
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+TEST(RosMap, ReadsBackWhatItWroteCellForCell) {
+  for (const double yaw : {0.0, 0.3}) {
+    const OccupancyGrid g = room_grid(yaw);
+    const std::string stem = test::temp_path("");
+    io::write_ros_map(stem, g);
+    const OccupancyGrid back = io::read_ros_map(stem + ".yaml");
+    EXPECT_EQ(back.width, g.width);
+    EXPECT_EQ(back.height, g.height);
+    EXPECT_DOUBLE_EQ(back.resolution, g.resolution);
+    EXPECT_NEAR(back.origin.x(), g.origin.x(), 1e-9);
+    EXPECT_NEAR(back.origin.y(), g.origin.y(), 1e-9);
+    EXPECT_NEAR(back.origin_yaw, yaw, 1e-9);
+    EXPECT_EQ(back.cells, g.cells);
+  }
+}
+
+TEST(RosMap, ClassifiesPixelsAsMapServerDoes) {
+  // One row of 4 pixels: black, white, map_server's unknown grey, mid grey.
+  const std::string pgm = write_text(".pgm", "P2\n# plain PGM\n4 1\n255\n0 255 205 128\n");
+  const std::string name = std::filesystem::path(pgm).filename().string();
+  const auto read = [&](const std::string& extra) {
+    return io::read_ros_map(
+        write_text(".yaml", "image: " + name + "\nresolution: 0.1\norigin: [1.0, 2.0, 0.0]\n" + extra));
+  };
+  const OccupancyGrid plain = read("");
+  ASSERT_EQ(plain.cells.size(), 4u);
+  EXPECT_EQ(plain.cells, (std::vector<std::int8_t>{occupancy::kOccupied, occupancy::kFree, occupancy::kUnknown,
+                                                   occupancy::kUnknown}));
+  // negate: white is occupied; a low occupied threshold takes the mid grey.
+  const OccupancyGrid negated = read("negate: 1\noccupied_thresh: 0.45\nfree_thresh: 0.1\n");
+  EXPECT_EQ(negated.cells, (std::vector<std::int8_t>{occupancy::kFree, occupancy::kOccupied, occupancy::kOccupied,
+                                                     occupancy::kOccupied}));
+  // 16-bit binary PGM: values scale to 0..255 (65535 is white: free).
+  std::string wide = "P5\n2 1\n65535\n";
+  wide += std::string("\xff\xff\x00\x00", 4);
+  const std::string wide_pgm = write_text(".pgm", wide);
+  const OccupancyGrid w = io::read_ros_map(write_text(
+      ".yaml", "image: " + wide_pgm + "\nresolution: 0.1\norigin: [0, 0, 0]\nmode: scale\nunknown_key: 3\n"));
+  EXPECT_EQ(w.cells, (std::vector<std::int8_t>{occupancy::kFree, occupancy::kOccupied}));
+}
+
+TEST(RosMap, BadFilesNameTheFileTheKeyAndWhatWasExpected) {
+  const std::string pgm = write_text(".pgm", "P5\n2 2\n255\n\x01\x02\x03\x04");
+  const std::string name = std::filesystem::path(pgm).filename().string();
+  const auto message = [&](const std::string& yaml) {
+    const std::string path = write_text(".yaml", yaml);
+    try {
+      io::read_ros_map(path);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("image: " + name + "\norigin: [0, 0, 0]\n").find("expected the key 'resolution'"),
+            std::string::npos);
+  EXPECT_NE(message("image: " + name + "\nresolution: 0.05\norigin: [0, 0]\n").find(":3: origin: expected [x, y, yaw]"),
+            std::string::npos);
+  EXPECT_NE(message("image: " + name + "\nresolution: -1\norigin: [0, 0, 0]\n").find("expected > 0 m"),
+            std::string::npos);
+  EXPECT_NE(message("image: " + name + "\nresolution: abc\norigin: [0, 0, 0]\n").find("expected a finite number"),
+            std::string::npos);
+  EXPECT_NE(message("image: " + name + "\nresolution: 0.1\norigin: [0, 0, 0]\nmode: colour\n").find("mode"),
+            std::string::npos);
+  EXPECT_NE(message("image: missing.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n").find("missing.pgm: cannot open"),
+            std::string::npos);
+  EXPECT_NE(message("image: [a\nresolution: 0.1\n").find("invalid YAML"), std::string::npos);
+  const std::string png = write_text(".png", "\x89PNG\r\n");
+  EXPECT_NE(message("image: " + png + "\nresolution: 0.1\norigin: [0, 0, 0]\n").find("expected a PGM image"),
+            std::string::npos);
+  const std::string short_pgm = write_text(".pgm", "P5\n20 20\n255\nabc");
+  EXPECT_NE(message("image: " + short_pgm + "\nresolution: 0.1\norigin: [0, 0, 0]\n").find("expected 400 bytes"),
+            std::string::npos);
+}
+
+TEST(GridSubmap, VirtualScansMatchTheRoomsExactDistances) {
+  for (const double yaw : {0.0, 0.7}) {
+    const OccupancyGrid g = room_grid(yaw);
+    const Pose2 corner = g.origin_pose() * Pose2(1.0, 1.0, 0.0);  // the room's (0, 0) in the map frame
+    const Pose2 in_room(3.2, 2.1, 0.4);
+    GridSubmapConfig config;
+    config.beams = 361;
+    config.field_of_view = 2.0 * std::numbers::pi;
+    const LaserScan scan = cast_virtual_scan(g, corner * in_room, config);
+    ASSERT_EQ(scan.size(), 361u);
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      // Exact distance from in_room to the rectangle's inner walls along the beam.
+      const double a = in_room.theta + scan.bearing(i), dx = std::cos(a), dy = std::sin(a);
+      double t = 1e9;
+      if (dx > 1e-12) t = std::min(t, (10.0 - in_room.x) / dx);
+      if (dx < -1e-12) t = std::min(t, -in_room.x / dx);
+      if (dy > 1e-12) t = std::min(t, (6.0 - in_room.y) / dy);
+      if (dy < -1e-12) t = std::min(t, -in_room.y / dy);
+      ASSERT_EQ(scan.status(i), BeamStatus::kValid) << i;
+      // The wall's cell centre lies half a cell behind its face (more along a slanted ray).
+      EXPECT_NEAR(scan.ranges[i], t, 0.1) << "beam " << i << " yaw " << yaw;
+    }
+  }
+  // A ray into unknown space is a no-return.
+  OccupancyGrid open = room_grid();
+  for (std::size_t r = 0; r < open.height; ++r)
+    open.cells[r * open.width + 220] = occupancy::kUnknown;  // x = 10 wall gone
+  const LaserScan scan = cast_virtual_scan(open, Pose2(5.0, 3.0, 0.0), {});
+  EXPECT_EQ(scan.status(scan.size() / 2), BeamStatus::kNoReturn);
+}
+
+TEST(GridSubmap, MarksWallsWithTheirNormalsAndTheRoomAsFree) {
+  GlobalMap map;
+  const OccupancyGrid g = room_grid();
+  const GridSubmapStats st = add_grid_submap(map, map.add_submap("room"), g);
+  EXPECT_GT(st.positions, 100u);
+  EXPECT_EQ(st.virtual_scans, st.positions * 8);
+  EXPECT_GT(st.features, 100u);
+  EXPECT_EQ(map.stats().features, st.features);
+  // The bottom wall (y = 0) faces up into the room, the left wall (x = 0) right.
+  EXPECT_TRUE(map.occupancy().probe(0, 5.0, -0.02, std::numbers::pi / 2) & cell_flags::kOccupied);
+  EXPECT_FALSE(map.occupancy().probe(0, 5.0, -0.02, -std::numbers::pi / 2) & cell_flags::kOccupied);
+  EXPECT_TRUE(map.occupancy().probe(0, -0.02, 3.0, 0.0) & cell_flags::kOccupied);
+  EXPECT_FALSE(map.occupancy().probe(0, -0.02, 3.0, std::numbers::pi) & cell_flags::kOccupied);
+  EXPECT_TRUE(map.free_space().probe(0, 5.0, 3.0, 0.0) & cell_flags::kFree);
+  EXPECT_FALSE(map.free_space().probe(0, 5.0, 3.0, 0.0) & cell_flags::kOccupied);
+  EXPECT_TRUE(map.free_space().probe(0, 5.0, -0.02, 0.0) & cell_flags::kReturn);
+  EXPECT_FALSE(map.free_space().probe(0, 5.0, -0.5, 0.0) & cell_flags::kFree);  // unknown behind the wall
+  // The submap has scans now: a second grid cannot go into it.
+  EXPECT_THROW(add_grid_submap(map, 0, g), Error);
+  EXPECT_THROW(add_grid_submap(map, 7, g), Error);
+  GridSubmapConfig bad;
+  bad.pose_spacing = std::nan("");
+  EXPECT_THROW(add_grid_submap(map, map.add_submap("x"), g, bad), Error);
+}
+
+TEST(GridSubmap, ARobotLocalizesInAMapBuiltOnlyFromGrids) {
+  // Every building of the small world as a ROS map: its mapper's scans turned
+  // into an occupancy grid, written and read back, then into a submap.
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
+  GlobalMap map;
+  const GridSubmapConfig config = with_laser_of({}, sc.target.scans.front());
+  for (const Submap& s : sc.submaps) {
+    const std::string stem = test::temp_path("");
+    io::write_ros_map(stem, build_occupancy_grid(s.scans));
+    add_grid_submap(map, map.add_submap(s.name), io::read_ros_map(stem + ".yaml"), config);
+  }
+  const ScenarioRun run = localize_target(map, sc.target, LocalizerConfig{});
+  const auto m =
+      evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
+  ASSERT_TRUE(m.final_error_m.has_value()) << "the final estimate is in the wrong building or absent";
+  EXPECT_LT(*m.final_error_m, 0.3);
+  EXPECT_LT(*m.final_heading_error_deg, 3.0);
+  ASSERT_TRUE(m.localized_at.has_value());
+  EXPECT_EQ(m.confident_wrong, 0u);
+}
+
+}  // namespace
+}  // namespace lshloc
