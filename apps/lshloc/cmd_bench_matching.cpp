@@ -27,6 +27,7 @@
 #include "lshloc/matching/pose_grid_scorer.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/config_json.hpp"
+#include "option_checks.hpp"
 
 namespace lshloc::app {
 
@@ -271,15 +272,21 @@ void add_bench_matching_command(CLI::App& bench, GlobalOptions& global) {
   cmd->add_flag("--json", o->json, "print one JSON line (default: readable lines)");
   cmd->add_option("--map", o->map_log, "corrected CARMEN log (e.g. fr079/fr079-complete.gfs.log.gz)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--viewpoints", o->viewpoints, "viewpoints to simulate")->capture_default_str();
-  cmd->add_option("--warm-up", o->warm_up, "viewpoints before the first-100 window")->capture_default_str();
+  cmd->add_option("--viewpoints", o->viewpoints, "viewpoints to simulate")
+      ->capture_default_str()
+      ->check(within(1, 1e7));
+  cmd->add_option("--warm-up", o->warm_up, "viewpoints before the first-100 window")
+      ->capture_default_str()
+      ->check(within(0, 1e7));
   cmd->add_option("--inlier-share", o->inlier_share, "share of hypotheses from true correspondences")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--drift-xy", o->drift_xy, "[m] local-map drift per viewpoint (std. dev., random walk)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(within(0, 10));
   cmd->add_option("--drift-theta", o->drift_theta_deg, "[deg] local-map heading drift per viewpoint (std. dev.)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(within(0, 180));
   // Applied while parsing, like every --config of the tool.
   cmd->add_option_function<std::string>(
          "--config",

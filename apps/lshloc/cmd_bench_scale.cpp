@@ -16,6 +16,7 @@
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
+#include "option_checks.hpp"
 
 namespace lshloc::app {
 
@@ -128,10 +129,17 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
       "and how many targets dropped at unknown places localized.");
   cmd->add_option("--submaps", opt->sizes, "map sizes in submaps, comma-separated")
       ->delimiter(',')
-      ->capture_default_str();
-  cmd->add_option("--map-scans", opt->world.map_scans, "scans each mapper robot records")->capture_default_str();
-  cmd->add_option("--target-scans", opt->world.target_scans, "scans of each target's run")->capture_default_str();
-  cmd->add_option("--targets", opt->targets, "targets per size, in different buildings")->capture_default_str();
+      ->capture_default_str()
+      ->check(within(1, 1000));
+  cmd->add_option("--map-scans", opt->world.map_scans, "scans each mapper robot records")
+      ->capture_default_str()
+      ->check(within(1, 1e6));
+  cmd->add_option("--target-scans", opt->world.target_scans, "scans of each target's run")
+      ->capture_default_str()
+      ->check(within(1, 1e6));
+  cmd->add_option("--targets", opt->targets, "targets per size, in different buildings")
+      ->capture_default_str()
+      ->check(within(1, 1000));
   cmd->add_option("--seed", opt->world.seed, "world seed")->capture_default_str();
   cmd->add_option("--plot", opt->plot, "write the per-feature costs against map size (PNG or SVG) to this file");
   cmd->add_flag("--json", opt->json, "JSON lines only (the default output is JSON lines too)");

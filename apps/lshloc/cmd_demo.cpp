@@ -12,6 +12,7 @@
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "scenario_report.hpp"
+#include "option_checks.hpp"
 
 namespace lshloc::app {
 
@@ -31,12 +32,18 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
       app.add_subcommand("demo",
                          "Generate synthetic buildings, let mapper robots build the global map, drop a target robot\n"
                          "at an unknown place and localize it. Needs no data files; writes figures to --out.");
-  cmd->add_option("--buildings", opt->world.buildings, "synthetic buildings in the global map")->capture_default_str();
+  cmd->add_option("--buildings", opt->world.buildings, "synthetic buildings in the global map")
+      ->capture_default_str()
+      ->check(within(1, 200));
   cmd->add_option("--target", opt->world.target_building, "index of the building the target tours")
       ->capture_default_str();
   cmd->add_option("--seed", opt->world.seed, "world seed (buildings, routes, noise)")->capture_default_str();
-  cmd->add_option("--map-scans", opt->world.map_scans, "scans each mapper robot records")->capture_default_str();
-  cmd->add_option("--target-scans", opt->world.target_scans, "scans of the target's run")->capture_default_str();
+  cmd->add_option("--map-scans", opt->world.map_scans, "scans each mapper robot records")
+      ->capture_default_str()
+      ->check(within(1, 1e6));
+  cmd->add_option("--target-scans", opt->world.target_scans, "scans of the target's run")
+      ->capture_default_str()
+      ->check(within(1, 1e6));
   cmd->add_option("--out", opt->out, "directory for the figures and the trace")->capture_default_str();
   cmd->add_flag("--json", opt->json, "print the scenario's JSON line instead of the report");
   add_localizer_options(*cmd, opt->localizer);

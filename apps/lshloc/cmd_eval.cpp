@@ -21,6 +21,7 @@
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "localizer_options.hpp"
 #include "map_source.hpp"
+#include "option_checks.hpp"
 #include "scenario_report.hpp"
 
 namespace lshloc::app {
@@ -268,9 +269,11 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
                   "list runs one scenario per R and, "
                   "with --plot, draws their error curves together (the paper's Fig. 8)")
       ->delimiter(',')
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(within(1, 1000));
   cmd->add_option("--guard", opt->scenario.guard_s, "[s] map scans this close to the window are left out")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(within(0, 1e7));
   cmd->add_option("--seed", opt->scenario.seed, "0: the fixed order of other buildings; else a seeded shuffle")
       ->capture_default_str();
   cmd->add_flag("--json", opt->json, "print only the JSON line on stdout (progress goes to stderr either way)");

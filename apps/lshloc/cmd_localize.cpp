@@ -22,6 +22,7 @@
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
 #include "map_source.hpp"
+#include "option_checks.hpp"
 #include "scenario_report.hpp"
 
 namespace lshloc::app {
@@ -278,9 +279,11 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   auto* length = cmd->add_option("--length", opt->length, "scans of the target log to localize (0: to the end)")
                      ->capture_default_str();
   cmd->add_option("--from", opt->from_s, "[s] localize from this time after the log's first scan")
+      ->check(within(0, 1e9))
       ->excludes(start)
       ->excludes(length);
   cmd->add_option("--to", opt->to_s, "[s] ... up to this time after the log's first scan")
+      ->check(within(0, 1e9))
       ->excludes(start)
       ->excludes(length);
   cmd->add_option("--out", opt->out, "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan");

@@ -17,6 +17,7 @@
 #include "lshloc/io/ros_map.hpp"
 #include "lshloc/slam/occupancy_grid.hpp"
 #include "map_source.hpp"
+#include "option_checks.hpp"
 
 namespace lshloc::app {
 
@@ -196,7 +197,8 @@ void add_append(CLI::App& map_cmd) {
       ->capture_default_str();
   cmd->add_option("--count", opt->count, "scans to append (0: to the end of the log)")->capture_default_str();
   cmd->add_option("--sync-every", opt->sync_every, "scans per fsync (1: each scan is durable before the next)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(within(1, 1e9));
   cmd->add_flag("--slam", opt->slam, "pose a raw log given without a poses file by lshloc's SLAM");
   cmd->add_flag("--ack-lines", opt->ack_lines,
                 "after each fsync print `acknowledged N` (N: the submap's durable scans) on stdout, flushed");
@@ -325,8 +327,12 @@ void add_to_grid(CLI::App& map_cmd) {
       "load): cells where beams ended are occupied, cells they crossed free, the rest unknown.");
   cmd->add_option("log", opt->log, "LOG, LOG,POSES or LOG,slam, as for `map build`")->required();
   cmd->add_option("--out", opt->out, "path stem: writes OUT.yaml and OUT.pgm")->required();
-  cmd->add_option("--resolution", opt->grid.resolution, "[m] cell edge")->capture_default_str();
-  cmd->add_option("--max-range", opt->grid.max_range, "[m] returns beyond are not used")->capture_default_str();
+  cmd->add_option("--resolution", opt->grid.resolution, "[m] cell edge")
+      ->capture_default_str()
+      ->check(within(0.001, 100));
+  cmd->add_option("--max-range", opt->grid.max_range, "[m] returns beyond are not used")
+      ->capture_default_str()
+      ->check(within(0.01, 1000));
   cmd->add_flag("--slam", opt->slam, "pose a raw log given without a poses file by lshloc's SLAM");
   cmd->callback([opt] {
     const Submap submap = load_map_argument(opt->log, opt->slam);

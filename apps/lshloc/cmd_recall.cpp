@@ -19,6 +19,7 @@
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/eval/place_recall.hpp"
 #include "lshloc/eval/run_config_json.hpp"
+#include "option_checks.hpp"
 
 namespace lshloc::app {
 
@@ -93,11 +94,16 @@ void add_recall_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--start", opt->scenario.start,
                   "first raw scan of the target window (default: the building's default window, as for eval)");
   cmd->add_option("--length", opt->scenario.length, "raw scans in the target window")->capture_default_str();
-  cmd->add_option("--submaps", opt->scenario.submaps, "R: submaps in the global map")->capture_default_str();
-  cmd->add_option("--k", opt->k, "locations retrieved per query (recall_at_k)")->capture_default_str();
+  cmd->add_option("--submaps", opt->scenario.submaps, "R: submaps in the global map")
+      ->capture_default_str()
+      ->check(within(1, 1000));
+  cmd->add_option("--k", opt->k, "locations retrieved per query (recall_at_k)")
+      ->capture_default_str()
+      ->check(within(1, 1e6));
   cmd->add_flag("--json", opt->json, "print one JSON line (default: the same, indented)");
   cmd->add_flag("!--no-exact", opt->exact, "skip the brute-force exact-L2 baseline");
   cmd->add_option("--thin", opt->thin_cell, "[m] insert one map feature per (x, y, theta) cell of this size (0: all)")
+      ->check(within(0, 100))
       ->capture_default_str();
   // Applied while parsing, so that the flags above, applied after, win over the file.
   cmd->add_option_function<std::string>(

@@ -12,6 +12,7 @@
 #include "lshloc/io/carmen_writer.hpp"
 #include "lshloc/sim/render.hpp"
 #include "lshloc/sim/simulator.hpp"
+#include "option_checks.hpp"
 
 namespace lshloc::app {
 
@@ -153,15 +154,15 @@ void add_simulate_command(CLI::App& app, GlobalOptions& /*global*/) {
       "Prints one line per building and the generation rate (scans/s, without writing).");
   auto o = std::make_shared<SimulateOptions>();
   cmd->add_option("--out", o->out, "output directory (created if missing)")->required();
-  cmd->add_option("--buildings", o->buildings, "number of buildings")->capture_default_str();
+  cmd->add_option("--buildings", o->buildings, "number of buildings")->capture_default_str()->check(within(1, 1000));
   cmd->add_option("--seed", o->seed, "run seed: building k's layout and tour derive from it")->capture_default_str();
-  cmd->add_option("--scans", o->scans, "scans per building")->capture_default_str()->check(CLI::Range(1, 10000000));
+  cmd->add_option("--scans", o->scans, "scans per building")->capture_default_str()->check(within(1, 1e6));
   cmd->add_option("--beams", o->beams, "beams per scan over 180 degrees")
       ->capture_default_str()
       ->check(CLI::Range(2, 100000));
   cmd->add_option("--max-range", o->max_range, "[m] laser max range (no return beyond)")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(within(0.01, 1000));
   cmd->add_flag("--json", o->json, "one JSON object per line");
   cmd->add_flag("--svg", o->svg, "also draw each floor plan with the robot's path (DIR/NAME/NAME.svg)");
   cmd->callback([o] { run_simulate(*o); });

@@ -6,6 +6,7 @@
 #include "commands.hpp"
 #include "lshloc/io/map_store.hpp"
 #include "lshloc/common/error.hpp"
+#include "option_checks.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   lshloc::app::add_bench_matching_command(*bench, global);
   lshloc::app::add_bench_scale_command(*bench, global);
   lshloc::app::add_recall_command(app, global);
+  lshloc::app::check_numeric_options(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

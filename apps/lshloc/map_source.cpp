@@ -1,5 +1,7 @@
 #include "map_source.hpp"
 
+#include "option_checks.hpp"
+
 #include <cstdio>
 #include <filesystem>
 
@@ -135,20 +137,27 @@ void add_grid_map_options(CLI::App& cmd, GridMapOptions& o) {
   const std::string group = "Maps from occupancy grids (MAP.yaml)";
   cmd.add_option("--grid-spacing", o.config.pose_spacing, "[m] between virtual laser positions")
       ->capture_default_str()
+      ->check(within(0.01, 1000))
       ->group(group);
   cmd.add_option("--grid-headings", o.config.headings, "virtual scans per position, evenly over 360 degrees")
       ->capture_default_str()
+      ->check(within(1, 360))
       ->group(group);
   cmd.add_option("--grid-clearance", o.config.clearance, "[m] virtual positions keep this far from walls and unknown")
       ->capture_default_str()
+      ->check(within(0, 100))
       ->group(group);
   cmd.add_option("--grid-laser-of", o.laser_of,
                  "a log of the robot that will localize: its laser (beams, field of view, range) is the virtual one")
       ->group(group);
-  cmd.add_option("--grid-beams", o.beams, "virtual laser beams (default: the target's laser, else 181)")->group(group);
+  cmd.add_option("--grid-beams", o.beams, "virtual laser beams (default: the target's laser, else 181)")
+      ->check(within(2, 100000))
+      ->group(group);
   cmd.add_option("--grid-fov-deg", o.fov_deg, "[deg] virtual laser field of view (default: the target's, else 180)")
+      ->check(within(0.1, 360))
       ->group(group);
   cmd.add_option("--grid-max-range", o.max_range, "[m] virtual laser range (default: the target's, else 50)")
+      ->check(within(0.01, 1000))
       ->group(group);
 }
 

@@ -3,7 +3,7 @@
 // written by `lshloc map to-grid`) instead of mapper scans: the appearance
 // database from virtual laser scans ray-cast from free poses, the pose grid
 // from the occupied cells with their surface normals, and the free-space grid
-// from the free cells (docs/design.md section 2.4).
+// from the free cells (docs/design.md section 2.5).
 // Lengths [m], angles [rad], times [s] of CPU.
 // Thread safety: the functions share no state; add_grid_submap writes the
 // GlobalMap it is given, which must not be used concurrently (as its header
