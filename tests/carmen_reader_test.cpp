@@ -196,6 +196,56 @@ TEST(CarmenReaderBadInput, AFileWithoutCarmenMessagesIsAnError) {
   EXPECT_NE(e.find("3 lines"), std::string::npos) << e;
 }
 
+TEST(CarmenReaderBadInput, UpperCaseProseIsNoMessage) {
+  // "ROS 2" starts like a message (upper-case name, a number): too short a name.
+  const std::string e = expect_error("ROS 2 is not packaged here.\nA robot maps.\nSLAM works.\n");
+  EXPECT_NE(e.find("no CARMEN message"), std::string::npos) << e;
+}
+
+TEST(CarmenReaderBadInput, TimeStampsBackwardsOrRepeatedAreWarnedOncePerFileWithTheirCount) {
+  const std::string path = test::temp_path(".log");
+  test::write_file(path, flaser_line(3, 1.0, 10.0) + flaser_line(3, 1.0, 11.0) + flaser_line(3, 1.0, 11.0) +
+                             flaser_line(3, 1.0, 9.0) + flaser_line(3, 1.0, 8.0) + flaser_line(3, 1.0, 12.0));
+  const CarmenLog log = read_carmen_log(path);
+  ASSERT_EQ(log.scans.size(), 6u);  // kept, in log order
+  ASSERT_EQ(log.warnings.size(), 2u);
+  EXPECT_NE(log.warnings[0].find("2 laser scans have a time stamp earlier than the scan before (first at line 4)"),
+            std::string::npos)
+      << log.warnings[0];
+  EXPECT_NE(log.warnings[1].find("1 laser scans have the same time stamp as the scan before (first at line 3)"),
+            std::string::npos)
+      << log.warnings[1];
+  test::write_file(path, flaser_line(3, 1.0, 10.0) + flaser_line(3, 1.0, 11.0));
+  EXPECT_TRUE(read_carmen_log(path).warnings.empty());
+}
+
+TEST(CarmenReaderBadInput, BytesAfterTheGzipStreamAreWarnedAndMembersAreRead) {
+  const std::string one = test::temp_path(".log.gz"), two = test::temp_path(".log.gz");
+  test::write_file(one, flaser_line(3, 1.0, 10.0));
+  test::write_file(two, flaser_line(3, 1.0, 11.0));
+  const auto bytes = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  // Two gzip members (as `cat a.gz b.gz` makes) read as one log.
+  const std::string joined = test::temp_path(".log.gz");
+  std::ofstream(joined, std::ios::binary) << bytes(one) << bytes(two);
+  const CarmenLog both = read_carmen_log(joined);
+  ASSERT_EQ(both.scans.size(), 2u);
+  EXPECT_TRUE(both.warnings.empty());
+  // Then garbage: the scans are read, the garbage is counted in a warning.
+  for (const std::string garbage : {std::string("junk after the stream\n"), std::string("\x1f")}) {
+    const std::string tail = test::temp_path(".log.gz");
+    std::ofstream(tail, std::ios::binary) << bytes(one) << bytes(two) << garbage;
+    const CarmenLog log = read_carmen_log(tail);
+    ASSERT_EQ(log.scans.size(), 2u);
+    ASSERT_EQ(log.warnings.size(), 1u);
+    EXPECT_NE(log.warnings[0].find(std::to_string(garbage.size()) + " bytes after the end of the gzip stream"),
+              std::string::npos)
+        << log.warnings[0];
+  }
+}
+
 TEST(CarmenReaderBadInput, ABeamCountTwoTooLowIsAmbiguousAndRefused) {
   // 3 ranges, two poses and one time stamp, but a beam count of 1: read as
   // 1 beam with hostname "0.1" it would shift every field.

@@ -9,6 +9,7 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
+#include "map_source.hpp"
 
 namespace lshloc::app {
 
@@ -43,8 +44,13 @@ nlohmann::json summarize_log(const std::string& path) {
         break;
     }
   }
-  return {{"file", path},   {"scans", scans},   {"odometry", odometry},
-          {"beams", beams}, {"params", params}, {"duration_s", scans > 1 ? scan_span.length() : odom_span.length()}};
+  reader.require_messages();
+  const std::vector<std::string> warnings = reader.warnings();
+  print_warnings(warnings);
+  return {{"file", path},         {"scans", scans},
+          {"odometry", odometry}, {"beams", beams},
+          {"params", params},     {"duration_s", scans > 1 ? scan_span.length() : odom_span.length()},
+          {"warnings", warnings}};
 }
 
 }  // namespace

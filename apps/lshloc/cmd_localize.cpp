@@ -74,16 +74,6 @@ TargetRun select_target(io::CarmenLog& log, const LocalizeOptions& opt) {
     throw Error(opt.target + ": --start " + std::to_string(begin) + " is past the log's " +
                 std::to_string(scans.size()) + " laser scans");
   }
-  // Time stamps that go backwards usually mean merged or re-stamped logs.
-  std::size_t backwards = 0, first_backwards = 0;
-  for (std::size_t i = begin + 1; i < end; ++i) {
-    if (scans[i].timestamp < scans[i - 1].timestamp && backwards++ == 0) first_backwards = i;
-  }
-  if (backwards > 0)
-    std::fprintf(stderr,
-                 "lshloc: warning: %s: %zu scans have a time stamp earlier than the scan before (first: scan %zu, line "
-                 "%zu); they are localized in log order\n",
-                 opt.target.c_str(), backwards, first_backwards, scans[first_backwards].source_line);
   TargetRun target;
   target.building = opt.target;
   target.start = begin;
@@ -210,6 +200,7 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   }
   if (done == 0)
     throw Error("stdin: no laser scan (FLASER / ROBOTLASER1) after the first " + std::to_string(opt.start));
+  print_warnings(reader.warnings());
   if (last.localized)
     std::fprintf(stderr,
                  "Localized in %s: x %.3f m, y %.3f m, heading %.1f deg; confident since scan %zu, at %zu of %zu\n",
@@ -312,6 +303,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     TargetRun target;
     if (!stream) {
       target_log = io::read_carmen_log(opt->target);
+      print_warnings(target_log.warnings);
       target = select_target(target_log, *opt);
     }
 

@@ -33,10 +33,6 @@ std::uint64_t file_bytes(const std::string& path) {
   return ec ? 0 : static_cast<std::uint64_t>(n);
 }
 
-void print_warnings(const std::vector<std::string>& warnings) {
-  for (const std::string& w : warnings) std::fprintf(stderr, "lshloc: warning: %s\n", w.c_str());
-}
-
 /// The map's contents and its file, as `map info --json` prints them.
 nlohmann::json map_json(const std::string& path, const GlobalMap& map, const io::MapFileInfo& info) {
   const GlobalMapStats s = map.stats();

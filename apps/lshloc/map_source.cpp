@@ -54,6 +54,10 @@ std::vector<StampedPose> read_map_poses(const std::string& path, const Pose2& la
 
 }  // namespace
 
+void print_warnings(const std::vector<std::string>& warnings) {
+  for (const std::string& w : warnings) std::fprintf(stderr, "lshloc: warning: %s\n", w.c_str());
+}
+
 Submap load_map_argument(const std::string& arg, bool slam) {
   const auto comma = arg.find(',');
   const std::string log_path = arg.substr(0, comma);
@@ -62,6 +66,7 @@ Submap load_map_argument(const std::string& arg, bool slam) {
   Submap s;
   s.name = std::filesystem::path(log_path).filename().string();
   io::CarmenLog log = io::read_carmen_log(log_path);
+  print_warnings(log.warnings);
   std::vector<LaserScan> scans = std::move(log.scans);
   if (scans.empty()) throw Error(log_path + ": the map log has no laser scans (FLASER / ROBOTLASER1)");
   const bool slam_this = comma != std::string::npos && arg.substr(comma + 1) == "slam";
@@ -101,7 +106,7 @@ Submap load_map_argument(const std::string& arg, bool slam) {
 
 io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config) {
   io::LoadedMap loaded = io::load_map(path);
-  for (const std::string& w : loaded.warnings) std::fprintf(stderr, "lshloc: warning: %s\n", w.c_str());
+  print_warnings(loaded.warnings);
   const GlobalMapConfig& built = loaded.map->config();
   // The map's settings decide; a --config that asks for others is a mistake.
   const nlohmann::json asked = config.map, theirs = built, defaults = GlobalMapConfig{};

@@ -15,6 +15,9 @@
 
 namespace lshloc::app {
 
+/// Prints each warning (a file's own message) on stderr as "lshloc: warning: ...".
+void print_warnings(const std::vector<std::string>& warnings);
+
 /// "LOG" (poses from the log's own FLASER poses, or with `slam` from
 /// lshloc's SLAM over the raw log), "LOG,slam" (this raw log posed by
 /// lshloc's SLAM) or "LOG,POSES" (poses from a `timestamp x y theta` file

@@ -164,18 +164,55 @@ bool CarmenReader::next(CarmenRecord& record) {
       }
     } else {
       // NEFF, SYNC, RAWLASER*, ...: not ours, but telling (NEFF: GMapping).
-      // Message names are upper case; other text is no message at all.
-      const bool message = std::all_of(type.begin(), type.end(), [](char c) {
-        return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
-      });
+      // A message is an upper-case name of 4 or more characters followed by a
+      // number; other text ("ROS map" in a README) is no message at all.
+      double second = 0.0;
+      const bool message =
+          type.size() >= 4 && type.front() >= 'A' && type.front() <= 'Z' &&
+          std::all_of(type.begin(), type.end(),
+                      [](char c) { return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_'; }) &&
+          fields_.size() >= 2 &&
+          std::from_chars(fields_[1].data(), fields_[1].data() + fields_[1].size(), second).ptr ==
+              fields_[1].data() + fields_[1].size();
       if (message) ++skipped_[std::string(type)];
       continue;
     }
     record.message = type;
-    if (record.type == CarmenRecord::Type::kLaser) record.scan.source_line = lines_.line_number();
+    ++messages_;
+    if (record.type == CarmenRecord::Type::kLaser) {
+      record.scan.source_line = lines_.line_number();
+      const double t = record.scan.timestamp;
+      if (t < last_scan_time_ && backwards_++ == 0) first_backwards_line_ = lines_.line_number();
+      if (t == last_scan_time_ && repeated_++ == 0) first_repeated_line_ = lines_.line_number();
+      last_scan_time_ = t;
+    }
     return true;
   }
   return false;
+}
+
+std::vector<std::string> CarmenReader::warnings() const {
+  std::vector<std::string> out;
+  if (backwards_ > 0)
+    out.push_back(path() + ": " + std::to_string(backwards_) +
+                  " laser scans have a time stamp earlier than the scan before (first at line " +
+                  std::to_string(first_backwards_line_) + "); they are used in log order");
+  if (repeated_ > 0)
+    out.push_back(path() + ": " + std::to_string(repeated_) +
+                  " laser scans have the same time stamp as the scan before (first at line " +
+                  std::to_string(first_repeated_line_) + "); joins by time may pick either");
+  if (lines_.trailing_bytes() > 0)
+    out.push_back(path() + ": " + std::to_string(lines_.trailing_bytes()) +
+                  " bytes after the end of the gzip stream were ignored (a damaged or appended file?)");
+  return out;
+}
+
+void CarmenReader::require_messages() const {
+  std::size_t skipped = 0;
+  for (const auto& [type, n] : skipped_) skipped += n;
+  if (messages_ == 0 && skipped == 0)
+    throw Error(path() + ": no CARMEN message (FLASER, ROBOTLASER1, ODOM, PARAM, ...) in " +
+                std::to_string(lines_read()) + " lines; expected a CARMEN log");
 }
 
 Pose2 CarmenLog::front_laser_offset() const {
@@ -209,9 +246,8 @@ CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& con
     }
   }
   log.skipped_messages = reader.skipped();
-  if (log.scans.empty() && log.odometry.empty() && log.params.empty() && log.skipped_messages.empty())
-    throw Error(path + ": no CARMEN message (FLASER, ROBOTLASER1, ODOM, PARAM, ...) in " +
-                std::to_string(reader.lines_read()) + " lines; expected a CARMEN log");
+  reader.require_messages();
+  log.warnings = reader.warnings();
   return log;
 }
 

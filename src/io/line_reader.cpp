@@ -7,16 +7,40 @@
 #include <cerrno>
 #include <cmath>
 #include <charconv>
+#include <cstdio>
 #include <cstring>
+#include <memory>
 #include <filesystem>
 
 #include "lshloc/common/error.hpp"
 
 namespace lshloc::io {
 
-namespace {
-gzFile as_gz(void* p) { return static_cast<gzFile>(p); }
-}  // namespace
+/// The raw file and, for gzip input, the inflate state (zlib's own gzread
+/// would skip bytes after the last gzip member without a word).
+struct LineReader::Source {
+  std::FILE* file = nullptr;
+  bool gzip = false;
+  z_stream zs{};
+  bool zs_open = false;
+  bool member_ended = false;  ///< the last inflate() finished a gzip member
+  std::vector<unsigned char> in = std::vector<unsigned char>(1 << 17);
+  ~Source() {
+    if (zs_open) inflateEnd(&zs);
+    if (file != nullptr) std::fclose(file);
+  }
+  /// Reads more of the file behind the unread input (kept, moved to the
+  /// front); false when nothing more was read.
+  bool read_more(const std::string& path) {
+    const std::size_t kept = zs.avail_in;
+    if (kept > 0 && zs.next_in != in.data()) std::memmove(in.data(), zs.next_in, kept);
+    const std::size_t n = std::fread(in.data() + kept, 1, in.size() - kept, file);
+    if (n == 0 && std::ferror(file)) throw Error(path + ": cannot read: " + std::strerror(errno));
+    zs.next_in = in.data();
+    zs.avail_in = static_cast<uInt>(kept + n);
+    return n > 0;
+  }
+};
 
 LineReader::LineReader(std::string path) : path_(std::move(path)), buffer_(1 << 16) {
   if (path_ == "-") {  // stdin, read as it arrives (zlib would wait for a whole buffer)
@@ -26,27 +50,70 @@ LineReader::LineReader(std::string path) : path_(std::move(path)), buffer_(1 << 
   std::error_code ec;
   if (!std::filesystem::exists(path_, ec)) throw Error(path_ + ": no such file");
   if (std::filesystem::is_directory(path_, ec)) throw Error(path_ + ": is a directory, expected a log file");
-  gz_ = gzopen(path_.c_str(), "rb");
-  if (gz_ == nullptr) throw Error(path_ + ": cannot open: " + std::strerror(errno));
-  gzbuffer(as_gz(gz_), 1 << 17);
+  source_ = std::make_unique<Source>();
+  source_->file = std::fopen(path_.c_str(), "rb");
+  if (source_->file == nullptr) throw Error(path_ + ": cannot open: " + std::strerror(errno));
+  source_->read_more(path_);
+  // gzip is told by its magic bytes, not by the name.
+  source_->gzip = source_->zs.avail_in >= 2 && source_->in[0] == 0x1f && source_->in[1] == 0x8b;
+  if (source_->gzip) {
+    if (inflateInit2(&source_->zs, 15 + 16) != Z_OK) throw Error(path_ + ": cannot start gzip decoding");
+    source_->zs_open = true;
+  }
 }
 
-LineReader::~LineReader() {
-  if (gz_ != nullptr) gzclose(as_gz(gz_));
-}
+LineReader::~LineReader() = default;
 
 std::string LineReader::where() const {
   return (from_stdin_ ? std::string("stdin") : path_) + ":" + std::to_string(line_number_);
 }
 
-void LineReader::check_stream_error() {
-  int err = Z_OK;
-  const char* msg = gzerror(as_gz(gz_), &err);
-  if (err == Z_OK || err == Z_STREAM_END) return;
-  const std::string reason = (err == Z_BUF_ERROR) ? "the gzip stream is truncated (unexpected end of file)"
-                                                  : std::string("corrupt gzip data: ") + (msg ? msg : "unknown error");
-  throw Error(path_ + ":" + std::to_string(line_number_ + 1) + ": " + reason +
-              "; the file is incomplete or damaged, fetch or copy it again");
+std::size_t LineReader::read_plain() {
+  Source& src = *source_;
+  if (src.zs.avail_in == 0 && !src.read_more(path_)) return 0;
+  const std::size_t n = std::min<std::size_t>(src.zs.avail_in, buffer_.size());
+  std::memcpy(buffer_.data(), src.zs.next_in, n);
+  src.zs.next_in += n;
+  src.zs.avail_in -= static_cast<uInt>(n);
+  return n;
+}
+
+std::size_t LineReader::read_gzip() {
+  Source& src = *source_;
+  const auto fail = [&](const std::string& reason) {
+    throw Error(path_ + ":" + std::to_string(line_number_ + 1) + ": " + reason +
+                "; the file is incomplete or damaged, fetch or copy it again");
+  };
+  for (;;) {
+    if (src.zs.avail_in == 0 && !src.read_more(path_)) {
+      if (!src.member_ended) fail("the gzip stream is truncated (unexpected end of file)");
+      return 0;
+    }
+    if (src.member_ended) {
+      // After a member: another member (concatenated gzip), or bytes that are
+      // none. Too few bytes to tell a gzip header: read on behind them.
+      if (src.zs.avail_in < 2) src.read_more(path_);
+      if (!(src.zs.next_in[0] == 0x1f && src.zs.avail_in >= 2 && src.zs.next_in[1] == 0x8b)) {
+        do {
+          trailing_bytes_ += src.zs.avail_in;
+          src.zs.avail_in = 0;
+        } while (src.read_more(path_));
+        return 0;
+      }
+      inflateReset(&src.zs);
+      src.member_ended = false;
+    }
+    src.zs.next_out = reinterpret_cast<Bytef*>(buffer_.data());
+    src.zs.avail_out = static_cast<uInt>(buffer_.size());
+    const int rc = inflate(&src.zs, Z_NO_FLUSH);
+    if (rc == Z_STREAM_END) {
+      src.member_ended = true;
+    } else if (rc != Z_OK && rc != Z_BUF_ERROR) {
+      fail(std::string("corrupt gzip data: ") + (src.zs.msg ? src.zs.msg : "unknown error"));
+    }
+    const std::size_t got = buffer_.size() - src.zs.avail_out;
+    if (got > 0) return got;
+  }
 }
 
 bool LineReader::fill() {
@@ -64,9 +131,7 @@ bool LineReader::fill() {
       break;
     }
   } else {
-    const int n = gzread(as_gz(gz_), buffer_.data(), static_cast<unsigned>(buffer_.size()));
-    if (n <= 0) check_stream_error();
-    got = n > 0 ? static_cast<std::size_t>(n) : 0;
+    got = source_->gzip ? read_gzip() : read_plain();
   }
   if (got == 0) return false;
   pending_.append(buffer_.data(), got);

@@ -4,6 +4,7 @@
 // Lengths [m], angles [rad], times [s]; velocities [m/s] and [rad/s].
 // Thread safety: a CarmenReader is one per thread; read_carmen_log shares no
 // state and is safe from any thread.
+#include <limits>
 #include <map>
 #include <string>
 #include <string_view>
@@ -56,6 +57,15 @@ class CarmenReader {
   /// GMapping writes into the logs it corrects).
   const std::map<std::string, std::size_t>& skipped() const { return skipped_; }
 
+  /// What the caller should hear about the file read so far (once next()
+  /// returned false: all of it): laser scans whose time stamp is earlier than
+  /// or equal to the scan before (counts and the first line of each), and
+  /// bytes after the gzip stream. Each is one line, naming the file.
+  std::vector<std::string> warnings() const;
+  /// Throws lshloc::Error unless some CARMEN message (read or skipped) was
+  /// seen: a file with none is no log (README.md, random bytes).
+  void require_messages() const;
+
  private:
   void parse_flaser(const std::string& where, CarmenRecord& record);
   void parse_robotlaser1(const std::string& where, CarmenRecord& record);
@@ -68,11 +78,16 @@ class CarmenReader {
   std::string line_;
   std::vector<std::string_view> fields_;
   std::map<std::string, std::size_t> skipped_;
+  std::size_t messages_ = 0;  ///< FLASER, ROBOTLASER1, ODOM and PARAM returned
+  // Laser time order: scans stamped before / at the previous scan's time.
+  double last_scan_time_ = -std::numeric_limits<double>::infinity();
+  std::size_t backwards_ = 0, repeated_ = 0, first_backwards_line_ = 0, first_repeated_line_ = 0;
 };
 
 /// A whole log in memory (the scans, odometry and parameters).
 struct CarmenLog {
   std::string path;
+  std::vector<std::string> warnings;  ///< CarmenReader::warnings() of the whole file
   std::vector<LaserScan> scans;
   std::vector<OdometryReading> odometry;
   std::map<std::string, std::string> params;

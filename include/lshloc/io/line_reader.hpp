@@ -5,6 +5,8 @@
 // Thread safety: a LineReader is one per thread; split_fields and parse_* are
 // stateless and safe from any thread.
 #include <cstddef>
+#include <cstdint>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,7 +19,9 @@ namespace lshloc::io {
 /// UTF-8 byte-order mark before the first line is dropped; a NUL byte, or a
 /// line over 16 MiB, throws lshloc::Error naming file:line.
 /// A truncated or corrupt gzip stream throws lshloc::Error naming the file and
-/// the line where the data ended. Not thread-safe; one reader per thread.
+/// the line where the data ended; concatenated gzip members read as one
+/// stream, and bytes after the last member are counted (trailing_bytes()).
+/// Not thread-safe; one reader per thread.
 class LineReader {
  public:
   explicit LineReader(std::string path);
@@ -35,16 +39,23 @@ class LineReader {
   /// "path:line" of the line last returned, for error messages.
   std::string where() const;
 
+  /// Bytes after the last gzip member that are no gzip member (skipped;
+  /// known once next() returned false). 0 for plain files.
+  std::uint64_t trailing_bytes() const { return trailing_bytes_; }
+
  private:
-  void check_stream_error();
+  struct Source;
+  std::size_t read_plain();
+  std::size_t read_gzip();
   /// Appends the next chunk of the input to pending_; false at its end.
   bool fill();
   /// The first '\n' or '\r' in pending_ at or after `from` (npos: none).
   std::size_t line_end(std::size_t from) const;
   static constexpr std::size_t kMaxLineBytes = std::size_t{16} << 20;
   std::string path_;
-  bool from_stdin_ = false;  ///< path "-": plain text from stdin, line by line as it arrives
-  void* gz_ = nullptr;       // gzFile, kept opaque so that zlib.h stays private
+  bool from_stdin_ = false;         ///< path "-": plain text from stdin, line by line as it arrives
+  std::unique_ptr<Source> source_;  // the file and zlib's state, kept opaque so that zlib.h stays private
+  std::uint64_t trailing_bytes_ = 0;
   std::size_t line_number_ = 0;
   std::vector<char> buffer_;
   std::string pending_;    ///< bytes read, from the next line on (from start_)

@@ -20,7 +20,7 @@
 namespace lshloc {
 
 struct GridSubmapConfig {
-  double pose_spacing = 0.5;  ///< [m] between virtual laser positions, a square lattice over the free cells
+  double pose_spacing = 1.0;  ///< [m] between virtual laser positions, a square lattice over the free cells
   std::size_t headings = 8;   ///< virtual scans per position, evenly spread over 2 pi
   double clearance = 0.25;    ///< [m] positions keep this far from occupied and unknown cells (a robot's radius)
   // --- the virtual laser (defaults: a SICK LMS of the CARMEN logs; use the target's, with_laser_of)
