@@ -94,5 +94,10 @@ PY
 if "$LSHLOC" map append "$d/g.map" "$d/ga.yaml" >/dev/null 2>"$d/err.txt"; then fail "a YAML was appended as a log"; fi
 grep -q "ga.yaml: a ROS map (YAML) is no log" "$d/err.txt" || fail "YAML as a log: $(cat "$d/err.txt")"
 
+# A map without a single feature (its one scan saw nothing) is refused with a message.
+python3 -c "print('FLASER 5 ' + ' '.join(['81.9'] * 5) + ' 0 0 0 0 0 0 1.0 host 1.0')" >"$d/empty.log"
+if "$LSHLOC" localize --map "$d/empty.log" "${target[@]}" >/dev/null 2>"$d/err.txt"; then fail "an empty map was accepted"; fi
+grep -q "the map has no features" "$d/err.txt" || fail "empty map: $(cat "$d/err.txt")"
+
 "$LSHLOC" --version | grep -q "^lshloc [0-9]" || fail "--version"
 echo "cli_localize_test: all checks passed"

@@ -5,6 +5,7 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/geometry/time_join.hpp"
 #include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/trajectory_writer.hpp"
 #include "test_support.hpp"
 
 namespace lshloc::io {
@@ -38,6 +39,20 @@ TEST(GroundTruth, MalformedLinesNameFileAndLine) {
   EXPECT_THROW(read_pose_file(poses), Error);
   test::write_file(poses, "1 2 3 4 5 6 7\n");
   EXPECT_THROW(read_relations(poses), Error);
+}
+
+TEST(GroundTruth, TwoPosesAtOneTimeStampAreRefusedNamingBothLines) {
+  const std::string poses = test::temp_path(".txt");
+  test::write_file(poses, "10.0 1 2 0.5\n11.0 3 4 0\n# note\n10.0 1.5 2 0.5\n");
+  try {
+    read_pose_file(poses);
+    FAIL() << "duplicate stamps were accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("lines 1 and 4 both give a pose at time 10.0"), std::string::npos) << e.what();
+  }
+  const std::string tum = test::temp_path(".tum");
+  test::write_file(tum, "5.0 0 0 0 0 0 0 1\n5.0 1 0 0 0 0 0 1\n");
+  EXPECT_THROW(read_tum_trajectory(tum), Error);
 }
 
 TEST(TimeJoin, MatchesWithinToleranceOnly) {

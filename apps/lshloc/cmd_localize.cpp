@@ -324,6 +324,11 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     const MapSources sources = add_map_arguments(*map, built, opt->map_slam,
                                                  opt->grid.resolve(target.scans.empty() ? nullptr : &target.scans[0]));
     const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (map->stats().features == 0)
+      throw Error("the map has no features (" + std::to_string(map->submap_count()) + " submaps, " +
+                  std::to_string(map->stats().scans) +
+                  " scans): nothing to localize against; expected map scans that see walls within " +
+                  std::to_string(config.map.features.keypoint_max_range) + " m");
 
     if (stream) {
       localize_stream(*map, config.localizer, *opt);

@@ -1,5 +1,6 @@
 #include "lshloc/io/ground_truth.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "lshloc/common/error.hpp"
@@ -9,7 +10,8 @@ namespace lshloc::io {
 
 namespace {
 
-/// Reads every data line of a numeric table, checking its field count.
+/// Reads every data line of a numeric table, checking its field count;
+/// on_row gets the values and the line number.
 template <typename OnRow>
 void read_table(const std::string& path, std::size_t min_fields, const char* layout, OnRow on_row) {
   LineReader reader(path);
@@ -29,7 +31,7 @@ void read_table(const std::string& path, std::size_t min_fields, const char* lay
       values[i] = parse_double(fields[i], where, i, layout);
       if (!std::isfinite(values[i])) throw Error(where + ": field " + std::to_string(i + 1) + " is not finite");
     }
-    on_row(values);
+    on_row(values, reader.line_number());
   }
 }
 
@@ -37,15 +39,33 @@ void read_table(const std::string& path, std::size_t min_fields, const char* lay
 
 std::vector<StampedPose> read_pose_file(const std::string& path) {
   std::vector<StampedPose> out;
-  read_table(path, 4, "timestamp x y theta", [&](const std::vector<double>& v) {
+  std::vector<std::size_t> lines;
+  read_table(path, 4, "timestamp x y theta", [&](const std::vector<double>& v, std::size_t line) {
     out.push_back({v[0], Pose2(v[1], v[2], v[3])});
+    lines.push_back(line);
   });
+  require_distinct_stamps(out, lines, path);
   return out;
+}
+
+void require_distinct_stamps(std::span<const StampedPose> poses, std::span<const std::size_t> lines,
+                             const std::string& path) {
+  std::vector<std::size_t> order(poses.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return poses[a].timestamp < poses[b].timestamp; });
+  for (std::size_t k = 1; k < order.size(); ++k) {
+    const std::size_t a = order[k - 1], b = order[k];
+    if (poses[a].timestamp == poses[b].timestamp)
+      throw Error(path + ": lines " + std::to_string(lines[a]) + " and " + std::to_string(lines[b]) +
+                  " both give a pose at time " + std::to_string(poses[a].timestamp) +
+                  "; expected one pose per time stamp");
+  }
 }
 
 std::vector<Relation> read_relations(const std::string& path) {
   std::vector<Relation> out;
-  read_table(path, 8, "t1 t2 dx dy dz roll pitch yaw", [&](const std::vector<double>& v) {
+  read_table(path, 8, "t1 t2 dx dy dz roll pitch yaw", [&](const std::vector<double>& v, std::size_t) {
     out.push_back({v[0], v[1], Pose2(v[2], v[3], v[7])});
   });
   return out;

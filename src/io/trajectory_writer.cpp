@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/ground_truth.hpp"
 #include "lshloc/io/line_reader.hpp"
 
 namespace lshloc::io {
@@ -27,6 +28,7 @@ std::vector<StampedPose> read_tum_trajectory(const std::string& path) {
   std::string line;
   std::vector<std::string_view> fields;
   std::vector<StampedPose> out;
+  std::vector<std::size_t> lines;
   constexpr const char* kLayout = "timestamp x y z qx qy qz qw";
   while (reader.next(line)) {
     split_fields(line, fields);
@@ -43,7 +45,9 @@ std::vector<StampedPose> read_tum_trajectory(const std::string& path) {
     const double qx = v[4], qy = v[5], qz = v[6], qw = v[7];
     const double yaw = std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
     out.push_back({v[0], Pose2(v[1], v[2], yaw)});
+    lines.push_back(reader.line_number());
   }
+  require_distinct_stamps(out, lines, path);
   return out;
 }
 
