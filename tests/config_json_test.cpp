@@ -98,6 +98,14 @@ TEST(ConfigJson, ReadingAFileNamesItOnSyntaxErrors) {
     EXPECT_NE(what.find("line 2"), std::string::npos) << what;
   }
   EXPECT_THROW(io::read_json_file(path + ".missing"), Error);
+  // A number beyond a double (found by fuzz/config_json_fuzz.cpp) is an Error, not an escaping exception.
+  {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("88888e888888777777776;: {\" 2 d}}", f);
+    std::fclose(f);
+  }
+  EXPECT_THROW(io::read_json_file(path), Error);
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 
 #include "commands.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/localization/grid_submap.hpp"
@@ -227,19 +228,19 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   if (!opt.trace.empty()) {
     const std::string path = suffix_trace ? opt.trace + ".R" + std::to_string(config.submaps) : opt.trace;
     write_scenario_trace(path, sc, run, m);
-    std::FILE* f = std::fopen((path + ".truth.csv").c_str(), "w");
-    if (f == nullptr) throw Error(path + ".truth.csv: cannot write");
-    std::fprintf(f,
-                 "scan,near_truth,best_rank,best_mean,best_scored,active,local_x,local_y,local_theta,"
-                 "truth_all_mean,truth_recent_mean,reported_all_mean\n");
+    std::string f;
+    io::append_format(f,
+                      "scan,near_truth,best_rank,best_mean,best_scored,active,local_x,local_y,local_theta,"
+                      "truth_all_mean,truth_recent_mean,reported_all_mean\n");
     for (std::size_t i = 0; i < ranks.size(); ++i) {
       if (sc.target.truth[i]) {
         const TruthRank& r = ranks[i];
-        std::fprintf(f, "%zu,%zu,%zu,%.4f,%u,%zu,%.4f,%.4f,%.5f,%.4f,%.4f,%.4f\n", i, r.near, r.rank, r.mean, r.scored,
-                     r.active, r.local.x, r.local.y, r.local.theta, r.truth_all, r.truth_recent, r.reported_all);
+        io::append_format(f, "%zu,%zu,%zu,%.4f,%u,%zu,%.4f,%.4f,%.5f,%.4f,%.4f,%.4f\n", i, r.near, r.rank, r.mean,
+                          r.scored, r.active, r.local.x, r.local.y, r.local.theta, r.truth_all, r.truth_recent,
+                          r.reported_all);
       }
     }
-    std::fclose(f);
+    io::write_file_atomically(path + ".truth.csv", f);
   }
   io::ErrorSeries curve{"R = " + std::to_string(config.submaps), {}, {}};
   for (std::size_t i = 0; i < m.error_per_scan_m.size(); ++i) {

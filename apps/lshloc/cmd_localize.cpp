@@ -17,6 +17,7 @@
 #include "commands.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/io/carmen_reader.hpp"
@@ -44,13 +45,6 @@ struct LocalizeOptions {
 };
 
 double degrees(double radians) { return radians * 180.0 / std::numbers::pi; }
-
-/// Opens `path` for writing now, so that a bad output path fails before the run.
-std::ofstream open_output(const std::string& path) {
-  std::ofstream f(path);
-  if (!f) throw Error(path + ": cannot write here (does the directory exist?)");
-  return f;
-}
 
 /// The target's window of the log: --start/--length in scans or --from/--to
 /// in seconds from the log's first scan.
@@ -87,9 +81,8 @@ TargetRun select_target(io::CarmenLog& log, const LocalizeOptions& opt) {
 /// Per-scan CSV (one row per target scan) and TUM files of the confident
 /// poses: OUT holds those in the final answer's submap, OUT.<submap>.tum
 /// those in any other.
-void write_outputs(const std::string& out, std::ofstream& csv, const GlobalMap& map, const TargetRun& target,
-                   const ScenarioRun& run) {
-  csv << "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,score,scored,margin\n";
+void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun& target, const ScenarioRun& run) {
+  std::string csv = "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,score,scored,margin\n";
   std::map<std::uint32_t, std::vector<StampedPose>> confident;
   char buf[256];
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
@@ -103,10 +96,9 @@ void write_outputs(const std::string& out, std::ofstream& csv, const GlobalMap& 
     } else {
       std::snprintf(buf, sizeof buf, "%zu,%zu,%.6f,,,,,,0,,,\n", i, target.start + i, t);
     }
-    csv << buf;
+    csv += buf;
   }
-  csv.close();
-  if (!csv) throw Error(out + ".csv: cannot write");
+  io::write_file_atomically(out + ".csv", csv);
   const auto& last = run.estimates.back();
   const std::uint32_t main = last.has_estimate ? last.submap : (confident.empty() ? 0 : confident.begin()->first);
   io::write_tum_trajectory(out, confident[main]);
@@ -291,11 +283,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
     // Output paths first: a typo must not cost a whole run.
-    std::ofstream csv;
-    if (!opt->out.empty()) {
-      open_output(opt->out).close();
-      csv = open_output(opt->out + ".csv");
-    }
+    if (!opt->out.empty()) io::require_writable(opt->out);
     const bool stream = opt->target == "-";
     if (stream && (opt->from_s || opt->to_s || !opt->out.empty() || !opt->plot_dir.empty()))
       throw Error("--target -: the stream is localized scan by scan; --from/--to, --out and --plot need a log file");
@@ -342,7 +330,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       }
     });
     run.map_build_s = map_s;
-    if (!opt->out.empty()) write_outputs(opt->out, csv, *map, target, run);
+    if (!opt->out.empty()) write_outputs(opt->out, *map, target, run);
     if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, opt->target, *map, sources, run);
 
     std::optional<std::size_t> first_localized;

@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/carmen_writer.hpp"
 #include "lshloc/sim/render.hpp"
 #include "lshloc/sim/simulator.hpp"
@@ -33,16 +34,13 @@ struct SimulateOptions {
 /// furniture), for plotting and for other simulators.
 std::string write_segments(const sim::SyntheticBuilding& building, const std::string& folder) {
   const std::string path = folder + "/" + building.name + ".segments.txt";
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) throw Error(path + ": cannot open for writing");
   const auto& plan = building.plan;
-  bool ok = std::fprintf(f, "# x1 y1 x2 y2 [m]: %zu walls, %zu pillar sides, %zu furniture sides\n", plan.wall_segments,
-                         plan.pillar_segments, plan.segments.size() - plan.wall_segments - plan.pillar_segments) > 0;
-  for (const auto& seg : plan.segments) {
-    ok = ok && std::fprintf(f, "%.3f %.3f %.3f %.3f\n", seg.a.x(), seg.a.y(), seg.b.x(), seg.b.y()) > 0;
-  }
-  ok = (std::fclose(f) == 0) && ok;
-  if (!ok) throw Error(path + ": write failed");
+  std::string f;
+  io::append_format(f, "# x1 y1 x2 y2 [m]: %zu walls, %zu pillar sides, %zu furniture sides\n", plan.wall_segments,
+                    plan.pillar_segments, plan.segments.size() - plan.wall_segments - plan.pillar_segments);
+  for (const auto& seg : plan.segments)
+    io::append_format(f, "%.3f %.3f %.3f %.3f\n", seg.a.x(), seg.a.y(), seg.b.x(), seg.b.y());
+  io::write_file_atomically(path, f);
   return path;
 }
 
@@ -82,11 +80,7 @@ void run_simulate(const SimulateOptions& o) {
       std::vector<Pose2> path;
       for (const auto& stamped : rec.truth) path.push_back(stamped.pose);
       svg = o.out + "/" + rec.name + "/" + rec.name + ".svg";
-      std::FILE* f = std::fopen(svg.c_str(), "wb");
-      const std::string text = sim::floor_plan_svg(building.plan, path);
-      const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-      if (f && std::fclose(f) != 0) throw Error(svg + ": write failed");
-      if (!ok) throw Error(svg + ": cannot write");
+      io::write_file_atomically(svg, sim::floor_plan_svg(building.plan, path));
     }
     const double write = seconds_since(t);
     generate_s += gen, simulate_s += simulate, write_s += write, total_scans += rec.raw_scans.size();

@@ -17,6 +17,7 @@
 
 #include "commands.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/slam/relations_metric.hpp"
 #include "lshloc/slam/pose_graph_slam.hpp"
 #include "lshloc/slam/scan_matcher.hpp"
@@ -82,10 +83,8 @@ nlohmann::json metric_or_null(const std::optional<RelationsError>& e, bool rotat
 
 void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   const bool progress = isatty(STDERR_FILENO) != 0;
-  if (!opt.out.empty()) {
-    // Fail before the run, not after it, when the trajectory cannot be written.
-    io::write_tum_trajectory(opt.out, {});
-  }
+  // Fail before the run, not after it, when the trajectory cannot be written.
+  if (!opt.out.empty()) io::require_writable(opt.out);
   if (progress) std::fprintf(stderr, "reading %s ...\n", opt.log.c_str());
   const io::CarmenLog log = io::read_carmen_log(opt.log);
   if (log.scans.empty()) throw Error(opt.log + ": the log holds no laser scans (FLASER / ROBOTLASER1)");
@@ -107,12 +106,10 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   std::vector<StampedPose> trajectory, matched, odometry;
   trajectory.reserve(log.scans.size());
   odometry.reserve(log.scans.size());
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> per_scan(nullptr, &std::fclose);
+  std::string per_scan;
   if (!opt.per_scan.empty()) {
-    per_scan.reset(std::fopen(opt.per_scan.c_str(), "w"));
-    if (!per_scan) throw Error(opt.per_scan + ": cannot open for writing (--per-scan)");
-    std::fprintf(per_scan.get(),
-                 "# timestamp x y theta source quality iterations correspondences degenerate keyframe\n");
+    io::require_writable(opt.per_scan);
+    per_scan = "# timestamp x y theta source quality iterations correspondences degenerate keyframe\n";
   }
   using Clock = std::chrono::steady_clock;
   Clock::duration busy{};
@@ -123,11 +120,11 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
     busy += Clock::now() - start;
     matched.push_back({scan.timestamp, r.robot_pose});
     odometry.push_back({scan.timestamp, scan.odometry});
-    if (per_scan) {
+    if (!opt.per_scan.empty()) {
       static constexpr const char* kSource[] = {"first", "matched", "odometry", "stationary"};
-      std::fprintf(per_scan.get(), "%.6f %.6f %.6f %.6f %s %.3f %zu %zu %d %d\n", scan.timestamp, r.robot_pose.x,
-                   r.robot_pose.y, r.robot_pose.theta, kSource[static_cast<int>(r.source)], r.quality, r.iterations,
-                   r.correspondences, r.degenerate ? 1 : 0, r.new_keyframe ? 1 : 0);
+      io::append_format(per_scan, "%.6f %.6f %.6f %.6f %s %.3f %zu %zu %d %d\n", scan.timestamp, r.robot_pose.x,
+                        r.robot_pose.y, r.robot_pose.theta, kSource[static_cast<int>(r.source)], r.quality,
+                        r.iterations, r.correspondences, r.degenerate ? 1 : 0, r.new_keyframe ? 1 : 0);
     }
     if (progress && (i + 1) % 500 == 0) {
       std::fprintf(stderr, "\r%zu / %zu scans", i + 1, log.scans.size());
@@ -148,6 +145,7 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   const double scans_per_s = seconds > 0.0 ? static_cast<double>(log.scans.size()) / seconds : 0.0;
 
   if (!opt.out.empty()) io::write_tum_trajectory(opt.out, trajectory);
+  if (!opt.per_scan.empty()) io::write_file_atomically(opt.per_scan, per_scan);
 
   std::optional<RelationsError> ours, ours_matched, odom, gmapping, ours_on_gmapping;
   if (!opt.relations.empty()) {

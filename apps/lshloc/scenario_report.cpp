@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/figures/figures.hpp"
 
@@ -111,23 +112,22 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
 
 void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run,
                           const LocalizationMetrics& m) {
-  std::FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) throw Error(path + ": cannot write the trace");
-  std::fprintf(f,
-               "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
-               "truth_theta,error_m\n");
+  std::string f;
+  io::append_format(f,
+                    "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
+                    "truth_theta,error_m\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = sc.target.truth[i];
-    std::fprintf(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%u,%.4f,", i, sc.target.scans[i].timestamp,
-                 e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta, e.localized ? 1 : 0, e.mean_score,
-                 e.scored, e.margin);
+    io::append_format(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%u,%.4f,", i, sc.target.scans[i].timestamp,
+                      e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta, e.localized ? 1 : 0,
+                      e.mean_score, e.scored, e.margin);
     if (t)
-      std::fprintf(f, "%.4f,%.4f,%.5f,%.4f\n", t->x, t->y, t->theta, m.error_per_scan_m[i]);
+      io::append_format(f, "%.4f,%.4f,%.5f,%.4f\n", t->x, t->y, t->theta, m.error_per_scan_m[i]);
     else
-      std::fprintf(f, ",,,\n");
+      io::append_format(f, ",,,\n");
   }
-  if (std::fclose(f) != 0) throw Error(path + ": cannot write the trace");
+  io::write_file_atomically(path, f);
 }
 
 }  // namespace lshloc::app

@@ -1,10 +1,13 @@
 #include "lshloc/figures/figures.hpp"
 
+#include <unistd.h>
+
 #include <cairo-svg.h>
 #include <cairo.h>
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <limits>
 #include <memory>
@@ -29,13 +32,16 @@ bool ends_with(const std::string& s, const std::string& suffix) {
 }
 
 /// A cairo surface for `path` (PNG or SVG), finished and checked on close().
+/// It is drawn into a temporary file that close() renames to `path`: a
+/// failed write (a full disk) leaves no partial figure under the final name.
 class Figure {
  public:
   explicit Figure(std::string path) : path_(std::move(path)) {
     svg_ = ends_with(path_, ".svg");
     if (!svg_ && !ends_with(path_, ".png")) throw Error(path_ + ": figures are written as .png or .svg");
+    temp_ = path_ + ".tmp." + std::to_string(::getpid());
     surface_ =
-        svg_ ? cairo_svg_surface_create(path_.c_str(), kWidth, kHeight)
+        svg_ ? cairo_svg_surface_create(temp_.c_str(), kWidth, kHeight)
              : cairo_image_surface_create(CAIRO_FORMAT_ARGB32, static_cast<int>(kWidth), static_cast<int>(kHeight));
     if (cairo_surface_status(surface_) != CAIRO_STATUS_SUCCESS) throw Error(path_ + ": cannot create the figure");
     cr_ = cairo_create(surface_);
@@ -46,6 +52,8 @@ class Figure {
   ~Figure() {
     if (cr_) cairo_destroy(cr_);
     if (surface_) cairo_surface_destroy(surface_);
+    std::error_code ec;
+    std::filesystem::remove(temp_, ec);  // left only when close() failed or never ran
   }
   Figure(const Figure&) = delete;
   Figure& operator=(const Figure&) = delete;
@@ -74,13 +82,17 @@ class Figure {
       cairo_surface_finish(surface_);
       st = cairo_surface_status(surface_);
     } else {
-      st = cairo_surface_write_to_png(surface_, path_.c_str());
+      st = cairo_surface_write_to_png(surface_, temp_.c_str());
     }
     if (st != CAIRO_STATUS_SUCCESS) throw Error(path_ + ": cannot write the figure: " + cairo_status_to_string(st));
+    std::error_code ec;
+    std::filesystem::rename(temp_, path_, ec);
+    if (ec) throw Error(path_ + ": cannot write the figure: " + ec.message());
   }
 
  private:
   std::string path_;
+  std::string temp_;  ///< drawn here until close()
   bool svg_ = false;
   cairo_surface_t* surface_ = nullptr;
   cairo_t* cr_ = nullptr;

@@ -1,5 +1,7 @@
 #include "lshloc/io/carmen_writer.hpp"
 
+#include <unistd.h>
+
 #include <zlib.h>
 
 #include <algorithm>
@@ -9,6 +11,7 @@
 #include <filesystem>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 
 namespace lshloc::io {
 
@@ -45,23 +48,24 @@ CarmenWriter::CarmenWriter(std::string path, CarmenWriterConfig config)
     throw Error("CARMEN writer: decimals must be in 0..9 (ranges, time stamps) and 0..12 (poses)");
   }
   if (!single_word(config_.hostname)) throw Error("CARMEN writer: hostname must be one non-empty word");
+  temp_path_ = path_ + ".tmp." + std::to_string(::getpid());
   if (ends_with(path_, ".gz")) {
     const std::string mode = "wb" + std::to_string(std::clamp(config_.compression_level, 1, 9));
-    gz_ = gzopen(path_.c_str(), mode.c_str());
+    gz_ = gzopen(temp_path_.c_str(), mode.c_str());
     if (!gz_) throw Error(path_ + ": cannot open for writing");
   } else {
-    file_ = std::fopen(path_.c_str(), "wb");
+    file_ = std::fopen(temp_path_.c_str(), "wb");
     if (!file_) throw Error(path_ + ": cannot open for writing");
   }
   buffer_.reserve(kFlushBytes + 16384);
 }
 
 CarmenWriter::~CarmenWriter() {
-  try {
-    close();
-  } catch (const Error&) {
-    // A destructor must not throw; call close() to see write errors.
-  }
+  if (!gz_ && !file_) return;
+  // Not closed: an abandoned write, whose partial file must not stay.
+  if (gz_) gzclose(static_cast<gzFile>(gz_));
+  if (file_) std::fclose(static_cast<std::FILE*>(file_));
+  ::unlink(temp_path_.c_str());
 }
 
 void CarmenWriter::number(double value, int decimals) {
@@ -111,7 +115,12 @@ void CarmenWriter::close() {
     error = path_ + ": closing the gzip stream failed";
   if (file_ && std::fclose(static_cast<std::FILE*>(file_)) != 0 && error.empty()) error = path_ + ": closing failed";
   gz_ = file_ = nullptr;
-  if (!error.empty()) throw Error(error);
+  if (error.empty() && ::rename(temp_path_.c_str(), path_.c_str()) != 0)
+    error = system_error(path_, "cannot rename " + temp_path_ + " to it");
+  if (!error.empty()) {
+    ::unlink(temp_path_.c_str());
+    throw Error(error);
+  }
 }
 
 void CarmenWriter::comment(std::string_view text) {
@@ -202,15 +211,16 @@ void write_carmen_log(const std::string& path, std::span<const LaserScan> scans,
 }
 
 void write_pose_file(const std::string& path, std::span<const StampedPose> poses, const CarmenWriterConfig& config) {
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) throw Error(path + ": cannot open for writing");
-  bool ok = std::fprintf(f, "# timestamp x y theta: the true laser pose of the raw scan with this time stamp\n") > 0;
+  std::string text = "# timestamp x y theta: the true laser pose of the raw scan with this time stamp\n";
+  char line[256];
   for (const auto& p : poses) {
-    ok = ok && std::fprintf(f, "%.*f %.*f %.*f %.*f\n", config.time_decimals, p.timestamp, config.pose_decimals,
-                            p.pose.x, config.pose_decimals, p.pose.y, config.pose_decimals, p.pose.theta) > 0;
+    const int n = std::snprintf(line, sizeof line, "%.*f %.*f %.*f %.*f\n", config.time_decimals, p.timestamp,
+                                config.pose_decimals, p.pose.x, config.pose_decimals, p.pose.y, config.pose_decimals,
+                                p.pose.theta);
+    if (n < 0 || static_cast<std::size_t>(n) >= sizeof line) throw Error(path + ": cannot format a pose");
+    text.append(line, static_cast<std::size_t>(n));
   }
-  ok = (std::fclose(f) == 0) && ok;
-  if (!ok) throw Error(path + ": write failed");
+  write_file_atomically(path, text);
 }
 
 }  // namespace lshloc::io

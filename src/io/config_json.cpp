@@ -152,7 +152,8 @@ nlohmann::json read_json_file(const std::string& path) {
   if (!in) throw Error(path + ": cannot open for reading");
   try {
     return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // parse_error, and out_of_range for a number beyond a double (1e400).
     throw Error(path + ": not valid JSON: " + e.what());
   }
 }

@@ -4,6 +4,7 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <charconv>
@@ -53,6 +54,10 @@ LineReader::LineReader(std::string path) : path_(std::move(path)), buffer_(1 << 
   source_ = std::make_unique<Source>();
   source_->file = std::fopen(path_.c_str(), "rb");
   if (source_->file == nullptr) throw Error(path_ + ": cannot open: " + std::strerror(errno));
+  // Small files get small buffers (a reader per poses file, per fuzz input).
+  std::error_code size_ec;
+  const auto size = std::filesystem::file_size(path_, size_ec);
+  if (!size_ec && size < source_->in.size()) source_->in.resize(std::max<std::size_t>(size, 4096));
   source_->read_more(path_);
   // gzip is told by its magic bytes, not by the name.
   source_->gzip = source_->zs.avail_in >= 2 && source_->in[0] == 0x1f && source_->in[1] == 0x8b;

@@ -17,6 +17,7 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/huge_page_allocator.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/config_json.hpp"
 
 namespace lshloc::io {
@@ -39,31 +40,6 @@ enum RecordKind : std::uint8_t { kSubmapRecord = 1, kScanRecord = 2 };
 
 std::uint32_t crc_of(std::span<const std::uint8_t> data) {
   return static_cast<std::uint32_t>(crc32_z(crc32_z(0L, Z_NULL, 0), data.data(), data.size()));
-}
-
-std::string system_error(const std::string& path, const std::string& what) {
-  return path + ": " + what + ": " + std::strerror(errno);
-}
-
-void write_all(int fd, std::span<const std::uint8_t> data, const std::string& path) {
-  while (!data.empty()) {
-    const ssize_t n = ::write(fd, data.data(), data.size());
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      throw Error(system_error(path, "cannot write"));
-    }
-    data = data.subspan(static_cast<std::size_t>(n));
-  }
-}
-
-void sync_directory_of(const std::string& path) {
-  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
-  const std::string name = dir.empty() ? "." : dir.string();
-  const int fd = ::open(name.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) throw Error(system_error(name, "cannot open the directory to sync it"));
-  const int rc = ::fsync(fd);
-  ::close(fd);
-  if (rc != 0) throw Error(system_error(name, "cannot sync the directory"));
 }
 
 /// A file's bytes in one buffer, not zero-filled first, on huge pages when
@@ -394,31 +370,7 @@ LoadedMap load_parsed(const ParsedFile& p, const std::string& path) {
 
 }  // namespace
 
-namespace {
-
-/// Writes `bytes` to a temporary file beside `path`, fsyncs it, renames it
-/// over `path` and fsyncs the directory: `path` holds its old content or all
-/// of `bytes`. Returns the new file's descriptor, locked (flock) and at its
-/// end, for a writer that goes on appending.
-int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error(system_error(tmp, "cannot create the map"));
-  try {
-    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw Error(system_error(tmp, "cannot lock the new map"));
-    write_all(fd, bytes, tmp);
-    if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync the map"));
-    if (::rename(tmp.c_str(), path.c_str()) != 0) throw Error(system_error(path, "cannot replace the map with " + tmp));
-  } catch (...) {
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    throw;
-  }
-  sync_directory_of(path);
-  return fd;
-}
-
-}  // namespace
+namespace {}  // namespace
 
 void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta) {
   ::close(replace_file(path, encode_snapshot(map, meta)));

@@ -13,8 +13,10 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <sstream>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 
 namespace lshloc::io {
 
@@ -25,29 +27,27 @@ constexpr unsigned char kOccupiedGrey = 0, kFreeGrey = 254, kUnknownGrey = 205;
 
 void write_ros_map(const std::string& stem, const OccupancyGrid& grid) {
   const std::string pgm = stem + ".pgm", yaml = stem + ".yaml";
-  {
-    std::ofstream out(pgm, std::ios::binary);
-    if (!out) throw Error(pgm + ": cannot write");
-    out << "P5\n# lshloc occupancy grid, " << grid.resolution << " m/cell\n"
+  std::ostringstream image(std::ios::binary);
+  image << "P5\n# lshloc occupancy grid, " << grid.resolution << " m/cell\n"
         << grid.width << ' ' << grid.height << "\n255\n";
-    std::vector<unsigned char> row(grid.width);
-    for (std::size_t r = grid.height; r-- > 0;) {
-      for (std::size_t c = 0; c < grid.width; ++c) {
-        const std::int8_t v = grid.at(c, r);
-        row[c] = v == occupancy::kOccupied ? kOccupiedGrey : v == occupancy::kFree ? kFreeGrey : kUnknownGrey;
-      }
-      out.write(reinterpret_cast<const char*>(row.data()), static_cast<std::streamsize>(row.size()));
+  std::string row(grid.width, '\0');
+  for (std::size_t r = grid.height; r-- > 0;) {
+    for (std::size_t c = 0; c < grid.width; ++c) {
+      const std::int8_t v = grid.at(c, r);
+      row[c] = static_cast<char>(v == occupancy::kOccupied ? kOccupiedGrey
+                                 : v == occupancy::kFree   ? kFreeGrey
+                                                           : kUnknownGrey);
     }
-    if (!out) throw Error(pgm + ": cannot write");
+    image << row;
   }
-  std::ofstream out(yaml);
-  if (!out) throw Error(yaml + ": cannot write");
+  write_file_atomically(pgm, image.str());
   char origin[96];
   std::snprintf(origin, sizeof origin, "[%.9g, %.9g, %.9g]", grid.origin.x(), grid.origin.y(), grid.origin_yaw);
-  out << "image: " << std::filesystem::path(pgm).filename().string()
-      << "\nmode: trinary\nresolution: " << std::setprecision(9) << grid.resolution << "\norigin: " << origin
-      << "\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
-  if (!out) throw Error(yaml + ": cannot write");
+  std::ostringstream text;
+  text << "image: " << std::filesystem::path(pgm).filename().string()
+       << "\nmode: trinary\nresolution: " << std::setprecision(9) << grid.resolution << "\norigin: " << origin
+       << "\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
+  write_file_atomically(yaml, text.str());
 }
 
 namespace {

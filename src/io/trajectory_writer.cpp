@@ -5,22 +5,24 @@
 #include <memory>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/ground_truth.hpp"
 #include "lshloc/io/line_reader.hpp"
 
 namespace lshloc::io {
 
 void write_tum_trajectory(const std::string& path, std::span<const StampedPose> trajectory) {
-  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "w"), &std::fclose);
-  if (!file) throw Error(path + ": cannot open for writing the TUM trajectory");
-  std::fprintf(file.get(), "# timestamp x y z qx qy qz qw\n");
+  std::string text = "# timestamp x y z qx qy qz qw\n";
+  char line[192];
   for (const auto& p : trajectory) {
     // A rotation by theta about z: q = (0, 0, sin(theta/2), cos(theta/2)).
     const double half = 0.5 * p.pose.theta;
-    std::fprintf(file.get(), "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.timestamp, p.pose.x, p.pose.y, std::sin(half),
-                 std::cos(half));
+    const int n = std::snprintf(line, sizeof line, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.timestamp, p.pose.x, p.pose.y,
+                                std::sin(half), std::cos(half));
+    if (n < 0 || static_cast<std::size_t>(n) >= sizeof line) throw Error(path + ": cannot format a pose");
+    text.append(line, static_cast<std::size_t>(n));
   }
-  if (std::ferror(file.get()) != 0) throw Error(path + ": write error while writing the TUM trajectory");
+  write_file_atomically(path, text);
 }
 
 std::vector<StampedPose> read_tum_trajectory(const std::string& path) {

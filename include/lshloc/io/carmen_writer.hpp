@@ -22,8 +22,10 @@ struct CarmenWriterConfig {
 };
 
 /// Streams a CARMEN log to a file, message by message; a path ending in .gz
-/// is gzip-compressed. Write errors throw lshloc::Error naming the file.
-/// Not thread-safe.
+/// is gzip-compressed. The messages go to a temporary file beside it that
+/// close() renames to the path: a failed or abandoned write (a full disk, an
+/// exception) never leaves a partial log under the final name. Write errors
+/// throw lshloc::Error naming the file. Not thread-safe.
 class CarmenWriter {
  public:
   explicit CarmenWriter(std::string path, CarmenWriterConfig config = {});
@@ -44,8 +46,9 @@ class CarmenWriter {
   /// written as `nan` (read back as invalid beams).
   void scan(const LaserScan& scan);
 
-  /// Flushes and closes; throws on a write error. Called by the destructor
-  /// (which swallows errors) if not called before.
+  /// Flushes, closes and renames the file to its path; throws on a write
+  /// error (and removes the temporary file). Without close(), the destructor
+  /// removes what was written.
   void close();
 
   const std::string& path() const { return path_; }
@@ -57,6 +60,7 @@ class CarmenWriter {
   void flush();
 
   std::string path_;
+  std::string temp_path_;  ///< where the messages go until close()
   CarmenWriterConfig config_;
   void* gz_ = nullptr;    // gzFile when compressing
   void* file_ = nullptr;  // FILE* otherwise

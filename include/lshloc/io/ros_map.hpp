@@ -12,8 +12,9 @@
 namespace lshloc::io {
 
 /// Writes `stem`.pgm and `stem`.yaml (trinary mode, negate 0, map_server's
-/// default thresholds; the image's top row is the grid's highest y). Throws
-/// lshloc::Error naming the file that cannot be written.
+/// default thresholds; the image's top row is the grid's highest y), each
+/// atomically (io/atomic_file.hpp). Throws lshloc::Error naming the file
+/// that cannot be written.
 void write_ros_map(const std::string& stem, const OccupancyGrid& grid);
 
 /// Reads a map_server map: the YAML (image, resolution, origin [x, y, yaw],

@@ -14,7 +14,8 @@ namespace lshloc::io {
 /// Writes a planar trajectory in the TUM format, one pose per line:
 /// `timestamp x y z qx qy qz qw` with z = 0 and the quaternion of a rotation
 /// by theta about the z axis. Time stamps keep microseconds, positions
-/// micrometres. Throws lshloc::Error when the file cannot be written.
+/// micrometres. Written atomically (io/atomic_file.hpp); throws lshloc::Error
+/// when the file cannot be written.
 void write_tum_trajectory(const std::string& path, std::span<const StampedPose> trajectory);
 
 /// Reads a TUM trajectory (`#` and blank lines skipped), keeping the yaw of

@@ -1,0 +1,44 @@
+#pragma once
+// Writing output files so that a crash or a full disk never leaves a
+// half-written file under the final name: the bytes go to a temporary file
+// beside it, which is fsync'ed and renamed over the final name
+// (docs/reliability.md, "Writes").
+// No physical units.
+// Stateless; safe from any thread on distinct paths.
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+
+namespace lshloc::io {
+
+/// "PATH: WHAT: strerror(errno)", the message of a failed system call.
+std::string system_error(const std::string& path, const std::string& what);
+
+/// Writes all of `data` to `fd` (retrying short writes), or throws
+/// lshloc::Error naming `path` (e.g. "No space left on device").
+void write_all(int fd, std::span<const std::uint8_t> data, const std::string& path);
+
+/// fsyncs the directory holding `path`, so that a rename in it is durable.
+void sync_directory_of(const std::string& path);
+
+/// Writes `bytes` to a temporary file beside `path`, fsyncs it, renames it
+/// over `path` and fsyncs the directory: `path` then holds all of `bytes`,
+/// and on any failure (thrown as lshloc::Error naming the file) its old
+/// content or nothing, with no temporary file left. Returns the new file's
+/// descriptor, locked (flock) and at its end, for a writer that appends.
+int replace_file(const std::string& path, std::span<const std::uint8_t> bytes);
+
+/// Appends printf-formatted text to `out` (outputs are built in memory, then
+/// written whole by write_file_atomically).
+[[gnu::format(printf, 2, 3)]] void append_format(std::string& out, const char* format, ...);
+
+/// replace_file() for a whole text or binary output, closing the file.
+void write_file_atomically(const std::string& path, std::string_view bytes);
+
+/// Throws lshloc::Error naming `path` unless a file can be written there
+/// (its directory exists and is writable, and it is no directory itself):
+/// the check a long run makes before it starts.
+void require_writable(const std::string& path);
+
+}  // namespace lshloc::io

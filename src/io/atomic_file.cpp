@@ -1,0 +1,94 @@
+#include "lshloc/io/atomic_file.hpp"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc::io {
+
+std::string system_error(const std::string& path, const std::string& what) {
+  return path + ": " + what + ": " + std::strerror(errno);
+}
+
+void write_all(int fd, std::span<const std::uint8_t> data, const std::string& path) {
+  while (!data.empty()) {
+    const ssize_t n = ::write(fd, data.data(), data.size());
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw Error(system_error(path, "cannot write"));
+    }
+    data = data.subspan(static_cast<std::size_t>(n));
+  }
+}
+
+void sync_directory_of(const std::string& path) {
+  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  const std::string name = dir.empty() ? "." : dir.string();
+  const int fd = ::open(name.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) throw Error(system_error(name, "cannot open the directory to sync it"));
+  const int rc = ::fsync(fd);
+  ::close(fd);
+  if (rc != 0) throw Error(system_error(name, "cannot sync the directory"));
+}
+
+int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
+  // Unique per process and call: two outputs of one run never share a temp.
+  static std::atomic<unsigned> serial{0};
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(serial++);
+  const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw Error(system_error(tmp, "cannot create"));
+  try {
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw Error(system_error(tmp, "cannot lock"));
+    write_all(fd, bytes, tmp);
+    if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync"));
+    if (::rename(tmp.c_str(), path.c_str()) != 0) throw Error(system_error(path, "cannot replace it with " + tmp));
+  } catch (...) {
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw;
+  }
+  sync_directory_of(path);
+  return fd;
+}
+
+void append_format(std::string& out, const char* format, ...) {
+  std::va_list args;
+  va_start(args, format);
+  std::va_list again;
+  va_copy(again, args);
+  const int n = std::vsnprintf(nullptr, 0, format, args);
+  va_end(args);
+  if (n > 0) {
+    const std::size_t at = out.size();
+    out.resize(at + static_cast<std::size_t>(n) + 1);
+    std::vsnprintf(out.data() + at, static_cast<std::size_t>(n) + 1, format, again);
+    out.resize(at + static_cast<std::size_t>(n));
+  }
+  va_end(again);
+}
+
+void write_file_atomically(const std::string& path, std::string_view bytes) {
+  ::close(replace_file(path, {reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()}));
+}
+
+void require_writable(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw Error(path + ": is a directory; expected a file name to write");
+  const fs::path dir = fs::path(path).parent_path();
+  const std::string name = dir.empty() ? "." : dir.string();
+  if (!fs::is_directory(name, ec))
+    throw Error(path + ": cannot write here (the directory " + name + " does not exist)");
+  if (::access(name.c_str(), W_OK) != 0) throw Error(system_error(path, "cannot write in " + name));
+}
+
+}  // namespace lshloc::io
