@@ -234,7 +234,7 @@ TEST(CarmenReaderBadInput, BytesAfterTheGzipStreamAreWarnedAndMembersAreRead) {
   ASSERT_EQ(both.scans.size(), 2u);
   EXPECT_TRUE(both.warnings.empty());
   // Then garbage: the scans are read, the garbage is counted in a warning.
-  for (const std::string garbage : {std::string("junk after the stream\n"), std::string("\x1f")}) {
+  for (const std::string& garbage : {std::string("junk after the stream\n"), std::string("\x1f")}) {
     const std::string tail = test::temp_path(".log.gz");
     std::ofstream(tail, std::ios::binary) << bytes(one) << bytes(two) << garbage;
     const CarmenLog log = read_carmen_log(tail);

@@ -91,6 +91,24 @@ TEST(ScanMatcher, RecoversKnownMotionInARoom) {
   EXPECT_LE(matcher.keyframe_poses().size(), matcher.config().window_keyframes);
 }
 
+TEST(ScanMatcher, AnAbsurdOdometryJumpIsRefusedNotAllocated) {
+  // Odometry that jumps 1e8 m between two scans (a corrupt log) would ask
+  // for a lookup grid of 1e16 cells: refused with a message naming the cap.
+  test::LaserSim sim(test::test_room());
+  ScanMatcher matcher;
+  const Pose2 here(4.0, 4.0, 0.0);
+  matcher.add_scan(sim.scan(here, here, 0.0));
+  try {
+    for (int k = 1; k <= 3; ++k) matcher.add_scan(sim.scan(here, Pose2(1e8 * k, 0.0, 0.0), 0.1 * k));
+    FAIL() << "a local map 1e8 m wide was built";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("above the cap of 2^26 cells"), std::string::npos) << e.what();
+  }
+  ScanMatcherConfig far;
+  far.laser_offset = Pose2(1e300, 0.0, 0.0);
+  EXPECT_THROW(far.validate(), Error);
+}
+
 TEST(ScanMatcher, NoisyRangesStillRecoverMotion) {
   const auto truth = room_path();
   const auto odo = drifting_odometry(truth, -0.1, 0.05, 5);

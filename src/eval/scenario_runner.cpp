@@ -123,7 +123,8 @@ ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, con
   if (config.map_share_before_target < 1.0) {
     // The rest of the map arrives while the target moves.
     const double n = static_cast<double>(scenario.target.scans.size());
-    rest_of_map = [&](std::size_t i) {
+    // n by value: the lambda runs after this block ends (ASan found the dangling reference).
+    rest_of_map = [&feeder, &config, n](std::size_t i) {
       feeder.feed_until(config.map_share_before_target +
                         (1.0 - config.map_share_before_target) * static_cast<double>(i + 1) / n);
     };

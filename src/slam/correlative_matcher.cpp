@@ -41,8 +41,16 @@ void CorrelativeMatcher::build_grids(std::span<const Point2> reference) {
     y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
   }
   x0_ = x0 - margin, y0_ = y0 - margin;
-  w_ = static_cast<std::int32_t>(std::ceil((x1 + margin - x0_) / config_.cell)) + 1;
-  h_ = static_cast<std::int32_t>(std::ceil((y1 + margin - y0_) / config_.cell)) + 1;
+  const double w = std::ceil((x1 + margin - x0_) / config_.cell) + 1,
+               h = std::ceil((y1 + margin - y0_) / config_.cell) + 1;
+  if (!(w * h <= static_cast<double>(kMaxGridCells))) {
+    throw Error("CorrelativeMatcher: the reference scan spans " + std::to_string(x1 - x0) + " x " +
+                std::to_string(y1 - y0) + " m, " + std::to_string(w) + " x " + std::to_string(h) +
+                " cells of CorrelativeMatcherConfig.cell = " + std::to_string(config_.cell) +
+                " m, above the cap of 2^25 cells (raise the cell size)");
+  }
+  w_ = static_cast<std::int32_t>(w);
+  h_ = static_cast<std::int32_t>(h);
   fine_.assign(static_cast<std::size_t>(w_) * static_cast<std::size_t>(h_), 0.0f);
   const auto r = static_cast<std::int32_t>(std::ceil(3.0 * config_.sigma / config_.cell));
   const double inv2s2 = 1.0 / (2.0 * config_.sigma * config_.sigma);

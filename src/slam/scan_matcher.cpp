@@ -20,7 +20,8 @@ bool finite_pose(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.
 }  // namespace
 
 void ScanMatcherConfig::validate() const {
-  require(finite_pose(laser_offset), "ScanMatcherConfig.laser_offset", "finite");
+  require(finite_pose(laser_offset) && std::hypot(laser_offset.x, laser_offset.y) <= 100.0,
+          "ScanMatcherConfig.laser_offset", "finite, within 100 m of the robot's origin");
   require(min_range >= 0.0 && std::isfinite(min_range), "ScanMatcherConfig.min_range", ">= 0 [m]", min_range);
   require(max_range > min_range && std::isfinite(max_range), "ScanMatcherConfig.max_range", "> min_range [m]",
           max_range);
@@ -151,8 +152,15 @@ void ScanMatcher::rebuild_map() {
     y0 = std::min(y0, m.position.y()), y1 = std::max(y1, m.position.y());
   }
   grid_x0_ = x0, grid_y0_ = y0;
-  grid_w_ = static_cast<std::int32_t>(std::floor((x1 - x0) / grid_cell_)) + 1;
-  grid_h_ = static_cast<std::int32_t>(std::floor((y1 - y0) / grid_cell_)) + 1;
+  const double w = std::floor((x1 - x0) / grid_cell_) + 1, h = std::floor((y1 - y0) / grid_cell_) + 1;
+  if (!(w * h <= static_cast<double>(kMaxGridCells))) {
+    throw Error("ScanMatcher: the local map spans " + std::to_string(x1 - x0) + " x " + std::to_string(y1 - y0) +
+                " m, " + std::to_string(w) + " x " + std::to_string(h) +
+                " cells of ScanMatcherConfig.fine_correspondence = " + std::to_string(grid_cell_) +
+                " m, above the cap of 2^26 cells (scan ranges or poses far too large?)");
+  }
+  grid_w_ = static_cast<std::int32_t>(w);
+  grid_h_ = static_cast<std::int32_t>(h);
   const std::size_t cells = static_cast<std::size_t>(grid_w_) * static_cast<std::size_t>(grid_h_);
   std::vector<std::uint32_t> cell_of(all.size());
   cell_start_.assign(cells + 1, 0);

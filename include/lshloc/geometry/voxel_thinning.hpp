@@ -15,10 +15,18 @@
 
 namespace lshloc {
 
+/// floor(v) as an int32, saturated (and NaN as the lowest value): cells of
+/// absurd coordinates share the edge cell instead of overflowing the cast.
+inline std::int32_t saturated_cell(double v) {
+  const double f = std::floor(v);
+  if (!(f > -2147483648.0)) return INT32_MIN;
+  if (f > 2147483647.0) return INT32_MAX;
+  return static_cast<std::int32_t>(f);
+}
+
 /// The key of the square cell holding p, for cells of side 1 / inv_voxel.
 inline std::uint64_t voxel_key(const Point2& p, double inv_voxel) {
-  const auto ix = static_cast<std::int32_t>(std::floor(p.x() * inv_voxel));
-  const auto iy = static_cast<std::int32_t>(std::floor(p.y() * inv_voxel));
+  const std::int32_t ix = saturated_cell(p.x() * inv_voxel), iy = saturated_cell(p.y() * inv_voxel);
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(ix)) << 32) | static_cast<std::uint32_t>(iy);
 }
 

@@ -39,6 +39,10 @@ struct CorrelativeMatch {
 /// Not thread-safe (scratch is reused); one instance per thread.
 class CorrelativeMatcher {
  public:
+  /// Cells of each lookup grid beyond which matching throws (3 float grids
+  /// of 128 MiB): a reference that large comes from a broken input.
+  static constexpr std::size_t kMaxGridCells = std::size_t{1} << 25;
+
   explicit CorrelativeMatcher(CorrelativeMatcherConfig config = {});
 
   /// Searches poses guess * (tx, ty, 0) with |tx|, |ty| <= window_m and

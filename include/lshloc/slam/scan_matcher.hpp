@@ -144,6 +144,10 @@ struct MapPoint {
 /// not by the run length. Not thread-safe; one instance per robot.
 class ScanMatcher {
  public:
+  /// Cells of the local map's lookup grid beyond which add_scan() throws
+  /// (256 MiB of cell starts): a map that large comes from a broken input.
+  static constexpr std::size_t kMaxGridCells = std::size_t{1} << 26;
+
   explicit ScanMatcher(ScanMatcherConfig config = {});
 
   /// Matches the next scan (its `odometry` is the robot's odometry pose) and
