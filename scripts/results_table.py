@@ -44,6 +44,29 @@ def grid():
     print(f"; confident estimates at ground-truth scans: {conf}, wrong: {wrong}.\n")
 
 
+def grid_maps():
+    """The 16 scenarios with every submap rebuilt from its occupancy grid, beside the log-built maps."""
+    rows = load("grid_maps")
+    if not rows:
+        return
+    logs = {(r["building"], r["submaps"]): r for r in load("grid")}
+    print("| building | R | map features: grid / logs | success: grid / logs | final error [m]: grid / logs | "
+          "localized at: grid / logs | median error after [m]: grid / logs | confident scans: grid / logs | "
+          "map build s (grid) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in sorted(rows, key=lambda r: (r["building"], r["submaps"])):
+        l = logs.get((r["building"], r["submaps"]), {})
+        pair = lambda k, d=3: f"{fmt(r.get(k), d)} / {fmt(l.get(k), d)}"
+        print(f"| {r['building']} | {r['submaps']} | {pair('map_features')} | {pair('success')} | "
+              f"{pair('final_error_m')} | {pair('localized_at')} | {pair('median_error_after_m')} | "
+              f"{pair('confident_scans')} | {fmt(r['map_build_s'], 1)} |")
+    ok = sum(r["success"] for r in rows)
+    errs = [r["final_error_m"] for r in rows if r["final_error_m"] is not None]
+    wrong = sum(r["confident_wrong"] for r in rows)
+    print(f"\n{ok}/{len(rows)} scenarios succeed with grid-built maps; median final error "
+          f"{statistics.median(errs):.3f} m; confident but wrong: {wrong}.\n")
+
+
 def by(rows, key):
     groups = defaultdict(list)
     for r in rows:

@@ -2,6 +2,8 @@
 # Reproduces the end-to-end experiment of RESULTS.md: every line is one
 # `lshloc eval` JSON line, appended to results/<part>.jsonl.
 #   scripts/sweep.sh [PART...]   parts: grid (4 buildings x R in 1 4 9 15),
+#                                grid_maps (the same with every submap rebuilt
+#                                from its occupancy grid, eval --grid-maps),
 #                                orders (iRANSAC order rules), ablation
 #                                (database vs random hypotheses), starts
 #                                (20 evenly spaced starts per building at R = 15)
@@ -21,7 +23,7 @@ parts=("$@")
 run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
   local out=$1; shift
   local line
-  if [ -n "${MAP_CACHE:-}" ]; then  # the scenario's map: the arguments without the localizer's switches
+  if [ -n "${MAP_CACHE:-}" ] && [[ "$*" != *--grid-maps* ]]; then  # the scenario's map: the arguments without the localizer's switches
     local key
     key=$(printf '%s ' "$@" | sed -E 's/--(order-rule|hypotheses) [^ ]+//g; s/[^A-Za-z0-9._-]+/_/g')
     if [ -f "$MAP_CACHE/$key.map" ]; then set -- "$@" --load-map "$MAP_CACHE/$key.map"
@@ -41,6 +43,9 @@ jobs_for() {  # jobs_for PART: one line per eval to run
   case $1 in
     grid)
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do echo "results/grid.jsonl --building $b --submaps $r"; done; done ;;
+    grid_maps)
+      for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
+        echo "results/grid_maps.jsonl --building $b --submaps $r --grid-maps"; done; done ;;
     orders)
       for b in fr079 fr101 intel aces; do for o in uniform recent fresh; do
         echo "results/orders.jsonl --building $b --submaps 4 --order-rule $o"; done; done ;;
