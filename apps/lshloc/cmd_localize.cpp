@@ -81,22 +81,28 @@ TargetRun select_target(io::CarmenLog& log, const LocalizeOptions& opt) {
 /// Per-scan CSV (one row per target scan) and TUM files of the confident
 /// poses: OUT holds those in the final answer's submap, OUT.<submap>.tum
 /// those in any other.
+/// The per-scan CSV's header and rows, the same for --out and a stdin stream.
+constexpr const char* kCsvHeader =
+    "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,score,scored,margin\n";
+void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, double time, const GlobalMap& map,
+                    const LocalizationEstimate& e) {
+  if (e.has_estimate) {
+    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%u,%.4f\n", scan, log_scan, time,
+                      map.submap_name(e.submap).c_str(), e.submap, e.pose.x, e.pose.y, degrees(e.pose.theta),
+                      e.localized ? 1 : 0, e.mean_score, e.scored, e.margin);
+  } else {
+    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,,,\n", scan, log_scan, time);
+  }
+}
+
 void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun& target, const ScenarioRun& run) {
-  std::string csv = "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,score,scored,margin\n";
+  std::string csv = kCsvHeader;
   std::map<std::uint32_t, std::vector<StampedPose>> confident;
-  char buf[256];
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const double t = target.scans[i].timestamp;
-    if (e.has_estimate) {
-      std::snprintf(buf, sizeof buf, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%u,%.4f\n", i, target.start + i, t,
-                    map.submap_name(e.submap).c_str(), e.submap, e.pose.x, e.pose.y, degrees(e.pose.theta),
-                    e.localized ? 1 : 0, e.mean_score, e.scored, e.margin);
-      if (e.localized) confident[e.submap].push_back({t, e.pose});
-    } else {
-      std::snprintf(buf, sizeof buf, "%zu,%zu,%.6f,,,,,,0,,,\n", i, target.start + i, t);
-    }
-    csv += buf;
+    append_csv_row(csv, i, target.start + i, t, map, e);
+    if (e.has_estimate && e.localized) confident[e.submap].push_back({t, e.pose});
   }
   io::write_file_atomically(out + ".csv", csv);
   const auto& last = run.estimates.back();
@@ -161,7 +167,7 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   std::size_t index = 0, done = 0, confident = 0;
   std::optional<std::size_t> first_confident;
   LocalizationEstimate last;
-  if (!opt.json) std::printf("scan,log_scan,time,submap,x,y,heading_deg,confident,score\n");
+  if (!opt.json) std::printf("%s", kCsvHeader);
   while ((opt.length == 0 || done < opt.length) && reader.next(rec)) {
     if (rec.type == io::CarmenRecord::Type::kParam) params.params[rec.param_name] = rec.param_value;
     if (rec.type != io::CarmenRecord::Type::kLaser || index++ < opt.start) continue;
@@ -178,11 +184,10 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                   {"heading_deg", degrees(e.pose.theta)},
                   {"score", e.mean_score}});
       std::printf("%s\n", j.dump().c_str());
-    } else if (e.has_estimate) {
-      std::printf("%zu,%zu,%.6f,%s,%.4f,%.4f,%.3f,%d,%.4f\n", done, index - 1, rec.scan.timestamp, submap.c_str(),
-                  e.pose.x, e.pose.y, degrees(e.pose.theta), e.localized ? 1 : 0, e.mean_score);
     } else {
-      std::printf("%zu,%zu,%.6f,,,,,0,\n", done, index - 1, rec.scan.timestamp);
+      std::string row;
+      append_csv_row(row, done, index - 1, rec.scan.timestamp, map, e);
+      std::fputs(row.c_str(), stdout);
     }
     std::fflush(stdout);
     if (e.localized && !first_confident) first_confident = done;
