@@ -33,6 +33,17 @@ def world(tmp_path_factory):
     return d
 
 
+def assert_localizes_in_b(gmap, target, b):
+    """Scans 300..449 of the target touring building b end confident in submap "b", within 0.3 m of the truth."""
+    loc = lshloc.Localizer(gmap, laser_offset=target.laser_offset)
+    for scan in target.scans[300:450]:
+        e = loc.add_scan(scan)
+    assert e["localized"] and e["submap_name"] == "b"
+    # The target's truth: b's corrected log holds the true laser pose of the same scan.
+    truth = b.scans[449].pose
+    assert math.hypot(e["pose"][0] - truth[0], e["pose"][1] - truth[1]) < 0.3
+
+
 def test_a_scan_is_numpy_in_and_out():
     ranges = np.array([1.0, 2.0, np.nan, 4.0], dtype=np.float32)
     scan = lshloc.LaserScan(ranges, angle_min=-0.5, angle_increment=0.25, pose=(1.0, 2.0, 0.5))
@@ -50,13 +61,7 @@ def test_localizes_in_the_right_building_against_ground_truth(world):
     gmap = lshloc.GlobalMap()
     feed(gmap, [("a", a.scans), ("b", b.scans)])
     assert gmap.submap_count == 2 and gmap.stats()["features"] > 1000
-    loc = lshloc.Localizer(gmap, laser_offset=target.laser_offset)
-    for scan in target.scans[300:450]:
-        e = loc.add_scan(scan)
-    assert e["localized"] and e["submap_name"] == "b"
-    # The target's truth: its corrected log holds the true laser pose of the same scan.
-    truth = b.scans[449].pose
-    assert math.hypot(e["pose"][0] - truth[0], e["pose"][1] - truth[1]) < 0.3
+    assert_localizes_in_b(gmap, target, b)
 
 
 def test_a_saved_map_loads_to_the_same_estimates(world, tmp_path):
@@ -90,12 +95,7 @@ def test_a_map_from_ros_grids_localizes_against_ground_truth(world, tmp_path):
         sid, stats = gmap.add_grid_submap(name, back, beams=len(first.ranges),
                                           field_of_view=first.angles[-1] - first.angles[0])
         assert stats["virtual_scans"] == 8 * stats["positions"] and stats["features"] > 100
-    loc = lshloc.Localizer(gmap, laser_offset=target.laser_offset)
-    for scan in target.scans[300:450]:
-        e = loc.add_scan(scan)
-    assert e["localized"] and e["submap_name"] == "b"
-    truth = b.scans[449].pose
-    assert math.hypot(e["pose"][0] - truth[0], e["pose"][1] - truth[1]) < 0.3
+    assert_localizes_in_b(gmap, target, b)
     with pytest.raises(lshloc.Error, match="expected the key 'image'"):
         (tmp_path / "bad.yaml").write_text("resolution: 0.05\norigin: [0, 0, 0]\n")
         lshloc.read_ros_map(str(tmp_path / "bad.yaml"))
