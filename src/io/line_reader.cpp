@@ -25,7 +25,7 @@ struct LineReader::Source {
   z_stream zs{};
   bool zs_open = false;
   bool member_ended = false;  ///< the last inflate() finished a gzip member
-  std::vector<unsigned char> in = std::vector<unsigned char>(1 << 17);
+  std::vector<unsigned char> in;  ///< raw bytes read, sized to the file up to 128 KiB
   ~Source() {
     if (zs_open) inflateEnd(&zs);
     if (file != nullptr) std::fclose(file);
@@ -55,9 +55,10 @@ LineReader::LineReader(std::string path) : path_(std::move(path)), buffer_(1 << 
   source_->file = std::fopen(path_.c_str(), "rb");
   if (source_->file == nullptr) throw Error(path_ + ": cannot open: " + std::strerror(errno));
   // Small files get small buffers (a reader per poses file, per fuzz input).
+  constexpr std::size_t kInputBytes = std::size_t{1} << 17;
   std::error_code size_ec;
   const auto size = std::filesystem::file_size(path_, size_ec);
-  if (!size_ec && size < source_->in.size()) source_->in.resize(std::max<std::size_t>(size, 4096));
+  source_->in.resize(size_ec ? kInputBytes : std::clamp<std::size_t>(size, 4096, kInputBytes));
   source_->read_more(path_);
   // gzip is told by its magic bytes, not by the name.
   source_->gzip = source_->zs.avail_in >= 2 && source_->in[0] == 0x1f && source_->in[1] == 0x8b;
