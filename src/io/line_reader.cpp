@@ -24,7 +24,7 @@ struct LineReader::Source {
   bool gzip = false;
   z_stream zs{};
   bool zs_open = false;
-  bool member_ended = false;  ///< the last inflate() finished a gzip member
+  bool member_ended = false;      ///< the last inflate() finished a gzip member
   std::vector<unsigned char> in;  ///< raw bytes read, sized to the file up to 128 KiB
   ~Source() {
     if (zs_open) inflateEnd(&zs);
