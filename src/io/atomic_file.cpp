@@ -40,10 +40,14 @@ void sync_directory_of(const std::string& path) {
   if (rc != 0) throw Error(system_error(name, "cannot sync the directory"));
 }
 
-int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
+std::string temporary_path_for(const std::string& path) {
   // Unique per process and call: two outputs of one run never share a temp.
   static std::atomic<unsigned> serial{0};
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(serial++);
+  return path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(serial++);
+}
+
+int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
+  const std::string tmp = temporary_path_for(path);
   const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw Error(system_error(tmp, "cannot create"));
   try {

@@ -48,7 +48,7 @@ CarmenWriter::CarmenWriter(std::string path, CarmenWriterConfig config)
     throw Error("CARMEN writer: decimals must be in 0..9 (ranges, time stamps) and 0..12 (poses)");
   }
   if (!single_word(config_.hostname)) throw Error("CARMEN writer: hostname must be one non-empty word");
-  temp_path_ = path_ + ".tmp." + std::to_string(::getpid());
+  temp_path_ = temporary_path_for(path_);
   if (ends_with(path_, ".gz")) {
     const std::string mode = "wb" + std::to_string(std::clamp(config_.compression_level, 1, 9));
     gz_ = gzopen(temp_path_.c_str(), mode.c_str());

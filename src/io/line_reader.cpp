@@ -76,7 +76,12 @@ std::string LineReader::where() const {
 
 std::size_t LineReader::read_plain() {
   Source& src = *source_;
-  if (src.zs.avail_in == 0 && !src.read_more(path_)) return 0;
+  if (src.zs.avail_in == 0) {
+    // Past the bytes read to sniff the format: straight into the line buffer.
+    const std::size_t n = std::fread(buffer_.data(), 1, buffer_.size(), src.file);
+    if (n == 0 && std::ferror(src.file)) throw Error(path_ + ": cannot read: " + std::strerror(errno));
+    return n;
+  }
   const std::size_t n = std::min<std::size_t>(src.zs.avail_in, buffer_.size());
   std::memcpy(buffer_.data(), src.zs.next_in, n);
   src.zs.next_in += n;

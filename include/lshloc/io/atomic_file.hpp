@@ -22,6 +22,9 @@ void write_all(int fd, std::span<const std::uint8_t> data, const std::string& pa
 /// fsyncs the directory holding `path`, so that a rename in it is durable.
 void sync_directory_of(const std::string& path);
 
+/// A name beside `path` for a temporary file, distinct per process and call.
+std::string temporary_path_for(const std::string& path);
+
 /// Writes `bytes` to a temporary file beside `path`, fsyncs it, renames it
 /// over `path` and fsyncs the directory: `path` then holds all of `bytes`,
 /// and on any failure (thrown as lshloc::Error naming the file) its old
