@@ -5,10 +5,13 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 command -v clang-format >/dev/null || { echo "check_format: clang-format not found (run scripts/setup.sh)"; exit 1; }
-bad=0; n=0
-while IFS= read -r f; do
-  n=$((n + 1))
-  clang-format --dry-run --Werror "$f" >/dev/null 2>&1 || { echo "not formatted: $f"; bad=$((bad + 1)); }
-done < <(git ls-files '*.cpp' '*.hpp')
-echo "check_format: $n files, $bad not formatted"
-[ "$bad" -eq 0 ]
+n=$(git ls-files '*.cpp' '*.hpp' | wc -l)
+# clang-format names each unformatted file in its "file:line:col: error:" lines.
+report=$(git ls-files -z '*.cpp' '*.hpp' | xargs -0 -P "$(nproc)" -n 16 clang-format --dry-run --Werror 2>&1)
+status=$?
+bad=$(grep -oE '^[^:]+:[0-9]+:[0-9]+: error' <<<"$report" | cut -d: -f1 | sort -u)
+for f in $bad; do echo "not formatted: $f"; done
+count=$(grep -c . <<<"$bad")
+echo "check_format: $n files, $count not formatted"
+if [ "$status" -ne 0 ] && [ "$count" -eq 0 ]; then echo "check_format: clang-format failed: $report"; exit 1; fi
+[ "$count" -eq 0 ] && [ "$status" -eq 0 ]

@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# Installs dependencies, builds lshloc (Release) with its Python bindings,
+# Installs dependencies, builds lshloc (Release, a unity build: CI time) with its Python bindings,
 # runs the whole test suite (the layer check and pytest included), then installs into a temporary prefix and builds
-# and runs examples/embed against it (find_package(lshloc)).
+# and runs examples/embed against it (find_package(lshloc)); last, the sanitizer job
+# (scripts/sanitize.sh: the ctest suite under ASan and UBSan, and a 30 s smoke run of each fuzz target).
 # Tests that need the real logs skip when ../shared/data is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DLSHLOC_BUILD_PYTHON=ON >/dev/null
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DLSHLOC_BUILD_PYTHON=ON -DCMAKE_UNITY_BUILD=ON >/dev/null
 cmake --build build -j"$(nproc)"
 ctest --test-dir build -j"$(nproc)" --output-on-failure
 prefix=$(mktemp -d)
@@ -16,3 +17,4 @@ cmake -S examples/embed -B "$prefix/embed" -DCMAKE_PREFIX_PATH="$prefix/install"
 cmake --build "$prefix/embed" -j"$(nproc)" >/dev/null
 "$prefix/embed/embed"
 echo "embed: built against the installed package and ran"
+./scripts/sanitize.sh

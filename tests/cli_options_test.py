@@ -61,21 +61,22 @@ def main():
     saved = os.path.join(work, "base.map")
     subprocess.run([LSHLOC, "map", "build", corrected, "--out", saved], check=True, capture_output=True)
 
-    # Each command with the smallest arguments that make a valid, short run.
+    # Each command with the smallest arguments that make a valid, short run (grids ray-cast coarsely).
     commands = {
         ("demo",): ["--buildings", "2", "--target", "1", "--map-scans", "150", "--target-scans", "30"],
-        ("localize",): ["--map", corrected, "--map", grid, "--target", raw, "--length", "20"],
+        ("localize",): ["--map", corrected, "--map", grid, "--target", raw, "--length", "20", "--grid-spacing", "3"],
         ("simulate",): ["--out", os.path.join(work, "simout"), "--scans", "40"],
         ("bench", "matching"): ["--viewpoints", "300", "--warm-up", "10"],
         ("bench", "scale"): ["--submaps", "1", "--map-scans", "100", "--target-scans", "20", "--targets", "1"],
         ("map", "append"): [os.path.join(work, "append.map"), corrected, "--count", "10"],
         ("map", "to-grid"): [corrected, "--out", os.path.join(work, "g2")],
-        ("map", "from-grid"): [grid, "--out", os.path.join(work, "fromgrid.map")],
-        ("map", "build"): [grid, "--out", os.path.join(work, "build.map")],
+        ("map", "from-grid"): [grid, "--out", os.path.join(work, "fromgrid.map"), "--grid-spacing", "3"],
+        ("map", "build"): [grid, "--out", os.path.join(work, "build.map"), "--grid-spacing", "3"],
     }
     if DATA and os.path.isdir(os.path.join(DATA, "aces")):
         commands[("eval",)] = ["--building", "aces", "--length", "20", "--json"]
-        commands[("eval", "--grid-maps")] = ["--building", "aces", "--length", "20", "--json"]
+        # The grid options again, now used (each run ray-casts the submaps' grids: coarse, to stay short).
+        commands[("eval", "--grid-maps")] = ["--building", "aces", "--length", "20", "--json", "--grid-spacing", "3"]
         commands[("recall",)] = ["--building", "aces", "--length", "20", "--no-exact", "--json"]
     else:
         print("cli_options_test: shared data directory not found: eval and recall not swept")
@@ -85,6 +86,8 @@ def main():
         words = [w for w in command if not w.startswith("--")]
         flags = [w for w in command if w.startswith("--")]
         for option in numeric_options(words):
+            if flags == ["--grid-maps"] and not option.startswith("--grid-"):
+                continue  # swept without --grid-maps already
             for value in VALUES:
                 args = list(words) + flags
                 # The swept option replaces the base's value of the same option.

@@ -10,12 +10,13 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/matching/pose_grid_scorer.hpp"
+#include "test_support.hpp"
 
 namespace lshloc {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-constexpr double kDeg = kPi / 180.0;
+using test::kDeg;
+using test::kPi;
 
 // ---------------------------------------------------------------------------
 // Synthetic scene: global features of submap 0 (oriented points on random

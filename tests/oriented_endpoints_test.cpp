@@ -1,4 +1,5 @@
 #include "lshloc/geometry/oriented_endpoints.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +10,7 @@
 namespace lshloc {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using test::kPi;
 
 /// A 361-beam scan of a wall along x = 3 (in front of the laser) with a gap,
 /// range noise of 1 cm; beams that miss the wall are no-return.

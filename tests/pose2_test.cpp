@@ -1,4 +1,5 @@
 #include "lshloc/geometry/pose2.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +9,7 @@
 namespace lshloc {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using test::kPi;
 
 Pose2 random_pose(std::mt19937& rng) {
   std::uniform_real_distribution<double> xy(-50.0, 50.0), th(-10.0, 10.0);

@@ -12,11 +12,12 @@
 #include "lshloc/slam/correlative_matcher.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/slam/pose_graph_slam.hpp"
+#include "test_support.hpp"
 
 namespace lshloc {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using test::kDeg;
 
 /// A closed ring of n poses (radius 5 m), the last joining the first.
 std::vector<Pose2> ring(std::size_t n) {

@@ -10,11 +10,12 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/matching/pose_grid_scorer.hpp"
+#include "test_support.hpp"
 
 namespace lshloc {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using test::kPi;
 
 /// The brute-force reference: cell -> flags in a std::map, the tolerance
 /// window enumerated cell by cell.

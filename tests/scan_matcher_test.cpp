@@ -16,7 +16,7 @@
 namespace lshloc {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using test::kDeg;
 
 /// A drive through the test room: true robot poses.
 std::vector<Pose2> room_path() {

@@ -17,7 +17,7 @@
 namespace lshloc::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using test::kPi;
 
 std::vector<Segment> square_room(double side) {
   return {{{0, 0}, {side, 0}}, {{side, 0}, {side, side}}, {{side, side}, {0, side}}, {{0, side}, {0, 0}}};

@@ -1,10 +1,14 @@
 #pragma once
+#include <numbers>
 #include <optional>
 #include <string>
 
 #include "lshloc/sim/synthetic_scenario.hpp"
 
 namespace lshloc::test {
+
+inline constexpr double kPi = std::numbers::pi;
+inline constexpr double kDeg = kPi / 180.0;
 
 /// The shared data directory if it exists ($LSHLOC_DATA, else ../shared/data
 /// beside the source tree), or nullopt: tests that need real logs skip then.

@@ -43,9 +43,11 @@ struct LineReader::Source {
   }
 };
 
-LineReader::LineReader(std::string path) : path_(std::move(path)), buffer_(1 << 16) {
+LineReader::LineReader(std::string path) : path_(std::move(path)) {
+  constexpr std::size_t kLineBytes = std::size_t{1} << 16;
   if (path_ == "-") {  // stdin, read as it arrives (zlib would wait for a whole buffer)
     from_stdin_ = true;
+    buffer_.resize(kLineBytes);
     return;
   }
   std::error_code ec;
@@ -66,6 +68,7 @@ LineReader::LineReader(std::string path) : path_(std::move(path)), buffer_(1 << 
     if (inflateInit2(&source_->zs, 15 + 16) != Z_OK) throw Error(path_ + ": cannot start gzip decoding");
     source_->zs_open = true;
   }
+  buffer_.resize(source_->gzip ? kLineBytes : std::min(source_->in.size(), kLineBytes));
 }
 
 LineReader::~LineReader() = default;

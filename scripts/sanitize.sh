@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# CI's sanitizer job (scripts/test.sh runs it after the Release tests): builds
+# lshloc with clang, AddressSanitizer and UndefinedBehaviorSanitizer
+# (LSHLOC_SANITIZE=address,undefined; any finding aborts the test) in
+# build-sanitize/, runs the ctest suite under them, then gives each libFuzzer
+# target a smoke run from its seed corpus.
+#   scripts/sanitize.sh [--fuzz-time SECONDS]   (default 30; 0 skips the smoke runs)
+# -O1 and a unity build keep build plus tests within CI's budget. Not run here:
+# `format` and `layers` (they check source text, no compiled code), and the
+# Python bindings (the interpreter is not instrumented); the Release tests run them.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+fuzz_time=30
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --fuzz-time) fuzz_time=$2; shift 2 ;;
+    -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
+    *) echo "sanitize.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+done
+start=$(date +%s)
+cmake -G Ninja -S . -B build-sanitize -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=None \
+  -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DCMAKE_UNITY_BUILD=ON \
+  -DLSHLOC_SANITIZE=address,undefined -DLSHLOC_BUILD_FUZZERS=ON >/dev/null
+cmake --build build-sanitize -j"$(nproc)"
+echo "sanitize: built in $(($(date +%s) - start)) s"
+ctest --test-dir build-sanitize -j"$(nproc)" --output-on-failure -E '^(format|layers)$'
+echo "sanitize: ctest under ASan and UBSan passed ($(($(date +%s) - start)) s so far)"
+if [ "$fuzz_time" != 0 ]; then
+  ./scripts/fuzz.sh --build-dir build-sanitize --time "$fuzz_time"
+fi
+echo "sanitize: done in $(($(date +%s) - start)) s"
