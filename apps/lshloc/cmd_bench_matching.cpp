@@ -159,7 +159,11 @@ nlohmann::json run_bench(const BenchMatchingOptions& o) {
   std::vector<Hypothesis> hyps;
   for (std::size_t vp = 0; vp < o.viewpoints; ++vp) {
     fresh.clear(), hyps.clear();
-    if (o.drift_xy > 0.0 || o.drift_theta_deg > 0.0) drift = drift * Pose2(dxy(rng), dxy(rng), dth(rng));
+    if (o.drift_xy > 0.0 || o.drift_theta_deg > 0.0) {
+      // Drawn in sequence (last argument first, as g++ did): the same run with every compiler.
+      const double th = dth(rng), y = dxy(rng), x = dxy(rng);
+      drift = drift * Pose2(x, y, th);
+    }
     const Pose2 T_now = T_true * drift;
     const Pose2 T_local_submap = T_now.inverse();
     const auto& group = groups[vp % groups.size()];
@@ -168,7 +172,8 @@ nlohmann::json run_bench(const BenchMatchingOptions& o) {
                                      : group[std::uniform_int_distribution<std::size_t>(0, group.size() - 1)(rng)];
       const Pose2 l = T_local_submap * g;
       local_truth.push_back(g);
-      local_seen.emplace_back(l.x + nxy(rng), l.y + nxy(rng), l.theta + nth(rng));
+      const double noise_theta = nth(rng), noise_y = nxy(rng), noise_x = nxy(rng);
+      local_seen.emplace_back(l.x + noise_x, l.y + noise_y, l.theta + noise_theta);
       fresh.push_back({static_cast<float>(local_seen.back().x), static_cast<float>(local_seen.back().y),
                        static_cast<float>(local_seen.back().theta)});
     }

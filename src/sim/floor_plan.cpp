@@ -515,7 +515,10 @@ class PlanBuilder {
           const double length = uniform(rng_, 1.2, 2.0), depth = uniform(rng_, 0.7, 1.0);
           const double radius = uniform(rng_, 0.4, 0.6);
           const double reach = (round ? radius : std::hypot(length, depth) / 2.0) + 1.3;
-          const Point2 c(uniform(rng_, r.x0 + reach, r.x1 - reach), uniform(rng_, r.y0 + reach, r.y1 - reach));
+          // Two statements fix the draw order (y first, as g++ evaluated the arguments), so a
+          // seed gives the same building with every compiler.
+          const double cy = uniform(rng_, r.y0 + reach, r.y1 - reach);
+          const Point2 c(uniform(rng_, r.x0 + reach, r.x1 - reach), cy);
           const Rect bound{c.x() - reach + 1.3, c.y() - reach + 1.3, c.x() + reach - 1.3, c.y() + reach - 1.3};
           if (clear_of_doors(bound, 1.0) && clear_of_furniture(bound, 0.8)) {
             furniture_.push_back(bound);
