@@ -108,15 +108,52 @@ def ablation():
     print()
 
 
+def flag_line(rs):
+    """The confident flag over the successful runs: median share flagged after localizing, runs flagged on at
+    least half, median lag localized -> first flagged (never-flagged runs count as endless), median toggles."""
+    succ = [r for r in rs if r["success"]]
+    share = [r["confident_share_after"] for r in succ if r.get("confident_share_after") is not None]
+    lags = [r["first_confident_at"] - r["localized_at"] if r.get("first_confident_at") is not None else float("inf")
+            for r in succ if r.get("localized_at") is not None and "first_confident_at" in r]
+    changes = [r["flag_changes"] for r in succ if r.get("flag_changes") is not None]
+    heading = sum(r.get("confident_wrong_heading", 0) for r in rs)
+    truth = sum(r["truth_scans"] for r in rs)
+    wrong = sum(r["confident_wrong"] for r in rs)
+    return (f"{fmt(statistics.median(share) if share else None, 2)} | "
+            f"{sum(v >= 0.5 for v in share)}/{len(share)} | "
+            f"{fmt(statistics.median(lags) if lags else None, 1)} | {sum(l == float('inf') for l in lags)} | "
+            f"{fmt(statistics.median(changes) if changes else None, 1)} | "
+            f"{wrong} ({heading} in heading) of {truth} = {100.0 * wrong / truth if truth else 0:.3f}%")
+
+
+FLAG_HEADER = ("median confident share after | runs flagged ≥ half | median lag to flag [scans] | never flagged | "
+               "median flag changes | confident but wrong (2 m / 10°)")
+TUNED = {"fr079", "intel"}
+
+
+def starts_table(rows, title):
+    print(f"| {title} | starts succeeding | median localized at | median error after [m] | confident / wrong | "
+          f"{FLAG_HEADER} |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for b, rs in sorted(by(rows, lambda r: r["building"]).items()):
+        seen = "" if b in TUNED else " (unseen)"
+        print(f"| {b}{seen} | {summary_line(rs)} | {flag_line(rs)} |")
+    unseen = [r for r in rows if r["building"] not in TUNED]
+    if unseen:
+        print(f"| unseen buildings | {summary_line(unseen)} | {flag_line(unseen)} |")
+    print(f"| all | {summary_line(rows)} | {flag_line(rows)} |\n")
+
+
 def starts():
     rows = load("starts")
-    if not rows:
-        return
-    print("| building (R = 15) | starts succeeding | median localized at | median error after [m] | confident / wrong |")
-    print("|---|---|---|---|---|")
-    for b, rs in sorted(by(rows, lambda r: r["building"]).items()):
-        print(f"| {b} | {summary_line(rs)} |")
-    print(f"| all | {summary_line(rows)} |\n")
+    if rows:
+        starts_table(rows, "building (R = 15)")
+
+
+def starts_seeded():
+    rows = load("starts_seeded")
+    for seed, rs in sorted(by(rows, lambda r: r.get("seed")).items(), key=str):
+        starts_table(rs, f"building (R = 15, seed {seed})")
 
 
 if __name__ == "__main__":

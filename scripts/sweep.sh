@@ -6,7 +6,9 @@
 #                                from its occupancy grid, eval --grid-maps),
 #                                orders (iRANSAC order rules), ablation
 #                                (database vs random hypotheses), starts
-#                                (20 evenly spaced starts per building at R = 15)
+#                                (20 evenly spaced starts per building at R = 15,
+#                                five buildings), starts_seeded (the same with
+#                                the other buildings in seeded orders 1 and 2)
 # Environment: LSHLOC (the executable, default build/bin/lshloc), JOBS
 # (parallel runs, default 2), LSHLOC_DATA (the data directory), MAP_CACHE (a
 # directory: each scenario's map is built once, saved there with
@@ -52,18 +54,22 @@ jobs_for() {  # jobs_for PART: one line per eval to run
     ablation)
       for b in fr079 fr101 intel; do for r in 1 4 15; do for h in database random; do
         echo "results/ablation.jsonl --building $b --submaps $r --hypotheses $h"; done; done; done ;;
-    starts)
-      while read -r b total; do
-        for i in $(seq 0 19); do
-          echo "results/starts.jsonl --building $b --submaps 15 --start $(( i * (total - 1000) / 19 )) --length 1000"
-        done
-      done <<'LIST'
+    starts|starts_seeded)
+      local seeds=(0); [ "$1" = starts_seeded ] && seeds=(1 2)
+      for seed in "${seeds[@]}"; do
+        while read -r b total; do
+          local len=$(( total < 1000 ? total : 1000 ))
+          for i in $(seq 0 19); do
+            echo "results/$1.jsonl --building $b --submaps 15 --start $(( i * (total - len) / 19 )) --length $len --seed $seed"
+          done
+        done <<'LIST'
 fr079 4934
 fr101 4758
 intel 13631
 aces 7374
+mit-csail 1988
 LIST
-      ;;
+      done ;;
     *) echo "unknown part $1" >&2; exit 2 ;;
   esac
 }

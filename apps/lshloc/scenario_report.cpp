@@ -21,6 +21,7 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["start"] = sc.config.start;
   j["length"] = sc.config.length;
   j["submaps"] = sc.config.submaps;
+  j["seed"] = sc.config.seed;
   j["map_features"] = run.map.features;
   j["final_error_m"] = optional_json(m.final_error_m);
   j["final_heading_error_deg"] = optional_json(m.final_heading_error_deg);
@@ -32,13 +33,10 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["truth_scans"] = m.truth_scans;
   j["confident_scans"] = m.confident_scans;
   j["confident_wrong"] = m.confident_wrong;
-  j["first_confident_at"] = nlohmann::json();
-  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-    if (run.estimates[i].localized) {
-      j["first_confident_at"] = i;
-      break;
-    }
-  }
+  j["confident_wrong_heading"] = m.confident_wrong_heading;
+  j["first_confident_at"] = m.first_confident_at ? nlohmann::json(*m.first_confident_at) : nlohmann::json();
+  j["confident_share_after"] = optional_json(m.confident_share_after);
+  j["flag_changes"] = m.flag_changes;
   add_localizer_cost(j, run);
   j["us_update_per_feature"] = run.map.us_update_per_feature();
   j["us_query_per_feature"] = run.localizer.us_query_per_feature();

@@ -17,6 +17,7 @@ LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estim
                 std::to_string(truth.size()) + " ground-truth entries");
   }
   constexpr double kInf = std::numeric_limits<double>::infinity();
+  constexpr double kDegPerRad = 180.0 / std::numbers::pi;
   LocalizationMetrics m;
   m.scans = estimates.size();
   m.error_per_scan_m.assign(m.scans, std::numeric_limits<double>::quiet_NaN());
@@ -31,15 +32,25 @@ LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estim
     m.error_per_scan_m[i] = err;
     if (e.has_estimate && e.confident) {
       ++m.confident_scans;
-      if (!(err <= config.wrong_confident_m)) ++m.confident_wrong;
+      const bool position_wrong = !(err <= config.wrong_confident_m);
+      const bool heading_wrong =
+          !position_wrong && angle_distance(e.pose.theta, truth[i]->theta) * kDegPerRad > config.wrong_confident_deg;
+      m.confident_wrong += position_wrong || heading_wrong;
+      m.confident_wrong_heading += heading_wrong;
     }
+  }
+  bool flagged = false;
+  for (std::size_t i = 0; i < m.scans; ++i) {
+    const bool now = estimates[i].has_estimate && estimates[i].confident;
+    if (now && !m.first_confident_at) m.first_confident_at = i;
+    m.flag_changes += now != flagged;
+    flagged = now;
   }
   if (!last_truth) return m;
   const std::size_t last = *last_truth;
   if (std::isfinite(m.error_per_scan_m[last])) {
     m.final_error_m = m.error_per_scan_m[last];
-    m.final_heading_error_deg =
-        angle_distance(estimates[last].pose.theta, truth[last]->theta) * 180.0 / std::numbers::pi;
+    m.final_heading_error_deg = angle_distance(estimates[last].pose.theta, truth[last]->theta) * kDegPerRad;
   }
   m.success = m.final_error_m && *m.final_error_m < config.success_error_m;
 
@@ -58,9 +69,13 @@ LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estim
   m.localized_at = first_good;
   if (m.localized_at) {
     std::vector<double> after;
+    std::size_t flagged_after = 0;
     for (std::size_t i = *m.localized_at; i <= last; ++i) {
-      if (truth[i]) after.push_back(m.error_per_scan_m[i]);
+      if (!truth[i]) continue;
+      after.push_back(m.error_per_scan_m[i]);
+      flagged_after += estimates[i].has_estimate && estimates[i].confident;
     }
+    m.confident_share_after = static_cast<double>(flagged_after) / static_cast<double>(after.size());
     std::nth_element(after.begin(), after.begin() + static_cast<std::ptrdiff_t>(after.size() / 2), after.end());
     m.median_error_after_m = after[after.size() / 2];
   }

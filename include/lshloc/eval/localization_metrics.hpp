@@ -20,8 +20,9 @@ struct ScanEstimate {
 };
 
 struct LocalizationMetricsConfig {
-  double success_error_m = 1.0;    ///< [m] "correct" threshold (docs/design.md section 6)
-  double wrong_confident_m = 2.0;  ///< [m] a confident estimate farther than this is wrong
+  double success_error_m = 1.0;       ///< [m] "correct" threshold (docs/design.md section 6)
+  double wrong_confident_m = 2.0;     ///< [m] a confident estimate farther than this is wrong ...
+  double wrong_confident_deg = 10.0;  ///< [deg] ... and so is one whose heading is off by more than this
 };
 
 /// The metrics of docs/design.md section 6 for one scenario. Errors are measured
@@ -41,8 +42,17 @@ struct LocalizationMetrics {
   std::optional<std::size_t> first_correct_at;  ///< first truth scan with error < success_error_m
   bool success = false;                         ///< final_error_m < success_error_m
   std::size_t confident_scans = 0;              ///< truth scans with a confident estimate
-  std::size_t confident_wrong = 0;              ///< ... whose submap is wrong or error > wrong_confident_m
-  std::vector<double> error_per_scan_m;         ///< +inf where wrong / none, NaN where no truth
+  /// ... whose submap is wrong, error > wrong_confident_m or heading error > wrong_confident_deg
+  std::size_t confident_wrong = 0;
+  std::size_t confident_wrong_heading = 0;        ///< ... of which the position was right and only the heading wrong
+  std::optional<std::size_t> first_confident_at;  ///< first scan (any, truth or not) flagged confident
+  /// Share of truth scans from localized_at on that are flagged confident
+  /// (nullopt when never localized): how often a robot is told it is right when it is.
+  std::optional<double> confident_share_after;
+  /// Times the confident flag changes over all scans, from "not confident"
+  /// before the first: a run flagged once and for good has 1.
+  std::size_t flag_changes = 0;
+  std::vector<double> error_per_scan_m;  ///< +inf where wrong / none, NaN where no truth
 };
 
 LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estimates,
