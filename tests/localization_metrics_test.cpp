@@ -79,6 +79,7 @@ TEST(LocalizationMetrics, AConfidentHeadingOffByMoreThanTenDegreesIsWrong) {
   EXPECT_EQ(m.confident_scans, 4u);
   EXPECT_EQ(m.confident_wrong, 1u);
   EXPECT_EQ(m.confident_wrong_heading, 1u);
+  EXPECT_EQ(m.confident_wrong_scans, std::vector<std::size_t>{2});
   ASSERT_TRUE(m.localized_at);
   EXPECT_EQ(*m.localized_at, 1u);  // every position from scan 1 on is within 1 m
   ASSERT_TRUE(m.confident_share_after);

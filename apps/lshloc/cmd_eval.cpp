@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
@@ -17,6 +18,7 @@
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/localization/grid_submap.hpp"
 #include "lshloc/slam/occupancy_grid.hpp"
+#include "lshloc/eval/live_replay.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
@@ -45,6 +47,8 @@ struct EvalOptions {
   std::vector<std::size_t> submaps{1};
   bool grid_maps = false;
   GridMapOptions grid;
+  bool live = false;  ///< every submap starts empty and its mapper replays while the target localizes
+  LiveReplayConfig live_replay;
   LocalizerOptions localizer;
 };
 
@@ -204,21 +208,39 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     };
   }
   nlohmann::json map_store = nlohmann::json::object();
-  const ScenarioRun run = run_eval(
-      sc, run_config, opt,
-      [&](std::size_t done, std::size_t total) {
-        if (tty && (done % 25 == 0 || done == total)) {
-          std::fprintf(stderr, "\r%s R=%zu: scan %zu/%zu", sc.config.building.c_str(), sc.config.submaps, done, total);
-          if (done == total) std::fprintf(stderr, "\n");
-        }
-      },
-      observer, map_store);
+  const Progress progress = [&](std::size_t done, std::size_t total) {
+    if (tty && (done % 25 == 0 || done == total)) {
+      std::fprintf(stderr, "\r%s R=%zu: scan %zu/%zu", sc.config.building.c_str(), sc.config.submaps, done, total);
+      if (done == total) std::fprintf(stderr, "\n");
+    }
+  };
+  std::optional<LiveRun> live;
+  ScenarioRun batch;
+  if (opt.live) {
+    live = run_live_scenario(sc, run_config, opt.live_replay, progress, observer);
+  } else {
+    batch = run_eval(sc, run_config, opt, progress, observer, map_store);
+  }
+  const ScenarioRun& run = live ? live->run : batch;
   const LocalizationMetrics m =
       evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
   nlohmann::json j = scenario_json(sc, run, m);
   j["order_rule"] = run_config.localizer.ransac.order_rule;
   j["hypotheses"] = run_config.localizer.hypothesis_source;
   j.update(map_store);
+  j["live"] = opt.live;
+  if (live) {
+    const LiveMetrics lm = evaluate_live(*live, m);
+    j["mapper_speed"] = opt.live_replay.mapper_speed;
+    j["first_mapped_at"] = lm.first_mapped_at ? nlohmann::json(*lm.first_mapped_at) : nlohmann::json();
+    j["final_place_mapped"] = lm.final_place_mapped;
+    j["mapped_to_localized"] = lm.mapped_to_localized ? nlohmann::json(*lm.mapped_to_localized) : nlohmann::json();
+    j["confident_wrong_before_mapped"] = lm.confident_wrong_before_mapped;
+    j["confident_wrong_after_mapped"] = lm.confident_wrong_after_mapped;
+    j["map_scans_per_s"] = lm.map_scans_per_s;
+    j["mapper_scans"] = live->mapper_scans;
+    j["mapper_scans_total"] = live->mapper_scans_total;
+  }
   std::printf("%s\n", j.dump().c_str());
   std::fflush(stdout);
   if (!opt.plot_dir.empty()) {
@@ -293,6 +315,16 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
       ->excludes("--save-map")
       ->excludes("--load-map");
   add_grid_map_options(*cmd, opt->grid);
+  cmd->add_flag("--live", opt->live,
+                "live map: every submap starts empty at the target's first scan and its mapper robot replays its "
+                "map scans in log order, --mapper-speed times faster than the target, while the target localizes")
+      ->excludes("--save-map")
+      ->excludes("--load-map")
+      ->excludes("--grid-maps");
+  cmd->add_option("--mapper-speed", opt->live_replay.mapper_speed,
+                  "with --live: mapper log seconds replayed per second of the target's log")
+      ->capture_default_str()
+      ->check(within(1e-3, 1e6));
   add_localizer_options(*cmd, opt->localizer, /*research_flags=*/true);
   cmd->callback([&global, opt, cmd] {
     if (print_config_if_asked(opt->localizer)) return;

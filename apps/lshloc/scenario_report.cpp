@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/eval/live_replay.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/figures/figures.hpp"
@@ -38,6 +39,7 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["confident_share_after"] = optional_json(m.confident_share_after);
   j["flag_changes"] = m.flag_changes;
   add_localizer_cost(j, run);
+  j["ms_per_scan_p99"] = ms_per_scan_p99(run.cpu_s);
   j["us_update_per_feature"] = run.map.us_update_per_feature();
   j["us_query_per_feature"] = run.localizer.us_query_per_feature();
   j["ns_per_score"] = run.localizer.ns_per_score();

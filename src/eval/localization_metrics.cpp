@@ -35,10 +35,11 @@ LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estim
       const bool position_wrong = !(err <= config.wrong_confident_m);
       const bool heading_wrong =
           !position_wrong && angle_distance(e.pose.theta, truth[i]->theta) * kDegPerRad > config.wrong_confident_deg;
-      m.confident_wrong += position_wrong || heading_wrong;
+      if (position_wrong || heading_wrong) m.confident_wrong_scans.push_back(i);
       m.confident_wrong_heading += heading_wrong;
     }
   }
+  m.confident_wrong = m.confident_wrong_scans.size();
   bool flagged = false;
   for (std::size_t i = 0; i < m.scans; ++i) {
     const bool now = estimates[i].has_estimate && estimates[i].confident;

@@ -52,7 +52,8 @@ struct LocalizationMetrics {
   /// Times the confident flag changes over all scans, from "not confident"
   /// before the first: a run flagged once and for good has 1.
   std::size_t flag_changes = 0;
-  std::vector<double> error_per_scan_m;  ///< +inf where wrong / none, NaN where no truth
+  std::vector<double> error_per_scan_m;            ///< +inf where wrong / none, NaN where no truth
+  std::vector<std::size_t> confident_wrong_scans;  ///< the scans counted in confident_wrong, ascending
 };
 
 LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estimates,

@@ -1,0 +1,122 @@
+#include "lshloc/eval/live_replay.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include "lshloc/common/cpu_time.hpp"
+#include "lshloc/common/error.hpp"
+
+namespace lshloc {
+
+void LiveReplayConfig::validate() const {
+  const auto require = [](bool ok, const char* field, const char* expected, double value) {
+    if (!ok) {
+      throw Error(std::string("LiveReplayConfig.") + field + ": expected " + expected + ", got " +
+                  std::to_string(value));
+    }
+  };
+  require(std::isfinite(mapper_speed) && mapper_speed > 0.0 && mapper_speed <= 1e6, "mapper_speed",
+          "a number in (0, 1e6]", mapper_speed);
+  require(std::isfinite(max_gap_s) && max_gap_s >= 0.0, "max_gap_s", "a finite number >= 0", max_gap_s);
+  require(std::isfinite(mapped_radius_m) && mapped_radius_m > 0.0, "mapped_radius_m", "a finite number > 0",
+          mapped_radius_m);
+}
+
+std::vector<MapperEvent> mapper_schedule(const std::vector<Submap>& submaps, const LiveReplayConfig& config) {
+  config.validate();
+  std::vector<MapperEvent> events;
+  for (std::size_t r = 0; r < submaps.size(); ++r) {
+    const auto& scans = submaps[r].scans;
+    double t = 0.0;
+    for (std::size_t j = 0; j < scans.size(); ++j) {
+      if (j > 0) {
+        const double dt = scans[j].timestamp - scans[j - 1].timestamp;
+        // NaN-safe: a gap that is no number replays as none.
+        t += (dt > 0.0 ? std::min(dt, config.max_gap_s) : 0.0) / config.mapper_speed;
+      }
+      events.push_back({t, static_cast<std::uint32_t>(r), static_cast<std::uint32_t>(j)});
+    }
+  }
+  // Stable: at equal times, the submaps' order (as the batch feeder takes them).
+  std::stable_sort(events.begin(), events.end(),
+                   [](const MapperEvent& a, const MapperEvent& b) { return a.time_s < b.time_s; });
+  return events;
+}
+
+LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& config, const LiveReplayConfig& live,
+                          const Progress& progress, const LocalizerObserver& observer) {
+  const std::vector<MapperEvent> events = mapper_schedule(scenario.submaps, live);
+  GlobalMap map(config.map);
+  std::vector<std::uint32_t> ids;
+  for (const Submap& s : scenario.submaps) ids.push_back(map.add_submap(s.name));
+
+  const TargetRun& target = scenario.target;
+  LiveRun out;
+  out.mapper_scans_total = events.size();
+  out.place_mapped.assign(target.scans.size(), 0);
+  out.map_scans_in.assign(target.scans.size(), 0);
+  const double start = target.scans.empty() ? 0.0 : target.scans.front().timestamp;
+  std::size_t next = 0;
+  std::vector<Pose2> target_building_in_map;  // poses of the target building's scans fed so far
+  const double radius = live.mapped_radius_m;
+  const BeforeScan feed = [&](std::size_t i) {
+    const double now = target.scans[i].timestamp - start;
+    const double cpu0 = process_cpu_seconds();
+    while (next < events.size() && events[next].time_s <= now) {
+      const MapperEvent& e = events[next++];
+      const LaserScan& scan = scenario.submaps[e.submap].scans[e.scan];
+      map.add_scan(ids[e.submap], scan, scan.pose);
+      if (e.submap == scenario.target_submap) target_building_in_map.push_back(scan.pose);
+    }
+    out.mapper_cpu_s += process_cpu_seconds() - cpu0;
+    out.map_scans_in[i] = next;
+    if (const auto& truth = target.truth[i]) {
+      out.place_mapped[i] = std::any_of(target_building_in_map.begin(), target_building_in_map.end(),
+                                        [&](const Pose2& p) { return translation_distance(p, *truth) <= radius; });
+    }
+  };
+  out.run = localize_target(map, target, config.localizer, progress, observer, feed);
+  out.mapper_scans = next;
+  return out;
+}
+
+double ms_per_scan_p99(const std::vector<double>& cumulative_cpu_s) {
+  if (cumulative_cpu_s.empty()) return 0.0;
+  std::vector<double> per_scan(cumulative_cpu_s.size());
+  std::adjacent_difference(cumulative_cpu_s.begin(), cumulative_cpu_s.end(), per_scan.begin());
+  // Nearest rank: the smallest value with at least 99% of the scans at or below it.
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(0.99 * static_cast<double>(per_scan.size())));
+  std::nth_element(per_scan.begin(), per_scan.begin() + static_cast<std::ptrdiff_t>(rank - 1), per_scan.end());
+  return 1e3 * per_scan[rank - 1];
+}
+
+LiveMetrics evaluate_live(const LiveRun& live, const LocalizationMetrics& metrics) {
+  if (live.place_mapped.size() != metrics.error_per_scan_m.size()) {
+    throw Error("evaluate_live: " + std::to_string(live.place_mapped.size()) + " target scans in the run, " +
+                std::to_string(metrics.error_per_scan_m.size()) + " in the metrics");
+  }
+  LiveMetrics m;
+  const auto& mapped = live.place_mapped;
+  const auto first = std::find(mapped.begin(), mapped.end(), std::uint8_t{1});
+  if (first != mapped.end()) m.first_mapped_at = static_cast<std::size_t>(first - mapped.begin());
+  // The last truth scan: the metrics' error is NaN exactly where there is no truth.
+  for (std::size_t i = mapped.size(); i-- > 0;) {
+    if (!std::isnan(metrics.error_per_scan_m[i])) {
+      m.final_place_mapped = mapped[i] != 0;
+      break;
+    }
+  }
+  if (m.first_mapped_at && metrics.localized_at) {
+    m.mapped_to_localized = *metrics.localized_at > *m.first_mapped_at ? *metrics.localized_at - *m.first_mapped_at : 0;
+  }
+  for (const std::size_t i : metrics.confident_wrong_scans) {
+    (mapped[i] ? m.confident_wrong_after_mapped : m.confident_wrong_before_mapped) += 1;
+  }
+  m.ms_per_scan_p99 = ms_per_scan_p99(live.run.cpu_s);
+  m.map_scans_per_s = live.mapper_cpu_s > 0.0 ? static_cast<double>(live.mapper_scans) / live.mapper_cpu_s : 0.0;
+  return m;
+}
+
+}  // namespace lshloc
