@@ -67,6 +67,33 @@ def grid_maps():
           f"{statistics.median(errs):.3f} m; confident but wrong: {wrong}.\n")
 
 
+def live():
+    """The 16 scenarios live (eval --live) beside the batch ones (results/grid.jsonl)."""
+    rows = load("live")
+    if not rows:
+        return
+    batch = {(r["building"], r["submaps"]): r for r in load("grid")}
+    print("| building | R | success: live / batch | first mapped at | localized at: live / batch | "
+          "mapped to localized | confident but wrong: before mapped / after | final place mapped | "
+          "mapper scans/s | ms/scan p99 |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in sorted(rows, key=lambda r: (r["building"], r["submaps"])):
+        b = batch.get((r["building"], r["submaps"]), {})
+        print(f"| {r['building']} | {r['submaps']} | {fmt(r['success'])} / {fmt(b.get('success'))} | "
+              f"{fmt(r['first_mapped_at'])} | {fmt(r['localized_at'])} / {fmt(b.get('localized_at'))} | "
+              f"{fmt(r['mapped_to_localized'])} | {r['confident_wrong_before_mapped']} / "
+              f"{r['confident_wrong_after_mapped']} | {fmt(r['final_place_mapped'])} | "
+              f"{fmt(r['map_scans_per_s'], 0)} | {fmt(r['ms_per_scan_p99'], 2)} |")
+    ok = sum(r["success"] for r in rows)
+    m2l = [r["mapped_to_localized"] for r in rows if r["mapped_to_localized"] is not None]
+    before = sum(r["confident_wrong_before_mapped"] for r in rows)
+    wrong = sum(r["confident_wrong"] for r in rows)
+    truth = sum(r["truth_scans"] for r in rows)
+    print(f"\n{ok}/{len(rows)} live scenarios succeed; median mapped_to_localized "
+          f"{fmt(statistics.median(m2l) if m2l else None, 1)} scans; confident but wrong {wrong} of {truth} "
+          f"ground-truth scans, {before} before the place was mapped.\n")
+
+
 def by(rows, key):
     groups = defaultdict(list)
     for r in rows:

@@ -8,7 +8,9 @@
 #                                (database vs random hypotheses), starts
 #                                (20 evenly spaced starts per building at R = 15,
 #                                five buildings), starts_seeded (the same with
-#                                the other buildings in seeded orders 1 and 2)
+#                                the other buildings in seeded orders 1 and 2),
+#                                live (the grid with eval --live: every submap
+#                                starts empty and its mapper replays at 4x)
 # Environment: LSHLOC (the executable, default build/bin/lshloc), JOBS
 # (parallel runs, default 2), LSHLOC_DATA (the data directory), MAP_CACHE (a
 # directory: each scenario's map is built once, saved there with
@@ -25,7 +27,7 @@ parts=("$@")
 run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
   local out=$1; shift
   local line
-  if [ -n "${MAP_CACHE:-}" ] && [[ "$*" != *--grid-maps* ]]; then  # the scenario's map: the arguments without the localizer's switches
+  if [ -n "${MAP_CACHE:-}" ] && [[ "$*" != *--grid-maps* ]] && [[ "$*" != *--live* ]]; then  # the scenario's map: the arguments without the localizer's switches
     local key
     key=$(printf '%s ' "$@" | sed -E 's/--(order-rule|hypotheses) [^ ]+//g; s/[^A-Za-z0-9._-]+/_/g')
     if [ -f "$MAP_CACHE/$key.map" ]; then set -- "$@" --load-map "$MAP_CACHE/$key.map"
@@ -45,6 +47,9 @@ jobs_for() {  # jobs_for PART: one line per eval to run
   case $1 in
     grid)
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do echo "results/grid.jsonl --building $b --submaps $r"; done; done ;;
+    live)
+      for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
+        echo "results/live.jsonl --building $b --submaps $r --live"; done; done ;;
     grid_maps)
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
         echo "results/grid_maps.jsonl --building $b --submaps $r --grid-maps"; done; done ;;
