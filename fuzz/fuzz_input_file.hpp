@@ -12,10 +12,12 @@
 namespace lshloc::fuzz {
 
 /// The path of an in-memory file now holding exactly `data`. One file per
-/// process, rewritten for each input (libFuzzer runs inputs one at a time).
-inline std::string input_file(const std::uint8_t* data, std::size_t size, const char* name = "fuzz-input") {
-  static const int fd = memfd_create(name, 0);
-  if (fd < 0) std::abort();
+/// slot (0 or 1) and process, rewritten for each input (libFuzzer runs
+/// inputs one at a time).
+inline std::string input_file(const std::uint8_t* data, std::size_t size, int slot = 0) {
+  static const int fds[2] = {memfd_create("fuzz-input-0", 0), memfd_create("fuzz-input-1", 0)};
+  if (slot < 0 || slot > 1 || fds[slot] < 0) std::abort();
+  const int fd = fds[slot];
   if (ftruncate(fd, 0) != 0) std::abort();
   std::size_t done = 0;
   while (done < size) {

@@ -121,6 +121,11 @@ TEST(RosMap, BadFilesNameTheFileTheKeyAndWhatWasExpected) {
   const std::string short_pgm = write_text(".pgm", "P5\n20 20\n255\nabc");
   EXPECT_NE(message("image: " + short_pgm + "\nresolution: 0.1\norigin: [0, 0, 0]\n").find("expected 400 bytes"),
             std::string::npos);
+  // A plain PGM whose header claims 2^28 pixels in a few bytes: refused before anything is allocated.
+  const std::string huge_plain = write_text(".pgm", "P2\n16384 16384\n255\n0 0 0\n");
+  EXPECT_NE(message("image: " + huge_plain + "\nresolution: 0.1\norigin: [0, 0, 0]\n")
+                .find("expected 268435456 plain pixel values after the header, but only 7 bytes follow"),
+            std::string::npos);
 }
 
 TEST(GridSubmap, VirtualScansMatchTheRoomsExactDistances) {

@@ -165,6 +165,11 @@ GreyImage read_pgm(const std::string& path) {
   if (static_cast<double>(img.width) * static_cast<double>(img.height) > static_cast<double>(1u << 28))
     throw Error(path + ": " + std::to_string(img.width) + " x " + std::to_string(img.height) + " pixels exceed 2^28");
   const std::size_t n = img.width * img.height;
+  // Checked before allocating: a short file cannot make the header reserve 2^28 pixels.
+  const std::size_t left = data.size() > pos ? data.size() - pos : 0;
+  if (!binary && left < 2 * n - 1)
+    throw Error(path + ": expected " + std::to_string(n) + " plain pixel values after the header, but only " +
+                std::to_string(left) + " bytes follow");
   img.pixels.resize(n);
   const auto scaled = [&](std::size_t v) {
     return static_cast<unsigned char>(maxval == 255 ? v : (v * 255 + maxval / 2) / maxval);
