@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <vector>
@@ -104,6 +105,47 @@ TEST(LiveReplay, ATargetWhoseBuildingIsMappedOnlyMidRunIsNotFlaggedBeforeAndLoca
   EXPECT_TRUE(m.success);
   EXPECT_TRUE(lm.final_place_mapped);
   EXPECT_EQ(run.mapper_scans, run.map_scans_in.back());
+  EXPECT_GT(lm.map_scans_per_s, 0.0);
+}
+
+TEST(LiveThreads, AFrozenMapGivesTheBatchEstimates) {
+  const Scenario sc = sim::synthetic_scenario(test::small_world(600, 150));
+  const ScenarioRun batch = run_scenario(sc, ScenarioRunConfig{});
+  const LiveRun frozen = run_live_threaded(sc, ScenarioRunConfig{}, LiveReplayConfig{}, /*live=*/false);
+  ASSERT_EQ(frozen.run.estimates.size(), batch.estimates.size());
+  for (std::size_t i = 0; i < batch.estimates.size(); ++i) {
+    const LocalizationEstimate &a = batch.estimates[i], &b = frozen.run.estimates[i];
+    EXPECT_EQ(a.submap, b.submap) << i;
+    EXPECT_EQ(a.localized, b.localized) << i;
+    EXPECT_EQ(a.pose.x, b.pose.x) << i;
+    EXPECT_EQ(a.pose.y, b.pose.y) << i;
+    EXPECT_EQ(a.pose.theta, b.pose.theta) << i;
+  }
+  EXPECT_EQ(frozen.mapper_scans, frozen.mapper_scans_total);
+}
+
+TEST(LiveThreads, MappersWriteFromTheirThreadsWhileTheTargetLocalizes) {
+  // The mid-run building of the test above, with the mappers on their own threads.
+  Scenario sc = sim::synthetic_scenario(test::small_world());
+  const TargetRun& target = sc.target;
+  const double run_s = target.scans.back().timestamp - target.scans.front().timestamp;
+  LiveReplayConfig live;
+  live.mapper_speed = 0.1 * static_cast<double>(sc.submaps[sc.target_submap].scans.size()) / (0.5 * run_s);
+  for (Submap& s : sc.submaps) {
+    for (std::size_t k = 0; k < s.scans.size(); ++k) s.scans[k].timestamp = 0.1 * static_cast<double>(k);
+  }
+  const LiveRun run = run_live_threaded(sc, ScenarioRunConfig{}, live, /*live=*/true);
+  const auto m =
+      evaluate_localization(run.run.scan_estimates(), target.truth, static_cast<std::uint32_t>(sc.target_submap));
+  const LiveMetrics lm = evaluate_live(run, m);
+  // The map grows while the target runs (how far by each scan is the threads' race).
+  EXPECT_TRUE(std::is_sorted(run.map_scans_in.begin(), run.map_scans_in.end()));
+  EXPECT_LT(run.map_scans_in[target.scans.size() / 4], run.mapper_scans_total);
+  EXPECT_GT(run.map_scans_in.back(), run.map_scans_in[target.scans.size() / 4]);
+  EXPECT_LE(run.mapper_scans, run.mapper_scans_total);
+  EXPECT_EQ(lm.confident_wrong_before_mapped, 0u);
+  EXPECT_EQ(m.confident_wrong, 0u);
+  EXPECT_TRUE(m.success);
   EXPECT_GT(lm.map_scans_per_s, 0.0);
 }
 

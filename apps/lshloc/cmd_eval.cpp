@@ -47,7 +47,8 @@ struct EvalOptions {
   std::vector<std::size_t> submaps{1};
   bool grid_maps = false;
   GridMapOptions grid;
-  bool live = false;  ///< every submap starts empty and its mapper replays while the target localizes
+  bool live = false;     ///< every submap starts empty and its mapper replays while the target localizes
+  bool threads = false;  ///< mappers on their own threads (with live), the target on this one
   LiveReplayConfig live_replay;
   LocalizerOptions localizer;
 };
@@ -216,7 +217,9 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   };
   std::optional<LiveRun> live;
   ScenarioRun batch;
-  if (opt.live) {
+  if (opt.threads) {
+    live = run_live_threaded(sc, run_config, opt.live_replay, opt.live, progress);
+  } else if (opt.live) {
     live = run_live_scenario(sc, run_config, opt.live_replay, progress, observer);
   } else {
     batch = run_eval(sc, run_config, opt, progress, observer, map_store);
@@ -229,6 +232,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   j["hypotheses"] = run_config.localizer.hypothesis_source;
   j.update(map_store);
   j["live"] = opt.live;
+  j["threads"] = opt.threads;
   if (live) {
     const LiveMetrics lm = evaluate_live(*live, m);
     j["mapper_speed"] = opt.live_replay.mapper_speed;
@@ -321,6 +325,14 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
       ->excludes("--save-map")
       ->excludes("--load-map")
       ->excludes("--grid-maps");
+  cmd->add_flag("--threads", opt->threads,
+                "real-time mode: with --live, each mapper feeds the map from its own thread while the target "
+                "localizes on another (not deterministic); without, the map is built first and the writers stay "
+                "idle (the frozen-map reference)")
+      ->excludes("--save-map")
+      ->excludes("--load-map")
+      ->excludes("--grid-maps")
+      ->excludes("--trace");
   cmd->add_option("--mapper-speed", opt->live_replay.mapper_speed,
                   "with --live: mapper log seconds replayed per second of the target's log")
       ->capture_default_str()

@@ -1,14 +1,28 @@
 #include "lshloc/eval/live_replay.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <mutex>
 #include <numeric>
+#include <shared_mutex>
 #include <string>
+#include <thread>
 
 #include "lshloc/common/cpu_time.hpp"
 #include "lshloc/common/error.hpp"
 
 namespace lshloc {
+
+namespace {
+
+/// Whether a scan of the target's building within `radius` of `truth` is among `poses`.
+bool place_is_mapped(const std::vector<Pose2>& poses, const Pose2& truth, double radius) {
+  return std::any_of(poses.begin(), poses.end(),
+                     [&](const Pose2& p) { return translation_distance(p, truth) <= radius; });
+}
+
+}  // namespace
 
 void LiveReplayConfig::validate() const {
   const auto require = [](bool ok, const char* field, const char* expected, double value) {
@@ -72,13 +86,103 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
     }
     out.mapper_cpu_s += process_cpu_seconds() - cpu0;
     out.map_scans_in[i] = next;
-    if (const auto& truth = target.truth[i]) {
-      out.place_mapped[i] = std::any_of(target_building_in_map.begin(), target_building_in_map.end(),
-                                        [&](const Pose2& p) { return translation_distance(p, *truth) <= radius; });
-    }
+    if (const auto& truth = target.truth[i])
+      out.place_mapped[i] = place_is_mapped(target_building_in_map, *truth, radius);
   };
   out.run = localize_target(map, target, config.localizer, progress, observer, feed);
   out.mapper_scans = next;
+  return out;
+}
+
+LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& config,
+                          const LiveReplayConfig& live_config, bool live, const Progress& progress,
+                          std::size_t max_mapper_threads) {
+  const std::vector<MapperEvent> events = mapper_schedule(scenario.submaps, live_config);
+  GlobalMap map(config.map);
+  std::vector<std::uint32_t> ids;
+  for (const Submap& s : scenario.submaps) ids.push_back(map.add_submap(s.name));
+  const TargetRun& target = scenario.target;
+  LiveRun out;
+  out.mapper_scans_total = events.size();
+  out.place_mapped.assign(target.scans.size(), 0);
+  out.map_scans_in.assign(target.scans.size(), 0);
+
+  std::shared_mutex map_mutex;
+  std::vector<Pose2> target_building_in_map;  // guarded by map_mutex
+  std::size_t inserted = 0;                   // guarded by map_mutex
+  const auto insert = [&](const MapperEvent& e) {
+    const LaserScan& scan = scenario.submaps[e.submap].scans[e.scan];
+    const std::unique_lock<std::shared_mutex> writing(map_mutex);
+    map.add_scan(ids[e.submap], scan, scan.pose);
+    if (e.submap == scenario.target_submap) target_building_in_map.push_back(scan.pose);
+    ++inserted;
+  };
+
+  // The target's replay clock: target scans begun (kDone once it has finished).
+  constexpr std::size_t kDone = static_cast<std::size_t>(-1);
+  std::atomic<std::size_t> reached{0};
+  std::vector<double> target_time(target.scans.size());
+  for (std::size_t i = 0; i < target.scans.size(); ++i) {
+    target_time[i] = target.scans[i].timestamp - target.scans.front().timestamp;
+  }
+  std::atomic<double> mapper_cpu_s{0.0};
+  std::vector<std::thread> mappers;
+  if (!live) {  // the batch feeder's order: the same map as run_scenario's
+    const double cpu0 = thread_cpu_seconds();
+    MapFeeder(map, scenario.submaps, ids).feed_until(1.0);
+    out.mapper_cpu_s = thread_cpu_seconds() - cpu0;
+    for (const LaserScan& scan : scenario.submaps[scenario.target_submap].scans)
+      target_building_in_map.push_back(scan.pose);
+    inserted = events.size();
+  } else {
+    const std::size_t threads =
+        std::max<std::size_t>(1, std::min(max_mapper_threads, std::max<std::size_t>(scenario.submaps.size(), 1)));
+    for (std::size_t t = 0; t < threads; ++t) {
+      mappers.emplace_back([&, t, threads] {  // threads by value: this block ends before they do
+        double cpu = 0.0;
+        for (const MapperEvent& e : events) {
+          if (e.submap % threads != t) continue;
+          for (;;) {  // until the target has reached this scan's time
+            const std::size_t r = reached.load(std::memory_order_acquire);
+            if (r == kDone) {
+              mapper_cpu_s.fetch_add(cpu);
+              return;
+            }
+            if (r > 0 && target_time[r - 1] >= e.time_s) break;
+            reached.wait(r, std::memory_order_acquire);
+          }
+          const double c0 = thread_cpu_seconds();
+          insert(e);
+          cpu += thread_cpu_seconds() - c0;
+        }
+        mapper_cpu_s.fetch_add(cpu);
+      });
+    }
+  }
+  const double radius = live_config.mapped_radius_m;
+  const BeforeScan advance = [&](std::size_t i) {
+    if (live) {
+      reached.store(i + 1, std::memory_order_release);
+      reached.notify_all();
+    }
+    const std::shared_lock<std::shared_mutex> reading(map_mutex);
+    out.map_scans_in[i] = inserted;
+    if (const auto& truth = target.truth[i])
+      out.place_mapped[i] = place_is_mapped(target_building_in_map, *truth, radius);
+  };
+  try {
+    out.run = localize_target(map, target, config.localizer, progress, {}, advance, &map_mutex);
+  } catch (...) {
+    reached.store(kDone, std::memory_order_release);
+    reached.notify_all();
+    for (std::thread& m : mappers) m.join();
+    throw;
+  }
+  reached.store(kDone, std::memory_order_release);
+  reached.notify_all();
+  for (std::thread& m : mappers) m.join();
+  out.mapper_scans = inserted;
+  if (live) out.mapper_cpu_s = mapper_cpu_s.load();
   return out;
 }
 

@@ -66,30 +66,35 @@ LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& ta
 }
 
 ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
-                            const Progress& progress, const LocalizerObserver& observer,
-                            const BeforeScan& before_scan) {
+                            const Progress& progress, const LocalizerObserver& observer, const BeforeScan& before_scan,
+                            std::shared_mutex* map_mutex) {
   ScenarioRun run;
   config = with_target_laser_offset(config, target.laser_offset);
   Localizer localizer(map, config);
   const auto& scans = target.scans;
   run.estimates.reserve(scans.size());
   run.cpu_s.reserve(scans.size());
-  const double cpu0 = process_cpu_seconds();
+  const double cpu0 = thread_cpu_seconds();
   double excluded_cpu = 0.0;
   // Mapper scans and diagnostics run between target scans: not the localizer's cost.
   const auto excluded = [&](const auto& work) {
-    const double c0 = process_cpu_seconds();
+    const double c0 = thread_cpu_seconds();
     work();
-    excluded_cpu += process_cpu_seconds() - c0;
+    excluded_cpu += thread_cpu_seconds() - c0;
   };
+  std::shared_lock<std::shared_mutex> reading;
+  if (map_mutex) reading = std::shared_lock<std::shared_mutex>(*map_mutex, std::defer_lock);
   const auto t0 = Clock::now();
   for (std::size_t i = 0; i < scans.size(); ++i) {
     if (before_scan) excluded([&] { before_scan(i); });
+    if (map_mutex) reading.lock();
     run.estimates.push_back(localizer.add_scan(scans[i]));
-    run.cpu_s.push_back(process_cpu_seconds() - cpu0 - excluded_cpu);
+    run.cpu_s.push_back(thread_cpu_seconds() - cpu0 - excluded_cpu);
     if (observer) excluded([&] { observer(i, localizer, run.estimates.back()); });
+    if (map_mutex) reading.unlock();
     if (progress) progress(i + 1, scans.size());
   }
+  if (map_mutex) reading.lock();  // the final look at the map below
   run.localize_s = seconds_since(t0);
   run.localize_cpu_s = run.cpu_s.empty() ? 0.0 : run.cpu_s.back();
   if (scans.size() > 1) run.log_duration_s = scans.back().timestamp - scans.front().timestamp;

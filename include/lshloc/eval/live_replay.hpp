@@ -6,8 +6,9 @@
 // their replay time. Records, per target scan, whether its true place was
 // already mapped, and what the localizer and the mappers cost.
 // Times [s] (replay time: 0 at the target's first scan), lengths [m].
-// Thread safety: plain values and functions with no shared state; a run owns
-// its map (single-threaded: the deterministic replay).
+// Thread safety: plain values and functions with no shared state. A run owns
+// its map: run_live_scenario on one thread (the deterministic replay),
+// run_live_threaded with its own mapper threads and a shared_mutex.
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -64,6 +65,19 @@ struct LiveRun {
 /// at or after their time. Single-threaded and deterministic.
 LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& config, const LiveReplayConfig& live,
                           const Progress& progress = {}, const LocalizerObserver& observer = {});
+
+/// The real-time mode (`eval --threads`). With `live`, mapper threads feed
+/// the map while the target localizes on the calling thread: each mapper
+/// scan enters once the target has reached its replay time (so never ahead
+/// of run_live_scenario's order, possibly behind it); submaps are spread
+/// over at most max_mapper_threads threads. Without `live`, the map is built
+/// first and the writers stay idle: the frozen-map reference. A map write
+/// holds a shared_mutex exclusively for one scan; the target holds it
+/// shared for each of its scans, so it waits at most one scan's insert.
+/// Not deterministic: the interleaving is the threads'.
+LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& config,
+                          const LiveReplayConfig& live_config, bool live, const Progress& progress = {},
+                          std::size_t max_mapper_threads = 16);
 
 /// The live metrics (docs/design.md section 6) beside the batch ones.
 struct LiveMetrics {

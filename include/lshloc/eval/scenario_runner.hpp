@@ -6,9 +6,11 @@
 // field says.
 // Thread safety: run_scenario owns its map and localizer. localize_target only
 // reads `map` and MapFeeder writes it, but a GlobalMap is not thread-safe
-// (docs/design.md section 5): keep each map on one thread. CPU times count
-// every thread of the process, so they hold only with one run at a time.
+// (docs/design.md section 5): keep each map on one thread, or give
+// localize_target the shared_mutex its writers lock exclusively (the live
+// threaded mode). The localizer's CPU time is its own thread's.
 #include <functional>
+#include <shared_mutex>
 #include <vector>
 
 #include "lshloc/common/cpu_time.hpp"
@@ -84,10 +86,13 @@ LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& ta
 /// Runs a target's scans through a new Localizer over `map` (its scan
 /// matcher takes the target's laser offset, unless the config gives one for
 /// a target without; a config offset other than the target's is an error).
+/// The localizer's cost is the calling thread's CPU time. With `map_mutex`,
+/// other threads may write the map meanwhile: each target scan (and the
+/// observer's look) holds it shared, so writers must hold it exclusively.
 /// map_build_s stays 0.
 ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
                             const Progress& progress = {}, const LocalizerObserver& observer = {},
-                            const BeforeScan& before_scan = {});
+                            const BeforeScan& before_scan = {}, std::shared_mutex* map_mutex = nullptr);
 
 /// Builds the global map from the scenario's submaps and runs the target's
 /// scans through a Localizer. Map scans are fed with their map poses.
