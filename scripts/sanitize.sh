@@ -4,21 +4,34 @@
 # (LSHLOC_SANITIZE=address,undefined; any finding aborts the test) in
 # build-sanitize/, runs the ctest suite under them, then gives each libFuzzer
 # target a smoke run from its seed corpus.
-#   scripts/sanitize.sh [--fuzz-time SECONDS]   (default 30; 0 skips the smoke runs)
+#   scripts/sanitize.sh [--fuzz-time SECONDS] [--thread]
+# --fuzz-time: default 30; 0 skips the smoke runs. --thread instead builds the
+# unit tests with ThreadSanitizer (build-tsan/) and runs the concurrent ones
+# (the live map's threads: ctest -R Live).
 # -O1 and a unity build keep build plus tests within CI's budget. Not run here:
 # `format` and `layers` (they check source text, no compiled code), and the
 # Python bindings (the interpreter is not instrumented); the Release tests run them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 fuzz_time=30
+thread=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --fuzz-time) fuzz_time=$2; shift 2 ;;
-    -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
+    --thread) thread=1; shift ;;
+    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
     *) echo "sanitize.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
 start=$(date +%s)
+if [ "$thread" = 1 ]; then
+  cmake -G Ninja -S . -B build-tsan -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=None \
+    -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DCMAKE_UNITY_BUILD=ON -DLSHLOC_SANITIZE=thread >/dev/null
+  cmake --build build-tsan -j"$(nproc)" --target lshloc_tests
+  TSAN_OPTIONS="halt_on_error=1" ctest --test-dir build-tsan -j"$(nproc)" --output-on-failure -R '^Live'
+  echo "sanitize: the concurrent tests under ThreadSanitizer passed in $(($(date +%s) - start)) s"
+  exit 0
+fi
 cmake -G Ninja -S . -B build-sanitize -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=None \
   -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DCMAKE_UNITY_BUILD=ON \
   -DLSHLOC_SANITIZE=address,undefined -DLSHLOC_BUILD_FUZZERS=ON >/dev/null

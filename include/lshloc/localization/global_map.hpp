@@ -3,7 +3,9 @@
 // the appearance database, the location store and the occupancy and
 // free-space pose grids.
 // Poses [m, rad] in each submap's frame; times [s] of CPU.
-// Thread safety: not thread-safe; feed and query it from one thread.
+// Thread safety: not thread-safe; feed and query it from one thread, or
+// guard it with one lock (the live threaded mode: a shared_mutex, exclusive
+// for each add_scan, shared for each target scan; eval/live_replay.hpp).
 #include <cstdint>
 #include <deque>
 #include <memory>
