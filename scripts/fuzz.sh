@@ -2,9 +2,10 @@
 # Builds lshloc's libFuzzer targets (clang, ASan + UBSan) in build-fuzz/ and
 # runs each from its seed corpus (fuzz/corpus/<name>/, read only: new inputs
 # go to a scratch directory), as many at a time as there are cores.
-#   scripts/fuzz.sh [--time SECONDS | --runs N] [--build-dir DIR] [TARGET...]
+#   scripts/fuzz.sh [--time SECONDS | --runs N] [--build-dir DIR] [--jobs N] [TARGET...]
 # Default: 30 s each for every target. --build-dir takes the targets from a
-# build already configured with LSHLOC_BUILD_FUZZERS (scripts/sanitize.sh's).
+# build already configured with LSHLOC_BUILD_FUZZERS (scripts/sanitize.sh's);
+# --jobs: targets run at a time (default: the cores).
 # Prints one line per target with its executions; exits non-zero on any
 # finding (the crashing input is kept in <build>/findings/). docs/reliability.md
 # records the long runs.
@@ -12,12 +13,14 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 limit=(-max_total_time=30)
 build=build-fuzz
+jobs_max=$(nproc)
 while [ $# -gt 0 ]; do
   case "$1" in
     --time) limit=(-max_total_time="$2"); shift 2 ;;
     --runs) limit=(-runs="$2"); shift 2 ;;
     --build-dir) build=$2; shift 2 ;;
-    -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
+    --jobs) jobs_max=$2; shift 2 ;;
+    -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
     *) break ;;
   esac
 done
@@ -48,7 +51,6 @@ fuzz_one() {
   rm -rf "$scratch"
 }
 
-jobs_max=$(nproc)
 for t in "${targets[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$jobs_max" ]; do wait -n || true; done
   fuzz_one "$t" &

@@ -40,6 +40,7 @@ echo "sanitize: built in $(($(date +%s) - start)) s"
 ctest --test-dir build-sanitize -j"$(nproc)" --output-on-failure -E '^(format|layers)$'
 echo "sanitize: ctest under ASan and UBSan passed ($(($(date +%s) - start)) s so far)"
 if [ "$fuzz_time" != 0 ]; then
-  ./scripts/fuzz.sh --build-dir build-sanitize --time "$fuzz_time"
+  # All targets at once: each smoke run is 30 s of wall time, sharing the cores.
+  ./scripts/fuzz.sh --build-dir build-sanitize --time "$fuzz_time" --jobs 8
 fi
 echo "sanitize: done in $(($(date +%s) - start)) s"
