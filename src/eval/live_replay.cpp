@@ -22,6 +22,18 @@ bool place_is_mapped(const std::vector<Pose2>& poses, const Pose2& truth, double
                      [&](const Pose2& p) { return translation_distance(p, truth) <= radius; });
 }
 
+/// The start of a replay: an empty submap in `map` per scenario submap (the
+/// returned ids, in order) and `out` sized for the target's scans.
+std::vector<std::uint32_t> open_replay(const Scenario& scenario, std::size_t mapper_scans, GlobalMap& map,
+                                       LiveRun& out) {
+  std::vector<std::uint32_t> ids;
+  for (const Submap& s : scenario.submaps) ids.push_back(map.add_submap(s.name));
+  out.mapper_scans_total = mapper_scans;
+  out.place_mapped.assign(scenario.target.scans.size(), 0);
+  out.map_scans_in.assign(scenario.target.scans.size(), 0);
+  return ids;
+}
+
 }  // namespace
 
 void LiveReplayConfig::validate() const {
@@ -63,28 +75,23 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
                           const Progress& progress, const LocalizerObserver& observer) {
   const std::vector<MapperEvent> events = mapper_schedule(scenario.submaps, live);
   GlobalMap map(config.map);
-  std::vector<std::uint32_t> ids;
-  for (const Submap& s : scenario.submaps) ids.push_back(map.add_submap(s.name));
-
-  const TargetRun& target = scenario.target;
   LiveRun out;
-  out.mapper_scans_total = events.size();
-  out.place_mapped.assign(target.scans.size(), 0);
-  out.map_scans_in.assign(target.scans.size(), 0);
+  const std::vector<std::uint32_t> ids = open_replay(scenario, events.size(), map, out);
+  const TargetRun& target = scenario.target;
   const double start = target.scans.empty() ? 0.0 : target.scans.front().timestamp;
   std::size_t next = 0;
   std::vector<Pose2> target_building_in_map;  // poses of the target building's scans fed so far
   const double radius = live.mapped_radius_m;
   const BeforeScan feed = [&](std::size_t i) {
     const double now = target.scans[i].timestamp - start;
-    const double cpu0 = process_cpu_seconds();
+    const double cpu0 = thread_cpu_seconds();
     while (next < events.size() && events[next].time_s <= now) {
       const MapperEvent& e = events[next++];
       const LaserScan& scan = scenario.submaps[e.submap].scans[e.scan];
       map.add_scan(ids[e.submap], scan, scan.pose);
       if (e.submap == scenario.target_submap) target_building_in_map.push_back(scan.pose);
     }
-    out.mapper_cpu_s += process_cpu_seconds() - cpu0;
+    out.mapper_cpu_s += thread_cpu_seconds() - cpu0;
     out.map_scans_in[i] = next;
     if (const auto& truth = target.truth[i])
       out.place_mapped[i] = place_is_mapped(target_building_in_map, *truth, radius);
@@ -99,13 +106,9 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
                           std::size_t max_mapper_threads) {
   const std::vector<MapperEvent> events = mapper_schedule(scenario.submaps, live_config);
   GlobalMap map(config.map);
-  std::vector<std::uint32_t> ids;
-  for (const Submap& s : scenario.submaps) ids.push_back(map.add_submap(s.name));
-  const TargetRun& target = scenario.target;
   LiveRun out;
-  out.mapper_scans_total = events.size();
-  out.place_mapped.assign(target.scans.size(), 0);
-  out.map_scans_in.assign(target.scans.size(), 0);
+  const std::vector<std::uint32_t> ids = open_replay(scenario, events.size(), map, out);
+  const TargetRun& target = scenario.target;
 
   std::shared_mutex map_mutex;
   std::vector<Pose2> target_building_in_map;  // guarded by map_mutex

@@ -57,7 +57,7 @@ struct LiveRun {
   std::vector<std::size_t> map_scans_in;  ///< per target scan: mapper scans in the map when it was localized
   std::size_t mapper_scans = 0;           ///< mapper scans fed over the whole run
   std::size_t mapper_scans_total = 0;     ///< scans the mappers had (the rest came after the target's last scan)
-  double mapper_cpu_s = 0.0;              ///< [s] process CPU time spent feeding them
+  double mapper_cpu_s = 0.0;              ///< [s] CPU time of the threads feeding them, while they fed
 };
 
 /// Runs `scenario` live: the target's scans at log speed, each submap's
