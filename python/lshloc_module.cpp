@@ -219,6 +219,7 @@ PYBIND11_MODULE(lshloc, m) {
             py::dict d;
             d["has_estimate"] = e.has_estimate;
             d["localized"] = e.localized;
+            d["confidence"] = e.confidence;
             d["submap"] = e.has_estimate ? py::cast(e.submap) : py::none();
             d["submap_name"] = e.has_estimate ? py::cast(l.map->submap_name(e.submap)) : py::none();
             d["pose"] = e.has_estimate ? py::cast(to_tuple(e.pose)) : py::none();
@@ -228,5 +229,6 @@ PYBIND11_MODULE(lshloc, m) {
           },
           py::arg("scan"),
           "Localizes one target scan (odometry in scan.odometry); returns a dict: has_estimate, localized "
-          "(confident), submap, submap_name, pose (x, y, theta of the laser in the submap), mean_score, margin");
+          "(the confidence flag), confidence (the calibrated value in [0, 1]), submap, submap_name, pose (x, y, theta "
+          "of the laser in the submap), mean_score, margin");
 }

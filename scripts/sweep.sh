@@ -15,7 +15,9 @@
 # (parallel runs, default 2), LSHLOC_DATA (the data directory), MAP_CACHE (a
 # directory: each scenario's map is built once, saved there with
 # `eval --save-map`, and loaded by every later run of the same scenario,
-# e.g. the order rules and the ablation's two hypothesis sources).
+# e.g. the order rules and the ablation's two hypothesis sources), TRACE_DIR
+# (a directory: each run also writes its per-scan trace there, `eval --trace`,
+# named after its arguments; scripts/confidence_fit.py reads them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 LSHLOC=${LSHLOC:-build/bin/lshloc}
@@ -27,9 +29,12 @@ parts=("$@")
 run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
   local out=$1; shift
   local line
+  if [ -n "${TRACE_DIR:-}" ]; then
+    set -- "$@" --trace "$TRACE_DIR/$(printf '%s ' "$@" | sed -E 's/[^A-Za-z0-9._-]+/_/g').csv"
+  fi
   if [ -n "${MAP_CACHE:-}" ] && [[ "$*" != *--grid-maps* ]] && [[ "$*" != *--live* ]]; then  # the scenario's map: the arguments without the localizer's switches
     local key
-    key=$(printf '%s ' "$@" | sed -E 's/--(order-rule|hypotheses) [^ ]+//g; s/[^A-Za-z0-9._-]+/_/g')
+    key=$(printf '%s ' "$@" | sed -E 's/--(order-rule|hypotheses|trace) [^ ]+//g; s/[^A-Za-z0-9._-]+/_/g')
     if [ -f "$MAP_CACHE/$key.map" ]; then set -- "$@" --load-map "$MAP_CACHE/$key.map"
     else set -- "$@" --save-map "$MAP_CACHE/$key.map"; fi
   fi
@@ -40,8 +45,9 @@ run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
   fi
 }
 export -f run
-export LSHLOC MAP_CACHE=${MAP_CACHE:-}
+export LSHLOC MAP_CACHE=${MAP_CACHE:-} TRACE_DIR=${TRACE_DIR:-}
 [ -n "$MAP_CACHE" ] && mkdir -p "$MAP_CACHE"
+[ -n "$TRACE_DIR" ] && mkdir -p "$TRACE_DIR"
 
 jobs_for() {  # jobs_for PART: one line per eval to run
   case $1 in

@@ -38,6 +38,8 @@ assert j["confident_scans"] == sum(r["confident"] == "1" for r in rows) == len(t
 first = j["first_localized_at"]
 assert rows[first]["confident"] == "1" and all(r["confident"] == "0" for r in rows[:first])
 assert rows[-1]["submap"] == j["final_submap"] == "sim-3-001-corrected.log.gz"
+assert all(0.0 <= float(r["confidence"]) <= 1.0 for r in rows), "confidence outside [0, 1]"
+assert 0.0 <= j["confidence"] <= 1.0
 assert abs(float(rows[-1]["heading_deg"]) - j["final_heading_deg"]) < 1e-3
 PY
 

@@ -25,6 +25,7 @@ class FakeSample final : public SampleScorer {
     n_ = n;
     return n;
   }
+  std::size_t take_newest(std::size_t n) override { return draw(0, n); }
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
     sums.assign(hypotheses.size(), 0.0);
     for (std::size_t j = 0; j < hypotheses.size(); ++j) sums[j] = score_of(hypotheses[j]) * static_cast<double>(n_);
@@ -95,6 +96,41 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
     EXPECT_FALSE(e.localized);
     EXPECT_NEAR(e.margin, 0.1, 1e-9);
   }
+}
+
+TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {
+  // Weights on the bias, C/N and the newest-scan fit only: the value is
+  // 1 / (1 + exp(-(w0 + w1 C/N + w8 newest_fit))).
+  ReportPolicyConfig config = plain();
+  config.confidence.value_weights = {-2.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0, 0.0};
+  ReportPolicy policy(config, kPreference);
+  FakeSample sample;
+  sample.score_of = [](const Hypothesis&) { return -0.25; };
+  const Hypothesis place = at(1, 4.0);
+  LocalizationEstimate e;
+  for (int i = 0; i < 3; ++i) e = step(policy, {scored(place, 0.6, 1000)}, sample);
+  EXPECT_NEAR(e.newest_fit, -0.25, 1e-12);
+  EXPECT_NEAR(e.newest_evidence, 0.25, 1e-12);
+  EXPECT_EQ(e.kept_scans, 2u);
+  EXPECT_TRUE(e.supported);
+  EXPECT_TRUE(e.place_supported);
+  EXPECT_NEAR(e.confidence, 1.0 / (1.0 + std::exp(-(-2.0 + 3.0 * 0.6 + 4.0 * -0.25))), 1e-12);
+  // The default weights: strong, stable, unrivalled support that the newest
+  // scans confirm is worth more than the same support with the newest scans
+  // contradicting it.
+  ReportPolicy fits(plain(), kPreference), breaks(plain(), kPreference);
+  FakeSample good, bad;
+  good.score_of = [](const Hypothesis&) { return 0.5; };
+  bad.score_of = [](const Hypothesis&) { return -1.0; };
+  LocalizationEstimate eg, eb;
+  for (int i = 0; i < 10; ++i) {
+    eg = step(fits, {scored(place, 0.5, 5000)}, good);
+    eb = step(breaks, {scored(place, 0.5, 5000)}, bad);
+  }
+  EXPECT_GT(eg.confidence, 0.9);
+  EXPECT_LT(eb.confidence, 0.1);
+  EXPECT_GE(eg.confidence, 0.0);
+  EXPECT_LE(eg.confidence, 1.0);
 }
 
 TEST(ReportPolicy, HysteresisKeepsTheReportedPlaceAgainstASmallLead) {

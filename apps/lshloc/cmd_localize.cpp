@@ -83,15 +83,19 @@ TargetRun select_target(io::CarmenLog& log, const LocalizeOptions& opt) {
 /// those in any other.
 /// The per-scan CSV's header and rows, the same for --out and a stdin stream.
 constexpr const char* kCsvHeader =
-    "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,score,scored,margin\n";
+    "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,confidence,score,scored,margin,stable,supported,"
+    "place_supported,"
+    "kept_scans,newest_fit,newest_evidence\n";
 void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, double time, const GlobalMap& map,
                     const LocalizationEstimate& e) {
   if (e.has_estimate) {
-    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%u,%.4f\n", scan, log_scan, time,
-                      map.submap_name(e.submap).c_str(), e.submap, e.pose.x, e.pose.y, degrees(e.pose.theta),
-                      e.localized ? 1 : 0, e.mean_score, e.scored, e.margin);
+    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f\n", scan,
+                      log_scan, time, map.submap_name(e.submap).c_str(), e.submap, e.pose.x, e.pose.y,
+                      degrees(e.pose.theta), e.localized ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin,
+                      e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit,
+                      e.newest_evidence);
   } else {
-    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,,,\n", scan, log_scan, time);
+    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,\n", scan, log_scan, time);
   }
 }
 
@@ -176,8 +180,11 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
     const LocalizationEstimate e = localizer->add_scan(rec.scan);
     const std::string submap = e.has_estimate ? map.submap_name(e.submap) : "";
     if (opt.json) {
-      nlohmann::json j = {
-          {"scan", done}, {"log_scan", index - 1}, {"time", rec.scan.timestamp}, {"confident", e.localized}};
+      nlohmann::json j = {{"scan", done},
+                          {"log_scan", index - 1},
+                          {"time", rec.scan.timestamp},
+                          {"confident", e.localized},
+                          {"confidence", e.confidence}};
       if (e.has_estimate)
         j.update({{"submap", submap},
                   {"pose", {e.pose.x, e.pose.y, e.pose.theta}},
@@ -354,6 +361,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     j["submaps"] = map->submap_count();
     j["map_features"] = run.map.features;
     j["localized"] = last.localized;
+    j["confidence"] = last.confidence;
     j["confident_scans"] = confident;
     j["first_localized_at"] = first_localized ? nlohmann::json(*first_localized) : nlohmann::json();
     j["first_localized_time_s"] =

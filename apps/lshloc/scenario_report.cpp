@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <numbers>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/live_replay.hpp"
@@ -113,19 +114,22 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
 void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run,
                           const LocalizationMetrics& m) {
   std::string f;
-  io::append_format(f,
-                    "scan,timestamp,has_estimate,submap,x,y,theta,localized,mean_score,scored,margin,truth_x,truth_y,"
-                    "truth_theta,error_m\n");
+  io::append_format(
+      f,
+      "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
+      "place_supported,kept_scans,newest_fit,newest_evidence,truth_x,truth_y,truth_theta,error_m,heading_error_deg\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = sc.target.truth[i];
-    io::append_format(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%u,%.4f,", i, sc.target.scans[i].timestamp,
-                      e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta, e.localized ? 1 : 0,
-                      e.mean_score, e.scored, e.margin);
+    io::append_format(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,", i,
+                      sc.target.scans[i].timestamp, e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta,
+                      e.localized ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin, e.stable ? 1 : 0,
+                      e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence);
     if (t)
-      io::append_format(f, "%.4f,%.4f,%.5f,%.4f\n", t->x, t->y, t->theta, m.error_per_scan_m[i]);
+      io::append_format(f, "%.4f,%.4f,%.5f,%.4f,%.3f\n", t->x, t->y, t->theta, m.error_per_scan_m[i],
+                        angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);
     else
-      io::append_format(f, ",,,\n");
+      io::append_format(f, ",,,,\n");
   }
   io::write_file_atomically(path, f);
 }

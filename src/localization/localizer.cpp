@@ -27,6 +27,13 @@ class Localizer::DataPointSample final : public SampleScorer {
     return sample_.size();
   }
 
+  std::size_t take_newest(std::size_t n) override {
+    const std::size_t size = ransac_.features().size();
+    sample_.clear();
+    for (std::size_t i = size - std::min(n, size); i < size; ++i) sample_.push_back(static_cast<std::uint32_t>(i));
+    return sample_.size();
+  }
+
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
     const HypothesisBatch batch = batch_.assign(hypotheses);
     const std::size_t m = hypotheses.size();

@@ -32,6 +32,10 @@ std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P,
 
 void ReportPolicyConfig::validate() const {
   require(confidence.stable_scans >= 1, "ReportPolicyConfig.confidence.stable_scans", ">= 1", confidence.stable_scans);
+  require(confidence.newest_points <= 1000000, "ReportPolicyConfig.confidence.newest_points", "<= 1e6",
+          confidence.newest_points);
+  for (double w : confidence.value_weights)
+    require(std::isfinite(w), "ReportPolicyConfig.confidence.value_weights", "finite numbers", w);
   if (refine_points == 0) return;
   require(refine_step_m > 0.0, "ReportPolicyConfig.refine_step_m", "> 0 m when refine_points > 0", refine_step_m);
   require(refine_step_deg > 0.0, "ReportPolicyConfig.refine_step_deg", "> 0 deg when refine_points > 0",
@@ -128,6 +132,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     reported_ = best->hypothesis;
   }
   reported_supported_ = (kept && reported_supported_) || supported(*best);
+  kept_scans_ = kept ? kept_scans_ + 1 : 0;
   e.has_estimate = true;
   e.submap = reported_->submap;
   e.T_submap_local = reported_->T_submap_local;
@@ -148,7 +153,34 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   for (const auto& h : recent_best_) {
     stable = stable && h && same_place(*h, best->hypothesis, local_pose, cc.same_place_m, same_angle);
   }
-  e.localized = stable && supported(*best) && e.margin >= cc.min_margin;
+  if (cc.newest_points > 0) {
+    const std::size_t taken = sample.take_newest(cc.newest_points);
+    if (taken > 0) {
+      const std::array<Hypothesis, 2> twice{*reported_, *reported_};
+      SampleScorer::PairSums pair;
+      sample.score(twice, sums_, &pair);
+      e.newest_fit = sums_[0] / static_cast<double>(taken);
+      e.newest_evidence = pair.second_absolute / static_cast<double>(taken);
+    }
+  }
+  e.stable = stable;
+  e.supported = supported(*best);
+  e.place_supported = reported_supported_;
+  e.kept_scans = kept_scans_;
+  const std::array<double, 10> f{1.0,
+                                 e.mean_score,
+                                 e.margin,
+                                 std::log1p(static_cast<double>(e.scored)),
+                                 std::log1p(static_cast<double>(e.kept_scans)),
+                                 e.place_supported ? 1.0 : 0.0,
+                                 e.stable ? 1.0 : 0.0,
+                                 e.supported ? 1.0 : 0.0,
+                                 e.newest_fit,
+                                 e.newest_evidence};
+  double z = 0.0;
+  for (std::size_t i = 0; i < f.size(); ++i) z += cc.value_weights[i] * f[i];
+  e.confidence = 1.0 / (1.0 + std::exp(-z));
+  e.localized = stable && e.supported && e.margin >= cc.min_margin;
   return e;
 }
 

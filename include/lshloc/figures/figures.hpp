@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "lshloc/common/calibration.hpp"
 #include "lshloc/geometry/pose2.hpp"
 
 namespace lshloc::io {
@@ -58,5 +59,10 @@ struct CostSeries {
 };
 void plot_cost_curves(const std::string& path, const std::string& title, const std::string& y_label,
                       const std::vector<CostSeries>& series);
+
+/// A reliability diagram: per bin, the share of right estimates (bars) against
+/// the bin's mean confidence value (dots), the diagonal being perfect
+/// calibration; the title should carry the ECE.
+void plot_reliability_diagram(const std::string& path, const std::string& title, const Calibration& calibration);
 
 }  // namespace lshloc::io

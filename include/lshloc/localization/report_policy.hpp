@@ -65,6 +65,18 @@ struct ConfidenceConfig {
   bool challenger_needs_support = true;
   double same_place_m = 1.0;     ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
+  /// The newest-scan fit: the reported place scored on this many of the
+  /// newest data-points (about two scans). A local map that broke at the last
+  /// scans (a fast turn the scan matcher lost) leaves an estimate whose older
+  /// support is intact but whose heading is wrong now.
+  std::size_t newest_points = 100;
+  /// The confidence value, P(the estimate is right: true submap, within 2 m
+  /// and 10 deg) = 1 / (1 + exp(-w . f)) with f = (1, C/N, margin, ln(1 + N),
+  /// ln(1 + kept_scans), place_supported, stable, supported, newest_fit,
+  /// newest_evidence) of the estimate. Fitted by logistic regression on fr079
+  /// and intel only (scripts/confidence_fit.py, docs/results/confidence.md).
+  std::array<double, 10> value_weights = {-12.839, 8.2076,  18.9608, 1.5621, -0.2119,
+                                          1.0516,  -1.7943, -0.4066, 15.604, -12.5907};
 };
 
 /// Settings of the report policy: the confidence test and how the reported
@@ -97,14 +109,23 @@ struct ReportPolicyConfig {
 /// The localizer's answer for one target scan.
 struct LocalizationEstimate {
   bool has_estimate = false;
-  bool localized = false;  ///< the confidence state
+  bool localized = false;   ///< the confidence flag (stable, supported, min_margin)
+  double confidence = 0.0;  ///< the calibrated confidence value in [0, 1] (ConfidenceConfig::value_weights)
   std::uint32_t submap = 0;
   Pose2 pose;  ///< the scan's laser pose in the submap frame
   Pose2 T_submap_local;
   double mean_score = 0.0;   ///< C/N of the best hypothesis
   std::uint32_t scored = 0;  ///< N of the best hypothesis
   double margin = 0.0;       ///< C/N lead over the best hypothesis elsewhere
-  Pose2 local_pose;          ///< the scan's laser pose in the local frame
+  bool stable = false;       ///< iRANSAC's best stayed at one place the last stable_scans scans
+  bool supported = false;    ///< the best hypothesis meets min_scored and min_mean_score
+  /// The reported place has met min_scored and min_mean_score since the
+  /// estimate last moved elsewhere.
+  bool place_supported = false;
+  std::uint32_t kept_scans = 0;  ///< scans in a row the reported place has been kept (0: it just moved)
+  double newest_fit = 0.0;       ///< mean score of the reported place on the newest_points newest data-points
+  double newest_evidence = 0.0;  ///< ... the share of them its map says anything about (|score| > 0)
+  Pose2 local_pose;              ///< the scan's laser pose in the local frame
 };
 
 /// What the report policy needs of the localizer's data-points: the scores
@@ -123,6 +144,9 @@ class SampleScorer {
   /// `window` (0: all) as the sample of the next score() calls; returns how
   /// many were drawn (0 when there are no data-points).
   virtual std::size_t draw(std::size_t window, std::size_t n) = 0;
+  /// Takes the newest `n` data-points (all of them when fewer), in order, as
+  /// the sample; draws nothing at random. Returns how many were taken.
+  virtual std::size_t take_newest(std::size_t n) = 0;
   /// sums[j] = the sum over the sample of hypothesis j's score; with `pair`,
   /// also the PairSums of hypotheses 0 and 1 (at least two then).
   virtual void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair = nullptr) = 0;
@@ -193,7 +217,8 @@ class ReportPolicy {
   /// The reported place has met the confidence test's absolute part
   /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
   bool reported_supported_ = false;
-  std::size_t last_drawn_ = 0;  ///< size of the sample last drawn
+  std::uint32_t kept_scans_ = 0;  ///< scans in a row the reported place has been kept
+  std::size_t last_drawn_ = 0;    ///< size of the sample last drawn
   std::array<Hypothesis, 6> children_;
   std::vector<double> sums_;
   ReportPolicyStats stats_;

@@ -1,0 +1,208 @@
+#!/usr/bin/env python3
+"""Fits the localizer's confidence value and judges its flag, from per-scan traces.
+
+    scripts/confidence_fit.py TRACE_DIR [--train fr079,intel] [--up P] [--hold P]
+                              [--weights W0,W1,...] [--diagram OUT.csv]
+
+TRACE_DIR holds `lshloc eval --trace` CSVs (scripts/sweep.sh with TRACE_DIR=...),
+named after their arguments (the building follows "--building"). The value is
+a logistic model of the report's evidence (ConfidenceConfig::weights, in the
+order of FEATURES), fitted by Newton's method on the training buildings'
+ground-truth scans only; a scan is right when its estimate is in the true
+submap within 2 m and 10 degrees. Prints the weights, the expected calibration
+error (10 equal-width bins) per building and overall, and the flag's figures
+(rises at --up, held while the place is kept and the value stays >= --hold)
+as the acceptance check counts them. With --weights, judges those instead of
+fitting. --diagram writes the reliability diagram's bins (all buildings).
+"""
+import argparse
+import csv
+import glob
+import math
+import os
+import re
+import statistics
+
+FEATURES = ["bias", "mean_score", "margin", "log_scored", "log_kept", "place_supported", "stable", "supported",
+            "newest_fit", "newest_evidence"]
+
+
+def features(r):
+    return [1.0, float(r["mean_score"]), float(r["margin"]), math.log1p(float(r["scored"])),
+            math.log1p(float(r["kept_scans"])), float(r["place_supported"]), float(r["stable"]),
+            float(r["supported"]), float(r["newest_fit"]), float(r["newest_evidence"])]
+
+
+def load(trace_dir):
+    runs = []
+    for path in sorted(glob.glob(os.path.join(trace_dir, "*.csv"))):
+        if path.endswith(".truth.csv"):
+            continue
+        m = re.search(r"--building_([A-Za-z0-9-]+)_", os.path.basename(path))
+        building = m.group(1) if m else os.path.basename(path).split("_")[0]
+        scans = []
+        with open(path) as f:
+            for r in csv.DictReader(f):
+                has = r["has_estimate"] == "1"
+                truth = r["error_m"] != ""
+                err = float(r["error_m"]) if truth else math.nan
+                head = float(r["heading_error_deg"]) if truth and r["heading_error_deg"] != "" else math.nan
+                scans.append({"x": features(r) if has else None, "truth": truth, "err": err,
+                              "right": truth and has and err <= 2.0 and head <= 10.0,
+                              "correct": truth and has and err < 1.0})
+        runs.append((building, path, scans))
+    return runs
+
+
+def sigmoid(z):
+    return 1.0 / (1.0 + math.exp(-z)) if z > -500 else 0.0
+
+
+def value(w, x):
+    return 0.0 if x is None else sigmoid(sum(a * b for a, b in zip(w, x)))
+
+
+def solve(a, b):
+    """Gaussian elimination with partial pivoting: a x = b."""
+    n = len(b)
+    m = [row[:] + [b[i]] for i, row in enumerate(a)]
+    for c in range(n):
+        p = max(range(c, n), key=lambda i: abs(m[i][c]))
+        m[c], m[p] = m[p], m[c]
+        for i in range(c + 1, n):
+            f = m[i][c] / m[c][c]
+            for j in range(c, n + 1):
+                m[i][j] -= f * m[c][j]
+    x = [0.0] * n
+    for i in reversed(range(n)):
+        x[i] = (m[i][n] - sum(m[i][j] * x[j] for j in range(i + 1, n))) / m[i][i]
+    return x
+
+
+def fit(rows, ridge=1e-3, iterations=25):
+    """Logistic regression by Newton's method, a small ridge for separable data."""
+    k = len(FEATURES)
+    w = [0.0] * k
+    for _ in range(iterations):
+        grad = [0.0] * k
+        hess = [[ridge if i == j else 0.0 for j in range(k)] for i in range(k)]
+        for x, y in rows:
+            p = value(w, x)
+            g = p - y
+            s = p * (1.0 - p)
+            for i in range(k):
+                grad[i] += g * x[i]
+                xi = s * x[i]
+                row = hess[i]
+                for j in range(i + 1):
+                    row[j] += xi * x[j]
+        for i in range(k):
+            grad[i] += ridge * w[i]
+            for j in range(i):
+                hess[j][i] = hess[i][j]
+        step = solve(hess, grad)
+        w = [a - b for a, b in zip(w, step)]
+        if max(abs(s) for s in step) < 1e-6:
+            break
+    return w
+
+
+def ece(pairs, bins=10):
+    """Expected calibration error and the diagram's bins: (lo, hi, count, mean value, share right)."""
+    table = [[0, 0.0, 0.0] for _ in range(bins)]
+    for p, y in pairs:
+        b = min(int(p * bins), bins - 1)
+        table[b][0] += 1
+        table[b][1] += p
+        table[b][2] += y
+    n = len(pairs)
+    e = sum(abs(c[1] - c[2]) for c in table if c[0]) / n if n else math.nan
+    return e, [(i / bins, (i + 1) / bins, c[0], c[1] / c[0] if c[0] else math.nan, c[2] / c[0] if c[0] else math.nan)
+               for i, c in enumerate(table)]
+
+
+def judge_run(scans, w, up, hold):
+    """The flag over one run and the acceptance check's per-run figures."""
+    flag, changes, first, wrong = False, 0, None, 0
+    flags = []
+    prev_kept = 0
+    for i, s in enumerate(scans):
+        p = value(w, s["x"])
+        kept = s["x"] is not None and s["x"][4] > 0.0
+        new = p >= up or (flag and kept and p >= hold)
+        changes += new != flag
+        flag = new
+        flags.append(flag)
+        if flag and first is None:
+            first = i
+        if flag and s["truth"] and not s["right"]:
+            wrong += 1
+    truth_idx = [i for i, s in enumerate(scans) if s["truth"]]
+    last_bad = None
+    for i in truth_idx:
+        if not scans[i]["correct"]:
+            last_bad = i
+    localized_at = None
+    if truth_idx and last_bad != truth_idx[-1]:
+        localized_at = 0 if last_bad is None else last_bad + 1
+    share = None
+    if localized_at is not None:
+        after = [i for i in truth_idx if i >= localized_at]
+        share = sum(flags[i] for i in after) / len(after)
+    success = bool(truth_idx) and scans[truth_idx[-1]]["correct"]
+    return {"success": success, "localized_at": localized_at, "first": first, "share": share, "changes": changes,
+            "wrong": wrong, "truth": len(truth_idx)}
+
+
+def summary(name, results):
+    succ = [r for r in results if r["success"]]
+    shares = [r["share"] for r in succ if r["share"] is not None]
+    lags = [(r["first"] - r["localized_at"]) if r["first"] is not None else 10**6 for r in succ]
+    wrong = sum(r["wrong"] for r in results)
+    truth = sum(r["truth"] for r in results)
+    half = sum(1 for v in shares if v >= 0.5)
+    print(f"{name}: {len(succ)}/{len(results)} succeed; share after median "
+          f"{statistics.median(shares) if shares else float('nan'):.3f}, >= 0.5 in {half}/{len(shares)}; "
+          f"lag median {statistics.median(lags) if lags else float('nan')}; flag changes median "
+          f"{statistics.median([r['changes'] for r in succ]) if succ else float('nan')}; "
+          f"confident-but-wrong {wrong} of {truth}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("trace_dir")
+    ap.add_argument("--train", default="fr079,intel")
+    ap.add_argument("--up", type=float, default=0.9)
+    ap.add_argument("--hold", type=float, default=0.5)
+    ap.add_argument("--weights")
+    ap.add_argument("--diagram")
+    a = ap.parse_args()
+    runs = load(a.trace_dir)
+    train = set(a.train.split(","))
+    if a.weights:
+        w = [float(v) for v in a.weights.split(",")]
+    else:
+        rows = [(s["x"], 1.0 if s["right"] else 0.0) for b, _, scans in runs if b in train for s in scans
+                if s["truth"] and s["x"] is not None]
+        w = fit(rows)
+    print("weights (" + ", ".join(FEATURES) + "): " + ",".join(f"{v:.4f}" for v in w))
+    buildings = sorted({b for b, _, _ in runs})
+    everything = []
+    for b in buildings:
+        pairs = [(value(w, s["x"]), 1.0 if s["right"] else 0.0) for bb, _, scans in runs if bb == b for s in scans
+                 if s["truth"]]
+        everything += pairs
+        e, _ = ece(pairs)
+        results = [judge_run(scans, w, a.up, a.hold) for bb, _, scans in runs if bb == b]
+        summary(f"{b} ({'train' if b in train else 'unseen'}, ECE {e:.4f})", results)
+    e, table = ece(everything)
+    summary(f"all (ECE {e:.4f})", [judge_run(scans, w, a.up, a.hold) for _, _, scans in runs])
+    if a.diagram:
+        with open(a.diagram, "w") as f:
+            f.write("lo,hi,count,mean_value,share_right\n")
+            for row in table:
+                f.write(",".join(f"{v:.6g}" for v in row) + "\n")
+
+
+if __name__ == "__main__":
+    main()
