@@ -8,7 +8,7 @@ TRACE_DIR holds `lshloc eval --trace` CSVs (scripts/sweep.sh with TRACE_DIR=...)
 named after their arguments (the building follows "--building"). The value is
 a logistic model of the report's evidence (ConfidenceConfig::weights, in the
 order of FEATURES), fitted by Newton's method on the training buildings'
-ground-truth scans only; a scan is right when its estimate is in the true
+ground-truth scans only, each building weighing the same; a scan is right when its estimate is in the true
 submap within 2 m and 10 degrees. Prints the weights, the expected calibration
 error (10 equal-width bins) per building and overall, and the flag's figures
 (rises at --up, held while the place is kept and the value stays >= --hold)
@@ -38,7 +38,7 @@ def load(trace_dir):
     for path in sorted(glob.glob(os.path.join(trace_dir, "*.csv"))):
         if path.endswith(".truth.csv"):
             continue
-        m = re.search(r"--building_([A-Za-z0-9-]+)_", os.path.basename(path))
+        m = re.search(r"building_([A-Za-z0-9-]+)_", os.path.basename(path))
         building = m.group(1) if m else os.path.basename(path).split("_")[0]
         scans = []
         with open(path) as f:
@@ -80,16 +80,17 @@ def solve(a, b):
 
 
 def fit(rows, ridge=1e-3, iterations=25):
-    """Logistic regression by Newton's method, a small ridge for separable data."""
+    """Weighted logistic regression by Newton's method, a small ridge for
+    separable data. rows: (features, label, weight)."""
     k = len(FEATURES)
     w = [0.0] * k
     for _ in range(iterations):
         grad = [0.0] * k
         hess = [[ridge if i == j else 0.0 for j in range(k)] for i in range(k)]
-        for x, y in rows:
+        for x, y, c in rows:
             p = value(w, x)
-            g = p - y
-            s = p * (1.0 - p)
+            g = c * (p - y)
+            s = c * p * (1.0 - p)
             for i in range(k):
                 grad[i] += g * x[i]
                 xi = s * x[i]
@@ -182,9 +183,12 @@ def main():
     if a.weights:
         w = [float(v) for v in a.weights.split(",")]
     else:
-        rows = [(s["x"], 1.0 if s["right"] else 0.0) for b, _, scans in runs if b in train for s in scans
-                if s["truth"] and s["x"] is not None]
-        w = fit(rows)
+        # Each training building weighs the same, however many ground-truth
+        # scans its windows hold (fr079 has ~40x intel's).
+        rows = {b: [(s["x"], 1.0 if s["right"] else 0.0) for bb, _, scans in runs if bb == b for s in scans
+                    if s["truth"] and s["x"] is not None] for b in train}
+        total = sum(len(r) for r in rows.values())
+        w = fit([(x, y, total / (len(rows) * len(r))) for r in rows.values() for x, y in r])
     print("weights (" + ", ".join(FEATURES) + "): " + ",".join(f"{v:.4f}" for v in w))
     buildings = sorted({b for b, _, _ in runs})
     everything = []

@@ -30,7 +30,7 @@ run() {  # run OUT ARGS...: one eval, its JSON line appended to OUT
   local out=$1; shift
   local line
   if [ -n "${TRACE_DIR:-}" ]; then
-    set -- "$@" --trace "$TRACE_DIR/$(printf '%s ' "$@" | sed -E 's/[^A-Za-z0-9._-]+/_/g').csv"
+    set -- "$@" --trace "$TRACE_DIR/$(printf '%s ' "$@" | sed -E 's/--//g; s/[^A-Za-z0-9._-]+/_/g').csv"
   fi
   if [ -n "${MAP_CACHE:-}" ] && [[ "$*" != *--grid-maps* ]] && [[ "$*" != *--live* ]]; then  # the scenario's map: the arguments without the localizer's switches
     local key

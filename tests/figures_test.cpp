@@ -48,6 +48,15 @@ TEST(Figures, WritesPngAndSvg) {
   EXPECT_NE(slurp(cost_svg).find("<svg"), std::string::npos);
 }
 
+TEST(Figures, DrawsAReliabilityDiagram) {
+  const Calibration c = calibrate({0.05, 0.55, 0.95, 0.97}, {false, true, true, true}, 10);
+  const std::string png = test::temp_path(".png"), svg = test::temp_path(".svg");
+  plot_reliability_diagram(png, "calibration", c);
+  plot_reliability_diagram(svg, "calibration", c);
+  EXPECT_EQ(slurp(png).substr(1, 3), "PNG");
+  EXPECT_NE(slurp(svg).find("<svg"), std::string::npos);
+}
+
 TEST(Figures, RejectsUnknownFormatsAndUnwritablePaths) {
   EXPECT_THROW(plot_error_curves(test::temp_path(".jpg"), "t", {}), Error);
   EXPECT_THROW(plot_error_curves("/nonexistent/dir/x.png", "t", {}), Error);

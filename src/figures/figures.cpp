@@ -331,24 +331,28 @@ void plot_reliability_diagram(const std::string& path, const std::string& title,
   const Axes ax{0, 1, 0, 1, false, false};
   ax.draw(f, title, "confidence value (bins)", "share of right estimates (bars); dots: the bin's mean value");
   cairo_t* cr = f.cr();
-  cairo_set_source_rgb(cr, 0.6, 0.6, 0.6);
-  cairo_set_line_width(cr, 1);
+  for (const ReliabilityBin& b : c.bins) {
+    if (b.count == 0) continue;
+    const double x0 = ax.tx(b.lo) + 2, x1 = ax.tx(b.hi) - 2;
+    cairo_set_source_rgba(cr, kPalette[0].r, kPalette[0].g, kPalette[0].b, 0.75);
+    cairo_rectangle(cr, x0, ax.ty(b.share_right), x1 - x0, ax.ty(0) - ax.ty(b.share_right));
+    cairo_fill(cr);
+    f.text((x0 + x1) / 2, ax.ty(b.share_right) - 6, "n=" + std::to_string(b.count), 10, 0.5);
+  }
+  // Perfect calibration, over the bars.
+  cairo_set_source_rgb(cr, 0.2, 0.2, 0.2);
+  cairo_set_line_width(cr, 1.2);
   const double dash = 5;
   cairo_set_dash(cr, &dash, 1, 0);
   cairo_move_to(cr, ax.tx(0), ax.ty(0));
   cairo_line_to(cr, ax.tx(1), ax.ty(1));
   cairo_stroke(cr);
   cairo_set_dash(cr, nullptr, 0, 0);
+  cairo_set_source_rgb(cr, kPalette[1].r, kPalette[1].g, kPalette[1].b);
   for (const ReliabilityBin& b : c.bins) {
     if (b.count == 0) continue;
-    const double x0 = ax.tx(b.lo) + 2, x1 = ax.tx(b.hi) - 2;
-    cairo_set_source_rgb(cr, kPalette[0].r, kPalette[0].g, kPalette[0].b);
-    cairo_rectangle(cr, x0, ax.ty(b.share_right), x1 - x0, ax.ty(0) - ax.ty(b.share_right));
+    cairo_arc(cr, (ax.tx(b.lo) + ax.tx(b.hi)) / 2, ax.ty(b.mean_value), 4, 0, 2 * M_PI);
     cairo_fill(cr);
-    cairo_set_source_rgb(cr, kPalette[1].r, kPalette[1].g, kPalette[1].b);
-    cairo_arc(cr, (x0 + x1) / 2, ax.ty(b.mean_value), 4, 0, 2 * M_PI);
-    cairo_fill(cr);
-    f.text((x0 + x1) / 2, ax.ty(b.share_right) - 6, "n=" + std::to_string(b.count), 10, 0.5);
   }
   f.close();
 }

@@ -75,8 +75,8 @@ struct ConfidenceConfig {
   /// ln(1 + kept_scans), place_supported, stable, supported, newest_fit,
   /// newest_evidence) of the estimate. Fitted by logistic regression on fr079
   /// and intel only (scripts/confidence_fit.py, docs/results/confidence.md).
-  std::array<double, 10> value_weights = {-12.839, 8.2076,  18.9608, 1.5621, -0.2119,
-                                          1.0516,  -1.7943, -0.4066, 15.604, -12.5907};
+  std::array<double, 10> value_weights = {-5.6673, -8.2664, 18.1162, 1.1722,  -0.2372,
+                                          0.4994,  -1.1894, 0.8522,  18.9906, -12.217};
 };
 
 /// Settings of the report policy: the confidence test and how the reported
