@@ -43,8 +43,6 @@ Linearized linearize(const Pose2& a, const Pose2& b, const Pose2& z) {
   return l;
 }
 
-bool finite_pose(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.theta); }
-
 }  // namespace
 
 Eigen::Matrix3d diagonal_information(double sigma_xy, double sigma_theta) {
@@ -63,7 +61,7 @@ void PoseGraphConfig::validate() const {
 PoseGraph::PoseGraph(PoseGraphConfig config) : config_((config.validate(), config)) {}
 
 std::uint32_t PoseGraph::add_node(const Pose2& initial) {
-  if (!finite_pose(initial)) throw Error("PoseGraph::add_node: the initial pose is not finite");
+  if (!is_finite(initial)) throw Error("PoseGraph::add_node: the initial pose is not finite");
   poses_.push_back(initial);
   stats_.nodes = poses_.size();
   return static_cast<std::uint32_t>(poses_.size() - 1);
@@ -75,7 +73,7 @@ void PoseGraph::add_edge(const PoseGraphEdge& edge) {
                 " names a node that does not exist (" + std::to_string(poses_.size()) + " nodes)");
   }
   if (edge.from == edge.to) throw Error("PoseGraph::add_edge: an edge must join two different nodes");
-  if (!finite_pose(edge.measurement) || !edge.information.allFinite()) {
+  if (!is_finite(edge.measurement) || !edge.information.allFinite()) {
     throw Error("PoseGraph::add_edge: the measurement or its information is not finite");
   }
   edges_.push_back(edge);

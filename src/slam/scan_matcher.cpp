@@ -13,14 +13,8 @@
 
 namespace lshloc {
 
-namespace {
-
-bool finite_pose(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.theta); }
-
-}  // namespace
-
 void ScanMatcherConfig::validate() const {
-  require(finite_pose(laser_offset) && std::hypot(laser_offset.x, laser_offset.y) <= 100.0,
+  require(is_finite(laser_offset) && std::hypot(laser_offset.x, laser_offset.y) <= 100.0,
           "ScanMatcherConfig.laser_offset", "finite, within 100 m of the robot's origin");
   require(min_range >= 0.0 && std::isfinite(min_range), "ScanMatcherConfig.min_range", ">= 0 [m]", min_range);
   require(max_range > min_range && std::isfinite(max_range), "ScanMatcherConfig.max_range", "> min_range [m]",
@@ -303,7 +297,7 @@ bool ScanMatcher::match(const Pose2& guess, const Pose2& laser_step, ScanMatchRe
 }
 
 ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
-  if (!finite_pose(scan.odometry)) {
+  if (!is_finite(scan.odometry)) {
     throw Error("ScanMatcher::add_scan: scan at t=" + std::to_string(scan.timestamp) +
                 " has a non-finite odometry pose");
   }

@@ -78,4 +78,7 @@ inline double translation_distance(const Pose2& a, const Pose2& b) { return std:
 /// Absolute heading difference [rad] in [0, pi].
 inline double angle_distance(double a, double b) { return std::abs(wrap_angle(a - b)); }
 
+/// Whether every component of `p` is a finite number.
+inline bool is_finite(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.theta); }
+
 }  // namespace lshloc
