@@ -74,7 +74,8 @@ struct ConfidenceConfig {
   /// and 10 deg) = 1 / (1 + exp(-w . f)) with f = (1, C/N, margin, ln(1 + N),
   /// ln(1 + kept_scans), place_supported, stable, supported, newest_fit,
   /// newest_evidence) of the estimate. Fitted by logistic regression on fr079
-  /// and intel only (scripts/confidence_fit.py, docs/results/confidence.md).
+  /// and intel only (scripts/confidence_fit.py, docs/results/confidence.md);
+  /// not yet calibrated on buildings the fit never saw.
   std::array<double, 10> value_weights = {-5.6673, -8.2664, 18.1162, 1.1722,  -0.2372,
                                           0.4994,  -1.1894, 0.8522,  18.9906, -12.217};
 };
