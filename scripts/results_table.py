@@ -44,18 +44,23 @@ def grid():
     print(f"; confident estimates at ground-truth scans: {conf}, wrong: {wrong}.\n")
 
 
+def beside_batch(rows):
+    """Each row, in scenario order, with the batch run of the same scenario (results/grid.jsonl; {} if none)."""
+    batch = {(r["building"], r["submaps"]): r for r in load("grid")}
+    ordered = sorted(rows, key=lambda r: (r["building"], r["submaps"]))
+    return [(r, batch.get((r["building"], r["submaps"]), {})) for r in ordered]
+
+
 def grid_maps():
     """The 16 scenarios with every submap rebuilt from its occupancy grid, beside the log-built maps."""
     rows = load("grid_maps")
     if not rows:
         return
-    logs = {(r["building"], r["submaps"]): r for r in load("grid")}
     print("| building | R | map features: grid / logs | success: grid / logs | final error [m]: grid / logs | "
           "localized at: grid / logs | median error after [m]: grid / logs | confident scans: grid / logs | "
           "map build s (grid) |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for r in sorted(rows, key=lambda r: (r["building"], r["submaps"])):
-        l = logs.get((r["building"], r["submaps"]), {})
+    for r, l in beside_batch(rows):
         pair = lambda k, d=3: f"{fmt(r.get(k), d)} / {fmt(l.get(k), d)}"
         print(f"| {r['building']} | {r['submaps']} | {pair('map_features')} | {pair('success')} | "
               f"{pair('final_error_m')} | {pair('localized_at')} | {pair('median_error_after_m')} | "
@@ -72,13 +77,11 @@ def live():
     rows = load("live")
     if not rows:
         return
-    batch = {(r["building"], r["submaps"]): r for r in load("grid")}
     print("| building | R | success: live / batch | first mapped at | localized at: live / batch | "
           "mapped to localized | confident but wrong: before mapped / after | final place mapped | "
           "mapper scans/s | ms/scan p99 |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for r in sorted(rows, key=lambda r: (r["building"], r["submaps"])):
-        b = batch.get((r["building"], r["submaps"]), {})
+    for r, b in beside_batch(rows):
         print(f"| {r['building']} | {r['submaps']} | {fmt(r['success'])} / {fmt(b.get('success'))} | "
               f"{fmt(r['first_mapped_at'])} | {fmt(r['localized_at'])} / {fmt(b.get('localized_at'))} | "
               f"{fmt(r['mapped_to_localized'])} | {r['confident_wrong_before_mapped']} / "
