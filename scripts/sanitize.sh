@@ -7,7 +7,7 @@
 #   scripts/sanitize.sh [--fuzz-time SECONDS] [--thread]
 # --fuzz-time: default 30; 0 skips the smoke runs. --thread instead builds the
 # unit tests with ThreadSanitizer (build-tsan/) and runs the concurrent ones
-# (the live map's threads: ctest -R Live).
+# (the live map's threads and several localizers on one map: ctest -R "Live|SharedMap").
 # -O1 and a unity build keep build plus tests within CI's budget. Not run here:
 # `format` and `layers` (they check source text, no compiled code), and the
 # Python bindings (the interpreter is not instrumented); the Release tests run them.
@@ -28,7 +28,7 @@ if [ "$thread" = 1 ]; then
   cmake -G Ninja -S . -B build-tsan -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=None \
     -DCMAKE_CXX_FLAGS="-O1 -gline-tables-only" -DCMAKE_UNITY_BUILD=ON -DLSHLOC_SANITIZE=thread >/dev/null
   cmake --build build-tsan -j"$(nproc)" --target lshloc_tests
-  TSAN_OPTIONS="halt_on_error=1" ctest --test-dir build-tsan -j"$(nproc)" --output-on-failure -R '^Live'
+  TSAN_OPTIONS="halt_on_error=1" ctest --test-dir build-tsan -j"$(nproc)" --output-on-failure -R '^(Live|SharedMap)'
   echo "sanitize: the concurrent tests under ThreadSanitizer passed in $(($(date +%s) - start)) s"
   exit 0
 fi

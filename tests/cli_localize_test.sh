@@ -3,8 +3,8 @@
 # names the building, --json counts line up with the CSV (one row per target
 # scan) and the TUM (one row per confident scan), a bad output path fails
 # before the run, a raw log as a map gets its warning, a TUM trajectory is
-# read as robot poses, maps from ROS occupancy grids localize, and --version
-# answers.
+# read as robot poses, maps from ROS occupancy grids localize, two targets
+# localized at once on one map equal their lone runs, and --version answers.
 # Usage: cli_localize_test.sh LSHLOC
 set -euo pipefail
 LSHLOC=$1
@@ -56,6 +56,24 @@ for s, r in zip(stream, rows):
     assert s == r, (s, r)  # the same columns and values, row for row
 PY
 grep -q "^Localized in" "$d/stream.err" || fail "no answer after the stream: $(cat "$d/stream.err")"
+
+# Two robots at once on two threads, one map: each robot's per-scan CSV equals its lone run's.
+"$LSHLOC" localize "${maps[@]}" --target "$a/sim-3-000.log.gz" --target "$b/sim-3-001.log.gz" --start 300 \
+  --length 150 --threads 2 --out "$d/two" --json >"$d/two.json" 2>/dev/null
+"$LSHLOC" localize "${maps[@]}" --target "$a/sim-3-000.log.gz" --start 300 --length 150 --out "$d/a.tum" \
+  >/dev/null 2>&1
+python3 - "$d/two.json" "$d/two/sim-3-000.tum.csv" "$d/a.tum.csv" "$d/two/sim-3-001.tum.csv" "$d/t.tum.csv" <<'PY' \
+  || fail "two robots on one map differ from their lone runs"
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1])]
+assert [l["target"].split("/")[-1] for l in lines] == ["sim-3-000.log.gz", "sim-3-001.log.gz"], lines
+assert lines[1]["final_submap"] == "sim-3-001-corrected.log.gz" and lines[1]["localized"]
+for together, alone in ((sys.argv[2], sys.argv[3]), (sys.argv[4], sys.argv[5])):
+    assert open(together).read() == open(alone).read(), together
+PY
+"$LSHLOC" localize "${maps[@]}" --target "$b/sim-3-001.log.gz" --target "$b/sim-3-001.log.gz" --out "$d/dup" \
+  >/dev/null 2>"$d/dup.err" && fail "two targets with one file name were accepted for --out"
+grep -q "two targets are named sim-3-001" "$d/dup.err" || fail "duplicate target names: $(cat "$d/dup.err")"
 
 # A bad output path fails at once, before anything is read.
 if "$LSHLOC" localize "${maps[@]}" "${target[@]}" --out "$d/no/such/dir/t.tum" >/dev/null 2>"$d/err.txt"; then

@@ -67,7 +67,8 @@ def main():
         ("localize",): ["--map", corrected, "--map", grid, "--target", raw, "--length", "20", "--grid-spacing", "3"],
         ("simulate",): ["--out", os.path.join(work, "simout"), "--scans", "40"],
         ("bench", "matching"): ["--viewpoints", "300", "--warm-up", "10"],
-        ("bench", "scale"): ["--submaps", "1", "--map-scans", "100", "--target-scans", "20", "--targets", "1"],
+        ("bench", "scale"): ["--submaps", "1", "--map-scans", "100", "--target-scans", "20", "--targets", "1",
+                              "--no-random"],
         ("map", "append"): [os.path.join(work, "append.map"), corrected, "--count", "10"],
         ("map", "to-grid"): [corrected, "--out", os.path.join(work, "g2")],
         ("map", "from-grid"): [grid, "--out", os.path.join(work, "fromgrid.map"), "--grid-spacing", "3"],
@@ -78,6 +79,8 @@ def main():
         # The grid options again, now used (each run ray-casts the submaps' grids: coarse, to stay short).
         commands[("eval", "--grid-maps")] = ["--building", "aces", "--length", "20", "--json", "--grid-spacing", "3"]
         commands[("recall",)] = ["--building", "aces", "--length", "20", "--no-exact", "--json"]
+        commands[("bench", "robots")] = ["--building", "aces", "--submaps", "1", "--length", "20", "--threads", "1",
+                                         "--rounds", "1"]
     else:
         print("cli_options_test: shared data directory not found: eval and recall not swept")
 

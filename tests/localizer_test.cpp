@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <random>
+#include <thread>
 
 #include "lshloc/localization/global_map.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
@@ -29,6 +30,33 @@ TEST(Localizer, FindsTheRightBuildingAndPoseInASyntheticWorld) {
   EXPECT_GT(m.confident_scans, 0u);
   EXPECT_GT(run.map.features, 1000u);
   EXPECT_GT(run.localizer.ransac.scores, 0u);
+}
+
+// Many robots, one map: localizers only read the map, so several may run on
+// their own threads at once (ThreadSanitizer runs this: scripts/sanitize.sh --thread).
+TEST(SharedMap, LocalizersOnTheirOwnThreadsGiveALoneLocalizersEstimates) {
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
+  GlobalMap map(GlobalMapConfig{});
+  MapFeeder(map, sc.submaps).feed_until(1.0);
+  const ScenarioRun alone = localize_target(map, sc.target, LocalizerConfig{});
+  std::vector<ScenarioRun> together(2);
+  {
+    std::vector<std::jthread> robots;
+    for (auto& run : together) robots.emplace_back([&] { run = localize_target(map, sc.target, LocalizerConfig{}); });
+  }
+  for (const ScenarioRun& run : together) {
+    ASSERT_EQ(run.estimates.size(), alone.estimates.size());
+    for (std::size_t i = 0; i < alone.estimates.size(); ++i) {
+      const LocalizationEstimate &a = alone.estimates[i], &b = run.estimates[i];
+      EXPECT_EQ(a.submap, b.submap) << i;
+      EXPECT_EQ(a.localized, b.localized) << i;
+      EXPECT_EQ(a.pose.x, b.pose.x) << i;
+      EXPECT_EQ(a.pose.y, b.pose.y) << i;
+      EXPECT_EQ(a.pose.theta, b.pose.theta) << i;
+    }
+  }
+  const auto m = evaluate_localization(alone.scan_estimates(), sc.target.truth, 1);
+  EXPECT_TRUE(m.success);
 }
 
 TEST(Localizer, MapperScansMayArriveWhileTheTargetLocalizes) {

@@ -21,6 +21,7 @@
 
 #include "commands.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 #include "lshloc/matching/incremental_ransac.hpp"
 #include "lshloc/geometry/oriented_endpoints.hpp"
 #include "lshloc/matching/pose_grid.hpp"
@@ -131,7 +132,7 @@ nlohmann::json run_bench(const BenchMatchingOptions& o) {
   PoseGridHashMap grid(grid_config);
   const auto t_fill0 = std::chrono::steady_clock::now();
   for (const Pose2& p : map_points) grid.insert(0, p.x, p.y, p.theta);
-  const double fill_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_fill0).count();
+  const double fill_s = seconds_since(t_fill0);
 
   // 2. The target robot: its local frame is the map frame moved by T_true;
   //    each viewpoint sees |U_new| map points (from one scan of the log in

@@ -3,10 +3,10 @@
 // Fig. 4 and its 40-submap experiment).
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <optional>
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -17,6 +17,7 @@
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "option_checks.hpp"
+#include "process_memory.hpp"
 
 namespace lshloc::app {
 
@@ -26,24 +27,48 @@ struct ScaleOptions {
   std::vector<std::size_t> sizes{1, 10, 40};
   sim::SyntheticScenarioConfig world{.seed = 7, .map_scans = 3300, .target_scans = 300};
   std::size_t targets = 3;
+  bool random_control = true;  ///< also localize every target with random hypotheses
   bool json = false;
   std::string plot;
   LocalizerOptions localizer;
 };
 
-/// Resident set size of this process [MB] (Linux /proc), or -1.
-double rss_mb() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) {
-      std::istringstream in(line.substr(6));
-      double kb = 0;
-      in >> kb;
-      return kb / 1024.0;
-    }
+/// How a set of targets fared against one map, and the localizer's costs.
+struct Outcomes {
+  std::size_t localized = 0;
+  std::vector<double> localized_at;  ///< of the targets that succeeded
+  double query_s = 0, features = 0, score_s = 0, scores = 0;
+  nlohmann::json per_target = nlohmann::json::array();
+
+  /// The median scan at which successful targets were localized (null: none).
+  nlohmann::json median_localized_at() const {
+    if (localized_at.empty()) return nullptr;
+    std::vector<double> v = localized_at;
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
   }
-  return -1.0;
+};
+
+Outcomes localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
+                      const std::vector<std::uint32_t>& target_submaps, const LocalizerConfig& config, bool tty,
+                      const char* label) {
+  Outcomes o;
+  for (std::size_t t = 0; t < targets.size(); ++t) {
+    if (tty) std::fprintf(stderr, "\r  localizing target %zu/%zu (%s)   ", t + 1, targets.size(), label);
+    const ScenarioRun run = localize_target(map, targets[t], config);
+    const auto m = evaluate_localization(run.scan_estimates(), targets[t].truth, target_submaps[t]);
+    o.localized += m.success;
+    if (m.success && m.localized_at) o.localized_at.push_back(static_cast<double>(*m.localized_at));
+    o.query_s += run.localizer.query_s, o.features += static_cast<double>(run.localizer.features);
+    o.score_s += run.localizer.ransac_s, o.scores += static_cast<double>(run.localizer.ransac.scores);
+    o.per_target.push_back({{"building", targets[t].building},
+                            {"success", m.success},
+                            {"final_error_m", m.final_error_m ? nlohmann::json(*m.final_error_m) : nlohmann::json()},
+                            {"localized_at", m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json()},
+                            {"confident_wrong", m.confident_wrong}});
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  return o;
 }
 
 nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) {
@@ -75,36 +100,30 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
   }
   if (tty) std::fprintf(stderr, "\n");
   const GlobalMapStats ms = map.stats();
-  std::size_t localized = 0;
-  std::vector<double> localized_at;
-  double query_s = 0, features = 0, score_s = 0, scores = 0;
-  nlohmann::json per_target = nlohmann::json::array();
-  for (std::size_t t = 0; t < targets.size(); ++t) {
-    const ScenarioRun run = localize_target(map, targets[t], config.localizer);
-    const auto m = evaluate_localization(run.scan_estimates(), targets[t].truth, target_submaps[t]);
-    localized += m.success;
-    if (m.success && m.localized_at) localized_at.push_back(static_cast<double>(*m.localized_at));
-    query_s += run.localizer.query_s, features += static_cast<double>(run.localizer.features);
-    score_s += run.localizer.ransac_s, scores += static_cast<double>(run.localizer.ransac.scores);
-    per_target.push_back({{"building", targets[t].building},
-                          {"success", m.success},
-                          {"final_error_m", m.final_error_m ? nlohmann::json(*m.final_error_m) : nlohmann::json()},
-                          {"localized_at", m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json()},
-                          {"confident_wrong", m.confident_wrong}});
+  // The database's targets, then (the control) the same targets with random
+  // map features as hypotheses at the same budget.
+  Outcomes lsh = localize_all(map, targets, target_submaps, config.localizer, tty, "database");
+  std::optional<Outcomes> random;
+  if (opt.random_control) {
+    LocalizerConfig control = config.localizer;
+    control.hypothesis_source = HypothesisSource::kRandomMapFeatures;
+    random = localize_all(map, targets, target_submaps, control, tty, "random hypotheses");
   }
-  std::sort(localized_at.begin(), localized_at.end());
   nlohmann::json j;
   j["submaps"] = submaps;
   j["map_features"] = ms.features;
   j["map_scans"] = map_scans;
   j["us_update_per_feature"] = ms.us_update_per_feature();
   j["us_insert_per_feature"] = ms.us_insert_per_feature();
-  j["us_query_per_feature"] = features > 0 ? 1e6 * query_s / features : 0.0;
-  j["ns_per_score"] = scores > 0 ? 1e9 * score_s / scores : 0.0;
+  j["us_query_per_feature"] = lsh.features > 0 ? 1e6 * lsh.query_s / lsh.features : 0.0;
+  j["ns_per_score"] = lsh.scores > 0 ? 1e9 * lsh.score_s / lsh.scores : 0.0;
   j["targets"] = targets.size();
-  j["targets_localized"] = localized;
-  j["median_localized_at"] =
-      localized_at.empty() ? nlohmann::json() : nlohmann::json(localized_at[localized_at.size() / 2]);
+  j["targets_localized"] = lsh.localized;
+  j["median_localized_at"] = lsh.median_localized_at();
+  if (random) {
+    j["random_targets_localized"] = random->localized;
+    j["random_median_localized_at"] = random->median_localized_at();
+  }
   j["rss_mb"] = rss_mb();
   j["bytes_per_feature"] = ms.bytes_per_feature();
   j["bytes_database_per_feature"] =
@@ -114,7 +133,8 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
                                            static_cast<double>(ms.features)
                                      : 0.0;
   j["grid_fraction"] = ms.occupancy.grid_fraction;
-  j["per_target"] = per_target;
+  j["per_target"] = lsh.per_target;
+  if (random) j["random_per_target"] = random->per_target;
   return j;
 }
 
@@ -126,7 +146,8 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
       "scale",
       "Grow global maps of synthetic buildings (e.g. 1, 10, 40, 100, 300 submaps) and print, per size,\n"
       "one JSON line: per-feature update and retrieval costs, cost per score, memory per map feature,\n"
-      "and how many targets dropped at unknown places localized.");
+      "how many targets dropped at unknown places localized, and (the control) how many localized, and\n"
+      "how soon, with random map features as hypotheses instead of the database's.");
   cmd->add_option("--submaps", opt->sizes, "map sizes in submaps, comma-separated")
       ->delimiter(',')
       ->capture_default_str()
@@ -141,6 +162,8 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
       ->capture_default_str()
       ->check(within(1, 1000));
   cmd->add_option("--seed", opt->world.seed, "world seed")->capture_default_str();
+  cmd->add_flag("!--no-random", opt->random_control,
+                "skip the control run that localizes every target again with random map features as hypotheses");
   cmd->add_option("--plot", opt->plot, "write the per-feature costs against map size (PNG or SVG) to this file");
   cmd->add_flag("--json", opt->json, "JSON lines only (the default output is JSON lines too)");
   add_localizer_options(*cmd, opt->localizer);

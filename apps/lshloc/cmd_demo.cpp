@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "scenario_report.hpp"
@@ -73,7 +74,7 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
     }
     const std::string stem = write_scenario_figures(opt->out, sc, run, m);
     write_scenario_trace(opt->out + "/trace.csv", sc, run, m);
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double wall = seconds_since(t0);
     if (opt->json) {
       std::printf("%s\n", scenario_json(sc, run, m).dump().c_str());
       return;

@@ -13,6 +13,7 @@
 
 #include "commands.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/figures/figures.hpp"
@@ -160,7 +161,7 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
     }
     map_store["grid_maps"] = grids;
     ScenarioRun run = localize_target(map, sc.target, run_config.localizer, progress, observer);
-    run.map_build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - run.localize_s;
+    run.map_build_s = seconds_since(t0) - run.localize_s;
     return run;
   }
   if (opt.save_map.empty() && opt.load_map.empty()) return run_scenario(sc, run_config, progress, observer);
@@ -177,12 +178,12 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
     map = std::make_unique<GlobalMap>(run_config.map);
     MapFeeder(*map, sc.submaps).feed_until(1.0);
   }
-  const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double map_s = seconds_since(t0);
   if (!opt.load_map.empty()) map_store["map_load_s"] = map_s;
   if (!opt.save_map.empty()) {
     const auto t1 = std::chrono::steady_clock::now();
     io::save_map(opt.save_map, *map, scenario_meta(sc));
-    map_store["map_save_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    map_store["map_save_s"] = seconds_since(t1);
     map_store["map_file_bytes"] = std::filesystem::file_size(opt.save_map);
     std::fprintf(stderr, "map saved: %s\n", opt.save_map.c_str());
   }

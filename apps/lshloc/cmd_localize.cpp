@@ -1,6 +1,7 @@
 // `lshloc localize`: global localization on a user's own logs. Each --map log
-// is one submap (or --map loads a saved map); the target log is localized from
-// scratch against them. Answers in words, or in JSON with --json.
+// is one submap (or --map loads a saved map); each target log is localized from
+// scratch against them, several at once on their own threads sharing the one
+// map. Answers in words, or in JSON with --json.
 #include <unistd.h>
 
 #include <chrono>
@@ -9,14 +10,20 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <algorithm>
+#include <atomic>
+#include <exception>
 #include <map>
 #include <numbers>
+#include <set>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
@@ -32,7 +39,8 @@ namespace {
 
 struct LocalizeOptions {
   std::vector<std::string> maps;
-  std::string target;
+  std::vector<std::string> targets;
+  std::size_t threads = 0;  ///< localizer threads with several targets (0: one per target, up to the cores)
   std::string out;
   std::string plot_dir;
   bool json = false;
@@ -48,9 +56,9 @@ double degrees(double radians) { return radians * 180.0 / std::numbers::pi; }
 
 /// The target's window of the log: --start/--length in scans or --from/--to
 /// in seconds from the log's first scan.
-TargetRun select_target(io::CarmenLog& log, const LocalizeOptions& opt) {
+TargetRun select_target(io::CarmenLog& log, const std::string& path, const LocalizeOptions& opt) {
   auto& scans = log.scans;
-  if (scans.empty()) throw Error(opt.target + ": the target log has no laser scans (FLASER / ROBOTLASER1)");
+  if (scans.empty()) throw Error(path + ": the target log has no laser scans (FLASER / ROBOTLASER1)");
   std::size_t begin = opt.start, end = opt.length == 0 ? scans.size() : std::min(scans.size(), opt.start + opt.length);
   if (opt.from_s || opt.to_s) {
     const double t0 = scans.front().timestamp;
@@ -61,15 +69,14 @@ TargetRun select_target(io::CarmenLog& log, const LocalizeOptions& opt) {
       if (t >= from && t < to) begin = std::min(begin, i), end = i + 1;
     }
     if (begin >= end)
-      throw Error(opt.target + ": no scan lies between --from " + std::to_string(from) + " s and --to " +
-                  std::to_string(to) + " s (the log spans " +
-                  std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
+      throw Error(path + ": no scan lies between --from " + std::to_string(from) + " s and --to " + std::to_string(to) +
+                  " s (the log spans " + std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
   } else if (begin >= scans.size()) {
-    throw Error(opt.target + ": --start " + std::to_string(begin) + " is past the log's " +
-                std::to_string(scans.size()) + " laser scans");
+    throw Error(path + ": --start " + std::to_string(begin) + " is past the log's " + std::to_string(scans.size()) +
+                " laser scans");
   }
   TargetRun target;
-  target.building = opt.target;
+  target.building = path;
   target.start = begin;
   target.scans.assign(std::make_move_iterator(scans.begin() + static_cast<std::ptrdiff_t>(begin)),
                       std::make_move_iterator(scans.begin() + static_cast<std::ptrdiff_t>(end)));
@@ -121,6 +128,14 @@ void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun
   }
 }
 
+/// A log's file name without its directory and log extensions.
+std::string log_stem(const std::string& path) {
+  std::string stem = std::filesystem::path(path).filename().string();
+  for (const char* ext : {".gz", ".log", ".clf"})
+    if (stem.ends_with(ext)) stem.resize(stem.size() - std::strlen(ext));
+  return stem;
+}
+
 /// --plot: the run over the final answer's submap (its walls from the map
 /// log's scans or grid, or its features for a saved map) and the confidence
 /// over time.
@@ -129,10 +144,7 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw Error(dir + ": cannot create the figure directory: " + ec.message());
-  std::string stem = std::filesystem::path(target_path).filename().string();
-  for (const char* ext : {".gz", ".log", ".clf"})
-    if (stem.ends_with(ext)) stem.resize(stem.size() - std::strlen(ext));
-  stem = dir + "/" + stem;
+  const std::string stem = dir + "/" + log_stem(target_path);
   const auto& last = run.estimates.back();
   const std::uint32_t submap = last.has_estimate ? last.submap : 0;
   io::MapFigure fig;
@@ -244,6 +256,101 @@ void print_answer(const nlohmann::json& j) {
       j["realtime_factor"].get<double>(), j["map_s"].get<double>());
 }
 
+/// Where --out writes each target's files: OUT itself for one target; with
+/// several, OUT is a directory holding LOGNAME.tum (+ .csv) per target.
+std::vector<std::string> output_paths(const LocalizeOptions& opt) {
+  if (opt.out.empty()) return {};
+  if (opt.targets.size() == 1) return {opt.out};
+  std::error_code ec;
+  std::filesystem::create_directories(opt.out, ec);
+  if (ec) throw Error(opt.out + ": cannot create the output directory for several targets: " + ec.message());
+  std::vector<std::string> outs;
+  std::set<std::string> seen;
+  for (const auto& path : opt.targets) {
+    const std::string stem = log_stem(path);
+    if (!seen.insert(stem).second)
+      throw Error("--out " + opt.out + ": two targets are named " + stem +
+                  "; with several targets each log needs its own file name");
+    outs.push_back(opt.out + "/" + stem + ".tum");
+  }
+  return outs;
+}
+
+std::size_t localizer_threads(std::size_t asked, std::size_t targets) {
+  const std::size_t cores = std::max(1u, std::thread::hardware_concurrency());
+  return std::max<std::size_t>(1, std::min(asked ? asked : cores, targets));
+}
+
+/// Localizes every target against the one map, on `threads` threads (each
+/// takes the next target; the map is only read). Progress on a terminal.
+std::vector<ScenarioRun> localize_targets(const GlobalMap& map, const std::vector<TargetRun>& targets,
+                                          const LocalizerConfig& config, std::size_t threads) {
+  const bool tty = isatty(fileno(stderr));
+  std::size_t total = 0;
+  for (const auto& t : targets) total += t.scans.size();
+  std::vector<ScenarioRun> runs(targets.size());
+  std::vector<std::exception_ptr> errors(targets.size());
+  std::atomic<std::size_t> next{0}, done{0};
+  auto work = [&] {
+    for (std::size_t k; (k = next++) < targets.size();) {
+      try {
+        runs[k] = localize_target(map, targets[k], config, [&](std::size_t, std::size_t) {
+          const std::size_t d = ++done;
+          if (tty && (d % 25 == 0 || d == total))
+            std::fprintf(stderr, "\rlocalizing: scan %zu/%zu%s", d, total, d == total ? "\n" : "");
+        });
+      } catch (...) {
+        errors[k] = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::jthread> pool;
+  for (std::size_t i = 1; i < localizer_threads(threads, targets.size()); ++i) pool.emplace_back(work);
+  work();
+  pool.clear();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+  return runs;
+}
+
+/// The answer for one target, as --json prints it.
+nlohmann::json answer_json(const std::string& path, const TargetRun& target, const ScenarioRun& run,
+                           const GlobalMap& map, double map_s) {
+  std::optional<std::size_t> first_localized;
+  std::size_t confident = 0;
+  for (std::size_t i = 0; i < run.estimates.size(); ++i) {
+    if (!run.estimates[i].localized) continue;
+    ++confident;
+    if (!first_localized) first_localized = i;
+  }
+  const auto& last = run.estimates.back();
+  const double t_first = target.scans.front().timestamp;
+  nlohmann::json j;
+  j["target"] = path;
+  j["start"] = target.start;
+  j["scans"] = run.estimates.size();
+  j["submaps"] = map.submap_count();
+  j["map_features"] = run.map.features;
+  j["localized"] = last.localized;
+  j["confidence"] = last.confidence;
+  j["confident_scans"] = confident;
+  j["first_localized_at"] = first_localized ? nlohmann::json(*first_localized) : nlohmann::json();
+  j["first_localized_time_s"] =
+      first_localized ? nlohmann::json(target.scans[*first_localized].timestamp - t_first) : nlohmann::json();
+  j["final_submap"] = last.has_estimate ? nlohmann::json(map.submap_name(last.submap)) : nlohmann::json();
+  j["final_submap_id"] = last.has_estimate ? nlohmann::json(last.submap) : nlohmann::json();
+  j["final_pose"] = last.has_estimate ? nlohmann::json({last.pose.x, last.pose.y, last.pose.theta}) : nlohmann::json();
+  j["final_heading_deg"] = last.has_estimate ? nlohmann::json(degrees(last.pose.theta)) : nlohmann::json();
+  j["final_mean_score"] = last.mean_score;
+  j["final_scored"] = last.scored;
+  j["final_margin"] = last.margin;
+  j["log_s"] = run.log_duration_s;
+  j["localize_cpu_s"] = run.localize_cpu_s;
+  j["map_s"] = map_s;
+  add_localizer_cost(j, run);
+  return j;
+}
+
 }  // namespace
 
 void add_localize_command(CLI::App& app, GlobalOptions& global) {
@@ -265,10 +372,15 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
                   "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "
                   "repeat for several submaps")
       ->required();
-  cmd->add_option("--target", opt->target,
-                  "the target robot's raw log (odometry + scans); - reads a plain-text log from stdin and prints each "
-                  "scan's estimate as it arrives")
+  cmd->add_option("--target", opt->targets,
+                  "the target robot's raw log (odometry + scans); repeat to localize several robots at once, each on "
+                  "its own thread against the one map; - reads a plain-text log from stdin and prints each scan's "
+                  "estimate as it arrives")
       ->required();
+  cmd->add_option("--threads", opt->threads,
+                  "localizer threads for several targets (0: one per target, at most the machine's cores)")
+      ->capture_default_str()
+      ->check(within(0, 1024));
   auto* start =
       cmd->add_option("--start", opt->start, "first scan of the target log to localize")->capture_default_str();
   auto* length = cmd->add_option("--length", opt->length, "scans of the target log to localize (0: to the end)")
@@ -281,7 +393,9 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       ->check(within(0, 1e9))
       ->excludes(start)
       ->excludes(length);
-  cmd->add_option("--out", opt->out, "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan");
+  cmd->add_option("--out", opt->out,
+                  "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan; with several targets a "
+                  "directory that gets LOGNAME.tum and LOGNAME.tum.csv per target");
   cmd->add_flag("--json", opt->json, "print the answer as one JSON line");
   cmd->add_option("--plot", opt->plot_dir,
                   "write figures (PNG and SVG) into this directory: the run over the answer's submap, and the "
@@ -294,17 +408,22 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   cmd->callback([opt, &global] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
-    // Output paths first: a typo must not cost a whole run.
-    if (!opt->out.empty()) io::require_writable(opt->out);
-    const bool stream = opt->target == "-";
+    const auto& paths = opt->targets;
+    const bool stream = paths.size() == 1 && paths[0] == "-";
+    if (paths.size() > 1 && std::find(paths.begin(), paths.end(), "-") != paths.end())
+      throw Error("--target -: stdin can be the only target; it cannot be mixed with target logs");
     if (stream && (opt->from_s || opt->to_s || !opt->out.empty() || !opt->plot_dir.empty()))
       throw Error("--target -: the stream is localized scan by scan; --from/--to, --out and --plot need a log file");
-    io::CarmenLog target_log;
-    TargetRun target;
+    // Output paths first: a typo must not cost a whole run.
+    const std::vector<std::string> outs = output_paths(*opt);
+    for (const auto& out : outs) io::require_writable(out);
+    std::vector<TargetRun> targets;
     if (!stream) {
-      target_log = io::read_carmen_log(opt->target);
-      print_warnings(target_log.warnings);
-      target = select_target(target_log, *opt);
+      for (const auto& path : paths) {
+        io::CarmenLog log = io::read_carmen_log(path);
+        print_warnings(log.warnings);
+        targets.push_back(select_target(log, path, *opt));
+      }
     }
 
     ScenarioRunConfig config = make_run_config(opt->localizer);
@@ -322,8 +441,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     }
     if (!map) map = std::make_unique<GlobalMap>(config.map);
     const MapSources sources = add_map_arguments(*map, built, opt->map_slam,
-                                                 opt->grid.resolve(target.scans.empty() ? nullptr : &target.scans[0]));
-    const double map_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+                                                 opt->grid.resolve(targets.empty() ? nullptr : &targets[0].scans[0]));
+    const double map_s = seconds_since(t0);
     if (map->stats().features == 0)
       throw Error("the map has no features (" + std::to_string(map->submap_count()) + " submaps, " +
                   std::to_string(map->stats().scans) +
@@ -334,54 +453,26 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       localize_stream(*map, config.localizer, *opt);
       return;
     }
-    const bool tty = isatty(fileno(stderr));
-    ScenarioRun run = localize_target(*map, target, config.localizer, [&](std::size_t done, std::size_t total) {
-      if (tty && (done % 25 == 0 || done == total)) {
-        std::fprintf(stderr, "\rlocalizing: scan %zu/%zu", done, total);
-        if (done == total) std::fprintf(stderr, "\n");
+    const auto t_localize = std::chrono::steady_clock::now();
+    std::vector<ScenarioRun> runs = localize_targets(*map, targets, config.localizer, opt->threads);
+    const double wall_s = seconds_since(t_localize);
+    for (std::size_t k = 0; k < targets.size(); ++k) {
+      runs[k].map_build_s = map_s;
+      if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
+      if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, paths[k], *map, sources, runs[k]);
+      const nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
+      if (opt->json) {
+        std::printf("%s\n", j.dump().c_str());
+      } else {
+        if (targets.size() > 1) std::printf("%s%s:\n", k ? "\n" : "", paths[k].c_str());
+        print_answer(j);
       }
-    });
-    run.map_build_s = map_s;
-    if (!opt->out.empty()) write_outputs(opt->out, *map, target, run);
-    if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, opt->target, *map, sources, run);
-
-    std::optional<std::size_t> first_localized;
-    std::size_t confident = 0;
-    for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-      if (!run.estimates[i].localized) continue;
-      ++confident;
-      if (!first_localized) first_localized = i;
     }
-    const auto& last = run.estimates.back();
-    const double t_first = target.scans.front().timestamp;
-    nlohmann::json j;
-    j["target"] = opt->target;
-    j["start"] = target.start;
-    j["scans"] = run.estimates.size();
-    j["submaps"] = map->submap_count();
-    j["map_features"] = run.map.features;
-    j["localized"] = last.localized;
-    j["confidence"] = last.confidence;
-    j["confident_scans"] = confident;
-    j["first_localized_at"] = first_localized ? nlohmann::json(*first_localized) : nlohmann::json();
-    j["first_localized_time_s"] =
-        first_localized ? nlohmann::json(target.scans[*first_localized].timestamp - t_first) : nlohmann::json();
-    j["final_submap"] = last.has_estimate ? nlohmann::json(map->submap_name(last.submap)) : nlohmann::json();
-    j["final_submap_id"] = last.has_estimate ? nlohmann::json(last.submap) : nlohmann::json();
-    j["final_pose"] =
-        last.has_estimate ? nlohmann::json({last.pose.x, last.pose.y, last.pose.theta}) : nlohmann::json();
-    j["final_heading_deg"] = last.has_estimate ? nlohmann::json(degrees(last.pose.theta)) : nlohmann::json();
-    j["final_mean_score"] = last.mean_score;
-    j["final_scored"] = last.scored;
-    j["final_margin"] = last.margin;
-    j["log_s"] = run.log_duration_s;
-    j["localize_cpu_s"] = run.localize_cpu_s;
-    j["map_s"] = map_s;
-    add_localizer_cost(j, run);
-    if (opt->json) {
-      std::printf("%s\n", j.dump().c_str());
-    } else {
-      print_answer(j);
+    if (targets.size() > 1 && !opt->json) {
+      std::size_t scans = 0;
+      for (const auto& t : targets) scans += t.scans.size();
+      std::printf("\n%zu targets, %zu scans on %zu threads in %.2f s: %.0f scans/s together\n", targets.size(), scans,
+                  localizer_threads(opt->threads, targets.size()), wall_s, static_cast<double>(scans) / wall_s);
     }
   });
 }

@@ -12,6 +12,7 @@
 #include "commands.hpp"
 #include "lshloc/common/cpu_time.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/map_store.hpp"
 #include "lshloc/io/ros_map.hpp"
@@ -22,10 +23,6 @@
 namespace lshloc::app {
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 std::uint64_t file_bytes(const std::string& path) {
   std::error_code ec;

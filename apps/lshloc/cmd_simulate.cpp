@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/carmen_writer.hpp"
 #include "lshloc/sim/render.hpp"
@@ -47,10 +48,6 @@ std::string write_segments(const sim::SyntheticBuilding& building, const std::st
 double rounded(double value, int decimals) {
   const double scale = std::pow(10.0, decimals);
   return std::round(value * scale) / scale;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
 void run_simulate(const SimulateOptions& o) {

@@ -2,6 +2,7 @@
 
 #include "lshloc/common/cpu_time.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 
 #include <chrono>
 
@@ -9,7 +10,6 @@ namespace lshloc {
 
 namespace {
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 }  // namespace
 
 std::vector<ScanEstimate> ScenarioRun::scan_estimates() const {

@@ -5,13 +5,13 @@
 #include <cstdio>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 
 namespace lshloc::sim {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Streams of a simulation's seed.
 constexpr std::uint64_t kTourStream = 1, kLaserStream = 2, kOdometryStream = 3;
