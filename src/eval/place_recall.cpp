@@ -54,6 +54,12 @@ double median(std::vector<float> v) {
   return static_cast<double>(v[v.size() / 2]);
 }
 
+/// Whether map location `l` is a right answer for a query at `pose` in `submap`.
+bool is_hit(const MapLocation& l, std::uint32_t submap, const Pose2& pose, const PlaceRecallConfig& config) {
+  return l.submap == submap && std::hypot(l.x - pose.x, l.y - pose.y) <= config.match_distance &&
+         angle_distance(l.theta, pose.theta) <= config.match_angle_deg * std::numbers::pi / 180.0;
+}
+
 }  // namespace
 
 PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRecallConfig& config) {
@@ -103,12 +109,7 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
   std::vector<Feature> queries;
   for (const ScanFeatures& sf : target) queries.insert(queries.end(), sf.features.begin(), sf.features.end());
 
-  const double max_angle = config.match_angle_deg * std::numbers::pi / 180.0;
-  auto matches = [&](const Feature& q, std::uint32_t id) {
-    const MapLocation& loc = store[id];
-    return loc.submap == target_submap && std::hypot(loc.x - q.pose.x, loc.y - q.pose.y) <= config.match_distance &&
-           angle_distance(loc.theta, q.pose.theta) <= max_angle;
-  };
+  auto matches = [&](const Feature& q, std::uint32_t id) { return is_hit(store[id], target_submap, q.pose, config); };
   std::vector<char> covered(queries.size(), 0);
   std::size_t n_matchable = 0;  // covered queries with a map feature that would count as a hit
   for (std::size_t i = 0; i < queries.size(); ++i) {
@@ -219,6 +220,81 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
   r.mean_candidates_touched = static_cast<double>(scratch.candidates_touched) / n_q_f;
   r.mean_distinct_candidates = static_cast<double>(scratch.distinct_candidates) / n_q_f;
   r.lsh = db.stats();
+  return r;
+}
+
+PlaceRecallProbe::PlaceRecallProbe(std::vector<RecallQuery> queries, const PlaceRecallConfig& config)
+    : queries_(std::move(queries)), config_(config), covered_(queries_.size(), 0), nearest_(queries_.size()) {}
+
+bool PlaceRecallProbe::hit(const RecallQuery& q, const MapLocation& l) const {
+  return is_hit(l, q.submap, q.feature.pose, config_);
+}
+
+void PlaceRecallProbe::add_map_features(std::uint32_t submap, std::span<const Feature> features) {
+  if (features.empty() || queries_.empty()) return;
+  using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const auto n = static_cast<Eigen::Index>(features.size());
+  const auto dim = static_cast<Eigen::Index>(kDescriptorSize);
+  Matrix m(n, dim);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index c = 0; c < dim; ++c)
+      m(i, c) = features[static_cast<std::size_t>(i)].descriptor[static_cast<std::size_t>(c)];
+  const Eigen::VectorXf m_norm = m.rowwise().squaredNorm();
+  const std::size_t k = config_.k;
+  constexpr std::size_t kBlock = 256;
+  Matrix qb(static_cast<Eigen::Index>(kBlock), dim);
+  for (std::size_t b = 0; b < queries_.size(); b += kBlock) {
+    const std::size_t nb = std::min(kBlock, queries_.size() - b);
+    for (std::size_t j = 0; j < nb; ++j)
+      for (Eigen::Index c = 0; c < dim; ++c)
+        qb(static_cast<Eigen::Index>(j), c) = queries_[b + j].feature.descriptor[static_cast<std::size_t>(c)];
+    // |q - m|^2 without |q|^2, the same for every map feature of a query.
+    const Matrix d = (-2.0f * qb.topRows(static_cast<Eigen::Index>(nb)) * m.transpose()).rowwise() + m_norm.transpose();
+    for (std::size_t j = 0; j < nb; ++j) {
+      const RecallQuery& q = queries_[b + j];
+      auto& best = nearest_[b + j];
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const Feature& f = features[static_cast<std::size_t>(i)];
+        const MapLocation l{submap, static_cast<float>(f.pose.x), static_cast<float>(f.pose.y),
+                            static_cast<float>(f.pose.theta)};
+        if (submap == q.submap &&
+            std::hypot(f.pose.x - q.feature.pose.x, f.pose.y - q.feature.pose.y) <= config_.match_distance)
+          covered_[b + j] = 1;
+        best.push_back({d(static_cast<Eigen::Index>(j), i), l});
+        // Keep the k nearest: trim once the list doubles.
+        if (best.size() >= 2 * k) {
+          std::nth_element(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(k - 1), best.end(),
+                           [](const Neighbour& a, const Neighbour& c) { return a.distance2 < c.distance2; });
+          best.resize(k);
+        }
+      }
+    }
+  }
+}
+
+PlaceRecallProbe::Result PlaceRecallProbe::finish(const LshDatabase& database, const LocationStore& store) const {
+  Result r;
+  r.queries = queries_.size();
+  std::size_t lsh_hits = 0, exact_hits = 0;
+  LshQuery scratch(database);
+  std::vector<std::uint32_t> ids;
+  for (std::size_t i = 0; i < queries_.size(); ++i) {
+    if (!covered_[i]) continue;
+    ++r.covered;
+    const RecallQuery& q = queries_[i];
+    database.query(q.feature.descriptor, config_.k, ids, scratch);
+    lsh_hits += std::any_of(ids.begin(), ids.end(), [&](std::uint32_t id) { return hit(q, store[id]); });
+    auto best = nearest_[i];
+    const std::size_t top = std::min(config_.k, best.size());
+    std::partial_sort(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(top), best.end(),
+                      [](const Neighbour& a, const Neighbour& c) { return a.distance2 < c.distance2; });
+    exact_hits += std::any_of(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(top),
+                              [&](const Neighbour& n) { return hit(q, n.location); });
+  }
+  if (r.covered) {
+    r.lsh_recall_at_k = static_cast<double>(lsh_hits) / static_cast<double>(r.covered);
+    r.exact_recall_at_k = static_cast<double>(exact_hits) / static_cast<double>(r.covered);
+  }
   return r;
 }
 

@@ -54,7 +54,8 @@ void GlobalMap::check_submap(std::uint32_t submap, const char* caller) const {
   }
 }
 
-std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, ScanGrids grids) {
+std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, ScanGrids grids,
+                                std::vector<Feature>* added) {
   check_submap(submap, "GlobalMap::add_scan");
   SubmapState& state = submaps_[submap];
   ++state.scans;
@@ -77,6 +78,7 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   }
 
   state.context.offer(surface);
+  if (added) added->insert(added->end(), features.begin(), features.end());
   return features.size();
 }
 

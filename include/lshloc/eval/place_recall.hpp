@@ -5,10 +5,14 @@
 // descriptor units; timings [us] of wall clock.
 // Thread safety: evaluate_place_recall builds its own extractor, store and
 // database and is safe from any thread; its timings only mean something on an
-// otherwise idle machine.
+// otherwise idle machine. A PlaceRecallProbe is used from one thread.
 #include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
 
 #include "lshloc/appearance/feature_extractor.hpp"
+#include "lshloc/appearance/location_store.hpp"
 #include "lshloc/appearance/lsh_database.hpp"
 #include "lshloc/eval/appearance.hpp"
 #include "lshloc/eval/scenario.hpp"
@@ -55,5 +59,44 @@ struct PlaceRecallResult {
 /// ground truth (placed at its true pose; descriptor context from earlier
 /// target scans placed by odometry relative to it) and scores the answers.
 PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRecallConfig& config);
+
+/// A target feature placed at its true pose in `submap`: a recall query.
+struct RecallQuery {
+  std::uint32_t submap = 0;
+  Feature feature;
+};
+
+/// Recall@k of a map that grows one submap at a time, for a sample of
+/// queries, without keeping the map's descriptors: each batch of map features
+/// updates every query's exact k nearest (brute force) and whether its place
+/// is covered; the database is asked at the end. A hit lies in the query's
+/// submap within match_distance and match_angle_deg of its true pose; recalls
+/// are over covered queries, as in evaluate_place_recall().
+class PlaceRecallProbe {
+ public:
+  PlaceRecallProbe(std::vector<RecallQuery> queries, const PlaceRecallConfig& config);
+  /// Map features as the map adds them (poses in `submap`'s frame).
+  void add_map_features(std::uint32_t submap, std::span<const Feature> features);
+
+  struct Result {
+    std::size_t queries = 0, covered = 0;
+    double lsh_recall_at_k = 0.0;    ///< the database's first k locations
+    double exact_recall_at_k = 0.0;  ///< the exact k nearest descriptors (L2)
+  };
+  /// Asks `database` (whose ids index `store`) for each query's k locations.
+  Result finish(const LshDatabase& database, const LocationStore& store) const;
+
+ private:
+  struct Neighbour {
+    float distance2;
+    MapLocation location;
+  };
+  bool hit(const RecallQuery& q, const MapLocation& l) const;
+
+  std::vector<RecallQuery> queries_;
+  PlaceRecallConfig config_;
+  std::vector<char> covered_;
+  std::vector<std::vector<Neighbour>> nearest_;  ///< per query, at most k, unordered
+};
 
 }  // namespace lshloc

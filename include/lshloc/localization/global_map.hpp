@@ -102,9 +102,11 @@ class GlobalMap {
   };
 
   /// Adds one mapper scan to `submap`; `laser_pose` is the scan's laser pose
-  /// in the submap's frame. Returns the number of features it added.
+  /// in the submap's frame. Returns the number of features it added; with
+  /// `added`, also appends them there (for evaluations that need the
+  /// descriptors, which the map itself does not keep).
   std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
-                       ScanGrids grids = ScanGrids::kMark);
+                       ScanGrids grids = ScanGrids::kMark, std::vector<Feature>* added = nullptr);
 
   // --- The grid marks add_scan() makes, one point at a time (for maps whose
   // surface and free space come from elsewhere, e.g. an occupancy grid).
