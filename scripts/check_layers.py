@@ -21,6 +21,7 @@ ALLOWED = {
     "figures": {"common", "geometry"},
     "eval": {"common", "geometry", "appearance", "matching", "slam", "localization", "io"},
     "sim": {"common", "geometry", "appearance", "matching", "slam", "localization", "io", "eval"},
+    "fleet": {"common", "geometry", "appearance", "matching", "slam", "localization", "io"},
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"lshloc/([a-z_]+)/[^"]+"')
 

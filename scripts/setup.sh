@@ -4,7 +4,8 @@
 set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev
           libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev libyaml-dev python3 clang-format
-          pybind11-dev python3-dev python3-numpy python3-pytest clang libclang-rt-14-dev ninja-build)
+          pybind11-dev python3-dev python3-numpy python3-pytest clang libclang-rt-14-dev ninja-build
+          redis-server libhiredis-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

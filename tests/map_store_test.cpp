@@ -41,24 +41,6 @@ std::unique_ptr<GlobalMap> map_of_first(std::size_t scans) {
   return map;
 }
 
-/// The snapshot without the build's CPU times (the only part two builds of
-/// one map may differ in).
-std::vector<MapSection> contents(const GlobalMap& map) {
-  std::vector<MapSection> out = map.snapshot();
-  for (MapSection& s : out)
-    if (s.name == "counters") s.bytes.resize(s.bytes.size() - 24);  // three f64 times at the end
-  return out;
-}
-
-void expect_same_contents(const GlobalMap& a, const GlobalMap& b) {
-  const auto sa = contents(a), sb = contents(b);
-  ASSERT_EQ(sa.size(), sb.size());
-  for (std::size_t i = 0; i < sa.size(); ++i) {
-    EXPECT_EQ(sa[i].name, sb[i].name);
-    EXPECT_TRUE(sa[i].bytes == sb[i].bytes) << "section " << sa[i].name << " differs";
-  }
-}
-
 std::vector<MapSectionView> views(const std::vector<MapSection>& sections) {
   std::vector<MapSectionView> out;
   for (const MapSection& s : sections) out.push_back({s.name, s.bytes});
@@ -123,8 +105,8 @@ TEST(MapSnapshot, ARestoredMapGrowsExactlyAsTheOriginal) {
   auto restored = GlobalMap::from_snapshot(original->config(), views(sections), "test");
   feed(*original, world(), 300, 600);
   feed(*restored, world(), 300, 600);
-  expect_same_contents(*original, *restored);
-  expect_same_contents(*map_of_first(600), *restored);
+  test::expect_same_map_contents(*original, *restored);
+  test::expect_same_map_contents(*map_of_first(600), *restored);
 }
 
 TEST(MapSnapshot, RejectsInconsistentSections) {
@@ -160,7 +142,7 @@ TEST(MapStore, SaveAndLoadGiveTheSameMapAndEstimates) {
   EXPECT_EQ(loaded.info.format_version, io::kMapFormatVersion);
   EXPECT_EQ(loaded.info.meta.at("made_by"), "test");
   EXPECT_EQ(loaded.info.journal_scans, 0u);
-  expect_same_contents(*map, *loaded.map);
+  test::expect_same_map_contents(*map, *loaded.map);
   expect_same_estimates(localize(*map), localize(*loaded.map));
   // Saving the loaded map writes the same bytes.
   const std::string again = test::temp_path(".map");
@@ -190,7 +172,7 @@ TEST(MapStore, AppendedScansAreReplayedToTheSameMap) {
   const std::uint32_t extra = expected->add_submap("extra building");
   for (std::size_t i = 0; i < 50; ++i)
     expected->add_scan(extra, world().submaps[0].scans[i], world().submaps[0].scans[i].pose);
-  expect_same_contents(*expected, *loaded.map);
+  test::expect_same_map_contents(*expected, *loaded.map);
 
   // Compaction folds the journal into the snapshot: same map, no journal.
   {
@@ -199,7 +181,7 @@ TEST(MapStore, AppendedScansAreReplayedToTheSameMap) {
   }
   const io::LoadedMap compacted = io::load_map(path);
   EXPECT_EQ(compacted.info.journal_bytes, 0u);
-  expect_same_contents(*expected, *compacted.map);
+  test::expect_same_map_contents(*expected, *compacted.map);
 }
 
 TEST(MapStore, ATornLastRecordIsDroppedWithAWarningAndCutOffOnAppend) {
@@ -230,7 +212,7 @@ TEST(MapStore, ATornLastRecordIsDroppedWithAWarningAndCutOffOnAppend) {
   auto expected = map_of_first(100);
   for (std::size_t i = 100; i < 110; ++i)
     expected->add_scan(0, world().submaps[0].scans[i], world().submaps[0].scans[i].pose);
-  expect_same_contents(*expected, *repaired.map);
+  test::expect_same_map_contents(*expected, *repaired.map);
 }
 
 TEST(MapStore, AFailedAppendLeavesTheFileAsItWasAcknowledged) {
@@ -248,7 +230,7 @@ TEST(MapStore, AFailedAppendLeavesTheFileAsItWasAcknowledged) {
   EXPECT_EQ(loaded.info.journal_scans, 1u);
   auto expected = map_of_first(50);
   expected->add_scan(0, world().submaps[0].scans[50], world().submaps[0].scans[50].pose);
-  expect_same_contents(*expected, *loaded.map);
+  test::expect_same_map_contents(*expected, *loaded.map);
 }
 
 TEST(MapStore, ASecondWriterIsRefused) {

@@ -48,4 +48,20 @@ void write_file(const std::string& path, const std::string& text) {
   }
 }
 
+std::vector<MapSection> map_contents(const GlobalMap& map) {
+  std::vector<MapSection> out = map.snapshot();
+  for (MapSection& s : out)
+    if (s.name == "counters") s.bytes.resize(s.bytes.size() - 24);  // three f64 times at the end
+  return out;
+}
+
+void expect_same_map_contents(const GlobalMap& a, const GlobalMap& b) {
+  const auto sa = map_contents(a), sb = map_contents(b);
+  ASSERT_EQ(sa.size(), sb.size());
+  for (std::size_t i = 0; i < sa.size(); ++i) {
+    EXPECT_EQ(sa[i].name, sb[i].name);
+    EXPECT_TRUE(sa[i].bytes == sb[i].bytes) << "section " << sa[i].name << " differs";
+  }
+}
+
 }  // namespace lshloc::test

@@ -3,6 +3,9 @@
 #include <optional>
 #include <string>
 
+#include <vector>
+
+#include "lshloc/localization/global_map.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 
 namespace lshloc::test {
@@ -13,6 +16,12 @@ inline constexpr double kDeg = kPi / 180.0;
 /// The shared data directory if it exists ($LSHLOC_DATA, else ../shared/data
 /// beside the source tree), or nullopt: tests that need real logs skip then.
 std::optional<std::string> data_dir();
+
+/// A map's snapshot without the build's CPU times (the only part two builds
+/// of one map may differ in).
+std::vector<MapSection> map_contents(const GlobalMap& map);
+/// Expects two maps to hold the same contents, section by section.
+void expect_same_map_contents(const GlobalMap& a, const GlobalMap& b);
 
 /// A fresh temporary file path with the given suffix (removed at exit is not
 /// guaranteed; files are small).

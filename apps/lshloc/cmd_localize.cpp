@@ -16,6 +16,7 @@
 #include <map>
 #include <numbers>
 #include <set>
+#include <shared_mutex>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -23,6 +24,7 @@
 #include "commands.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/fleet/map_follower.hpp"
 #include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/figures/figures.hpp"
@@ -40,7 +42,8 @@ namespace {
 struct LocalizeOptions {
   std::vector<std::string> maps;
   std::vector<std::string> targets;
-  std::size_t threads = 0;  ///< localizer threads with several targets (0: one per target, up to the cores)
+  std::size_t threads = 0;            ///< localizer threads with several targets (0: one per target, up to the cores)
+  std::string map_prefix = "lshloc";  ///< key prefix of a fleet's map on Redis
   std::string out;
   std::string plot_dir;
   bool json = false;
@@ -175,7 +178,8 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
 /// The target from stdin ("-"): each scan is localized as it arrives and its
 /// estimate printed at once (a CSV row, or a JSON line with --json); the
 /// answer follows on stderr at the end of the stream.
-void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const LocalizeOptions& opt) {
+void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const LocalizeOptions& opt,
+                     std::shared_mutex* map_mutex) {
   io::CarmenReader reader("-");
   io::CarmenLog params;  // the PARAM lines seen before the first scan (the laser offset)
   std::unique_ptr<Localizer> localizer;
@@ -189,7 +193,12 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
     if (rec.type != io::CarmenRecord::Type::kLaser || index++ < opt.start) continue;
     if (!localizer)
       localizer = std::make_unique<Localizer>(map, with_target_laser_offset(config, params.front_laser_offset()));
-    const LocalizationEstimate e = localizer->add_scan(rec.scan);
+    LocalizationEstimate e;
+    {
+      std::shared_lock<std::shared_mutex> lock;
+      if (map_mutex) lock = std::shared_lock(*map_mutex);
+      e = localizer->add_scan(rec.scan);
+    }
     const std::string submap = e.has_estimate ? map.submap_name(e.submap) : "";
     if (opt.json) {
       nlohmann::json j = {{"scan", done},
@@ -284,7 +293,8 @@ std::size_t localizer_threads(std::size_t asked, std::size_t targets) {
 /// Localizes every target against the one map, on `threads` threads (each
 /// takes the next target; the map is only read). Progress on a terminal.
 std::vector<ScenarioRun> localize_targets(const GlobalMap& map, const std::vector<TargetRun>& targets,
-                                          const LocalizerConfig& config, std::size_t threads) {
+                                          const LocalizerConfig& config, std::size_t threads,
+                                          std::shared_mutex* map_mutex) {
   const bool tty = isatty(fileno(stderr));
   std::size_t total = 0;
   for (const auto& t : targets) total += t.scans.size();
@@ -294,11 +304,14 @@ std::vector<ScenarioRun> localize_targets(const GlobalMap& map, const std::vecto
   auto work = [&] {
     for (std::size_t k; (k = next++) < targets.size();) {
       try {
-        runs[k] = localize_target(map, targets[k], config, [&](std::size_t, std::size_t) {
-          const std::size_t d = ++done;
-          if (tty && (d % 25 == 0 || d == total))
-            std::fprintf(stderr, "\rlocalizing: scan %zu/%zu%s", d, total, d == total ? "\n" : "");
-        });
+        runs[k] = localize_target(
+            map, targets[k], config,
+            [&](std::size_t, std::size_t) {
+              const std::size_t d = ++done;
+              if (tty && (d % 25 == 0 || d == total))
+                std::fprintf(stderr, "\rlocalizing: scan %zu/%zu%s", d, total, d == total ? "\n" : "");
+            },
+            {}, {}, map_mutex);
       } catch (...) {
         errors[k] = std::current_exception();
       }
@@ -370,13 +383,16 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "in T.tum.<submap>.tum).");
   cmd->add_option("--map", opt->maps,
                   "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "
-                  "repeat for several submaps")
+                  "repeat for several submaps; or a fleet's live map on Redis, redis://HOST[:PORT], followed while "
+                  "the targets localize")
       ->required();
   cmd->add_option("--target", opt->targets,
                   "the target robot's raw log (odometry + scans); repeat to localize several robots at once, each on "
                   "its own thread against the one map; - reads a plain-text log from stdin and prints each scan's "
                   "estimate as it arrives")
       ->required();
+  cmd->add_option("--map-prefix", opt->map_prefix, "key prefix of the fleet's map on Redis (--map redis://...)")
+      ->capture_default_str();
   cmd->add_option("--threads", opt->threads,
                   "localizer threads for several targets (0: one per target, at most the machine's cores)")
       ->capture_default_str()
@@ -430,7 +446,21 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     const auto t0 = std::chrono::steady_clock::now();
     std::unique_ptr<GlobalMap> map;
     std::vector<std::string> built;
+    // A fleet's map on Redis: its history now, what mappers add while the targets localize.
+    std::unique_ptr<fleet::MapFollower> follower;
+    std::shared_mutex map_mutex;
     for (const auto& m : opt->maps) {
+      if (!m.starts_with("redis://")) continue;
+      if (opt->maps.size() > 1)
+        throw Error("--map " + m + ": a fleet's map on Redis is the whole map; give no other --map");
+      follower = std::make_unique<fleet::MapFollower>(fleet::RedisAddress::parse(m),
+                                                      fleet::MapFollowerConfig{.log = {.prefix = opt->map_prefix}});
+      adopt_map_settings(follower->settings(), config, m);
+      map = std::make_unique<GlobalMap>(config.map);
+      follower->catch_up(*map);
+    }
+    for (const auto& m : opt->maps) {
+      if (follower) break;
       const bool saved = !is_grid_argument(m) && (io::looks_like_map_file(m) || m.ends_with(".map"));
       if (saved && map) throw Error(m + ": only one saved map can be given (" + opt->maps.front() + " was another)");
       if (saved) {
@@ -449,18 +479,33 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
                   " scans): nothing to localize against; expected map scans that see walls within " +
                   std::to_string(config.map.features.keypoint_max_range) + " m");
 
+    if (follower) follower->start(*map, map_mutex);
+    std::shared_mutex* shared = follower ? &map_mutex : nullptr;
     if (stream) {
-      localize_stream(*map, config.localizer, *opt);
+      localize_stream(*map, config.localizer, *opt, shared);
       return;
     }
     const auto t_localize = std::chrono::steady_clock::now();
-    std::vector<ScenarioRun> runs = localize_targets(*map, targets, config.localizer, opt->threads);
+    std::vector<ScenarioRun> runs = localize_targets(*map, targets, config.localizer, opt->threads, shared);
+    std::optional<fleet::MapFollowerStats> followed;
+    if (follower) {
+      follower->stop();
+      followed = follower->stats();
+      if (!followed->last_error.empty())
+        std::fprintf(stderr, "lshloc: warning: %s: the map log was interrupted (%zu reconnects); last: %s\n",
+                     opt->maps[0].c_str(), followed->reconnects, followed->last_error.c_str());
+    }
     const double wall_s = seconds_since(t_localize);
     for (std::size_t k = 0; k < targets.size(); ++k) {
       runs[k].map_build_s = map_s;
       if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
       if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, paths[k], *map, sources, runs[k]);
-      const nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
+      nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
+      if (followed)
+        j["map_log"] = {{"history_updates", followed->history_updates},
+                        {"live_updates", followed->live_updates},
+                        {"duplicates", followed->duplicates},
+                        {"reconnects", followed->reconnects}};
       if (opt->json) {
         std::printf("%s\n", j.dump().c_str());
       } else {

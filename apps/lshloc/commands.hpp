@@ -29,6 +29,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global);
 void add_slam_command(CLI::App& app, GlobalOptions& global);
 void add_simulate_command(CLI::App& app, GlobalOptions& global);
 void add_map_command(CLI::App& app, GlobalOptions& global);
+void add_mapper_command(CLI::App& app, GlobalOptions& global);
 
 // `bench` is a group: each add_bench_<name>_command adds `bench <name>` to it.
 void add_bench_matching_command(CLI::App& bench, GlobalOptions& global);

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   lshloc::app::add_eval_command(app, global);
   lshloc::app::add_localize_command(app, global);
   lshloc::app::add_map_command(app, global);
+  lshloc::app::add_mapper_command(app, global);
   lshloc::app::add_slam_command(app, global);
   lshloc::app::add_simulate_command(app, global);
   auto* bench = app.add_subcommand("bench", "Benchmarks that print their figures as JSON (see `bench --help`)");

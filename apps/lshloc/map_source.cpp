@@ -104,19 +104,22 @@ Submap load_map_argument(const std::string& arg, bool slam) {
   return s;
 }
 
-io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config) {
-  io::LoadedMap loaded = io::load_map(path);
-  print_warnings(loaded.warnings);
-  const GlobalMapConfig& built = loaded.map->config();
+void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config, const std::string& source) {
   // The map's settings decide; a --config that asks for others is a mistake.
   const nlohmann::json asked = config.map, theirs = built, defaults = GlobalMapConfig{};
   if (asked != theirs && asked != defaults) {
-    throw Error(path + ": the map was built with other map settings than --config asks for (" +
+    throw Error(source + ": the map was built with other map settings than --config asks for (" +
                 nlohmann::json::diff(theirs, asked).dump() + "); leave the map's settings out of --config");
   }
   config.map = built;
   config.localizer.features = built.features;
-  io::require_localizer_fits_map(config.localizer, built, path);
+  io::require_localizer_fits_map(config.localizer, built, source);
+}
+
+io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config) {
+  io::LoadedMap loaded = io::load_map(path);
+  print_warnings(loaded.warnings);
+  adopt_map_settings(loaded.map->config(), config, path);
   return loaded;
 }
 

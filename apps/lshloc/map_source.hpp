@@ -31,6 +31,10 @@ Submap load_map_argument(const std::string& arg, bool slam);
 /// other than the map's or the localizer cannot use the map.
 io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config);
 
+/// Takes a map's settings (from a file or a fleet's registry, named by
+/// `source`) into `config`, the same checks as open_saved_map.
+void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config, const std::string& source);
+
 /// Command-line settings of submaps built from occupancy grids (a ROS map
 /// YAML given where a map log goes). The virtual laser is the target's
 /// unless given here.

@@ -19,6 +19,7 @@
 #include "lshloc/common/huge_page_allocator.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/config_json.hpp"
+#include "lshloc/io/scan_record.hpp"
 
 namespace lshloc::io {
 
@@ -148,11 +149,7 @@ std::vector<std::uint8_t> encode_scan(std::uint32_t submap, const LaserScan& sca
   ByteWriter w;
   w.u8(kScanRecord);
   w.varint(submap);
-  for (const double v : {laser_pose.x, laser_pose.y, laser_pose.theta, scan.timestamp, scan.angle_min,
-                         scan.angle_increment, scan.max_range})
-    w.f64(v);
-  w.varint(scan.ranges.size());
-  for (const float r : scan.ranges) w.f32(r);
+  write_scan_update(w, scan, laser_pose);
   return w.take();
 }
 
@@ -333,17 +330,9 @@ void replay(GlobalMap& map, std::span<const std::uint8_t> payload, const std::st
     if (submap >= map.submap_count())
       in.fail("a submap id below " + std::to_string(map.submap_count()) + ", got " + std::to_string(submap));
     LaserScan scan;
-    Pose2 pose;
-    pose.x = in.f64(), pose.y = in.f64(), pose.theta = in.f64();
-    scan.timestamp = in.f64(), scan.angle_min = in.f64(), scan.angle_increment = in.f64(), scan.max_range = in.f64();
-    for (const double v : {pose.x, pose.y, pose.theta, scan.angle_min, scan.angle_increment})
-      if (!std::isfinite(v)) in.fail("finite pose and beam geometry");
-    if (std::isnan(scan.max_range)) in.fail("a maximum range that is a number");
-    scan.ranges.resize(static_cast<std::size_t>(in.varint_at_most(in.remaining() / 4, "a beam count")));
-    for (float& r : scan.ranges) r = in.f32();
-    scan.pose = pose;
+    read_scan_update(in, scan);
     in.expect_done();
-    map.add_scan(submap, scan, pose);
+    map.add_scan(submap, scan, scan.pose);
     ++info.journal_scans;
   } else {
     in.fail("a record kind of 1 (submap) or 2 (scan), got " + std::to_string(kind));

@@ -1,0 +1,69 @@
+#pragma once
+// Keeps a localizer's in-memory global map up to date with the fleet's map
+// log (docs/fleet.md): catch_up() applies the history, then a thread of its
+// own follows every submap's stream and applies what arrives, holding the
+// map's lock exclusively for each batch (the live map's concurrent path:
+// localizers hold it shared for each target scan, eval/scenario_runner.hpp).
+// Times [s].
+// Thread safety: construct, catch_up(), start() and stop() from one thread;
+// stats() from any thread.
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <shared_mutex>
+#include <string>
+#include <thread>
+
+#include "lshloc/fleet/map_log.hpp"
+
+namespace lshloc::fleet {
+
+struct MapFollowerConfig {
+  MapLogConfig log;
+  double block_s = 0.2;    ///< [s] how long one read waits for new updates (also how soon stop() returns)
+  double retry_s = 0.5;    ///< [s] between reconnect attempts after the server went away
+  double timeout_s = 5.0;  ///< [s] of one command beyond its wait
+};
+
+struct MapFollowerStats {
+  std::size_t history_updates = 0;  ///< applied by catch_up()
+  std::size_t live_updates = 0;     ///< applied by the following thread
+  std::size_t duplicates = 0;
+  std::size_t reconnects = 0;
+  std::string last_error;  ///< the last failure the thread recovered from (empty: none)
+};
+
+class MapFollower {
+ public:
+  /// Connects and reads the map's settings (MapLogReader::settings()).
+  MapFollower(RedisAddress address, MapFollowerConfig config = {});
+  ~MapFollower();
+
+  /// The map's settings: build the GlobalMap with them.
+  const GlobalMapConfig& settings() const { return settings_; }
+
+  /// Applies every update already in the log to `map` (no lock: before any
+  /// localizer reads it). Returns the updates applied.
+  std::size_t catch_up(GlobalMap& map);
+  /// Follows the log on a thread of its own until stop(): each batch is
+  /// applied under `mutex` held exclusively. A lost server is retried every
+  /// retry_s; positions are kept, so nothing is applied twice or skipped.
+  void start(GlobalMap& map, std::shared_mutex& mutex);
+  /// Stops the thread (within about block_s) and applies nothing more.
+  void stop();
+
+  MapFollowerStats stats() const;
+
+ private:
+  void follow(GlobalMap& map, std::shared_mutex& mutex);
+  MapFollowerConfig config_;
+  RedisConnection redis_;
+  MapLogReader reader_;
+  GlobalMapConfig settings_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+  mutable std::mutex stats_mutex_;
+  MapFollowerStats stats_;
+};
+
+}  // namespace lshloc::fleet

@@ -1,0 +1,124 @@
+#pragma once
+// The fleet's map log on Redis (docs/fleet.md): each submap's mapper updates
+// are one Redis Stream, and a registry hash holds the map's settings and its
+// submaps. Mapper robots append (MapLogWriter); localizers follow every
+// stream, history first, then what arrives (MapLogReader), and feed their own
+// in-memory GlobalMap with it.
+// Poses [m, rad], times [s].
+// Thread safety: writers and readers are one thread's objects, each over its
+// own RedisConnection; any number of them, in any processes, share a server.
+#include <cstdint>
+#include <map>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "lshloc/fleet/redis_connection.hpp"
+#include "lshloc/geometry/laser_scan.hpp"
+#include "lshloc/localization/global_map.hpp"
+
+namespace lshloc::fleet {
+
+/// Key names: "<prefix>:registry" (a hash) and "<prefix>:{<submap>}:log" (a
+/// stream per submap; the braces are Redis Cluster's hash tag, so each
+/// submap's stream lands on one node and submaps spread over the nodes).
+struct MapLogConfig {
+  std::string prefix = "lshloc";
+  std::size_t batch = 256;  ///< updates per pipelined round trip (writer) or per stream read (reader)
+
+  std::string registry_key() const { return prefix + ":registry"; }
+  std::string stream_key(std::string_view submap) const;
+};
+
+/// One mapper update: a scan of `submap` (scan.pose its laser pose in the
+/// submap's frame) with the submap's sequence number (0, 1, ...).
+struct MapUpdate {
+  std::string submap;
+  std::uint64_t seq = 0;
+  LaserScan scan;
+};
+
+/// A stream entry's record: version (u8, 1), sequence number (u64), the scan
+/// update (io/scan_record.hpp) and a CRC-32 of everything before it.
+std::string encode_update(std::uint64_t seq, const LaserScan& scan);
+/// Decodes a record into `out` (its submap is left as it is); throws
+/// lshloc::Error naming `where` on a bad checksum, version or structure.
+void decode_update(std::string_view record, const std::string& where, MapUpdate& out);
+
+/// A mapper robot's end of one submap's stream.
+class MapLogWriter {
+ public:
+  /// Registers the submap (name: 1..200 characters, no braces) and, for the
+  /// map's first writer, the map's settings; a writer whose settings differ
+  /// from the registered ones is refused (lshloc::Error saying which). Sequence
+  /// numbers continue after the stream's last entry, so a restarted mapper
+  /// resumes its submap.
+  MapLogWriter(RedisConnection& redis, std::string submap, const GlobalMapConfig& settings, MapLogConfig config = {});
+
+  /// Appends the scans (scan.pose: laser pose in the submap's frame) in
+  /// pipelined batches; when it returns, Redis has acknowledged every one.
+  void publish(std::span<const LaserScan> scans);
+  std::uint64_t next_seq() const { return next_seq_; }
+  const std::string& submap() const { return submap_; }
+
+ private:
+  RedisConnection& redis_;
+  std::string submap_;
+  MapLogConfig config_;
+  std::string key_;
+  std::uint64_t next_seq_ = 0;
+};
+
+/// What a reader has seen.
+struct MapLogReaderStats {
+  std::size_t updates = 0;     ///< updates returned (each once)
+  std::size_t duplicates = 0;  ///< entries skipped because their sequence number was already seen
+  std::size_t submaps = 0;     ///< submaps known from the registry
+};
+
+/// A localizer's follower of every submap's stream.
+class MapLogReader {
+ public:
+  explicit MapLogReader(RedisConnection& redis, MapLogConfig config = {});
+
+  /// The map's settings from the registry; throws lshloc::Error when no
+  /// mapper has registered any (an empty or wrong server / prefix).
+  GlobalMapConfig settings();
+
+  /// The updates that arrived since the last poll, each stream's in order
+  /// (submaps in their registration order). When there are none, waits up to
+  /// `block_s` for new ones (0: no wait). A gap in a stream's sequence
+  /// numbers throws lshloc::Error naming the submap and the numbers (an
+  /// update was lost); an entry whose number was seen is skipped as a
+  /// duplicate.
+  std::vector<MapUpdate> poll(double block_s = 0.0);
+
+  /// Reads again from the server after a reconnect: positions are kept, so
+  /// nothing is read twice nor missed.
+  void reconnect() { redis_.reconnect(); }
+
+  /// Submaps in registration order.
+  const std::vector<std::string>& submaps() const { return order_; }
+  const MapLogReaderStats& stats() const { return stats_; }
+
+ private:
+  void refresh_registry();
+  struct Position {
+    std::string last_id = "0-0";  ///< the last stream entry read
+    std::uint64_t next_seq = 0;
+  };
+  RedisConnection& redis_;
+  MapLogConfig config_;
+  std::vector<std::string> order_;
+  std::map<std::string, Position> positions_;
+  MapLogReaderStats stats_;
+};
+
+/// Applies updates to `map`: first every submap of `submaps` (registration
+/// order, MapLogReader::submaps()) not in it yet is opened, so that submap ids
+/// follow registration whether or not a submap has scans yet; then each scan
+/// is added at its pose. Returns the scans added.
+std::size_t apply_updates(GlobalMap& map, std::span<const std::string> submaps, std::span<const MapUpdate> updates);
+
+}  // namespace lshloc::fleet

@@ -1,0 +1,74 @@
+#include "lshloc/fleet/map_follower.hpp"
+
+#include <chrono>
+
+#include "lshloc/common/error.hpp"
+
+namespace lshloc::fleet {
+
+MapFollower::MapFollower(RedisAddress address, MapFollowerConfig config)
+    : config_(std::move(config)),
+      redis_(std::move(address), config_.timeout_s),
+      reader_(redis_, config_.log),
+      settings_(reader_.settings()) {}
+
+MapFollower::~MapFollower() { stop(); }
+
+std::size_t MapFollower::catch_up(GlobalMap& map) {
+  std::size_t n = 0;
+  for (auto updates = reader_.poll(); !updates.empty(); updates = reader_.poll())
+    n += apply_updates(map, reader_.submaps(), updates);
+  apply_updates(map, reader_.submaps(), {});  // submaps registered without scans yet
+  std::lock_guard lock(stats_mutex_);
+  stats_.history_updates += n;
+  stats_.duplicates = reader_.stats().duplicates;
+  return n;
+}
+
+void MapFollower::start(GlobalMap& map, std::shared_mutex& mutex) {
+  stop();
+  stop_ = false;
+  thread_ = std::thread([this, &map, &mutex] { follow(map, mutex); });
+}
+
+void MapFollower::stop() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+MapFollowerStats MapFollower::stats() const {
+  std::lock_guard lock(stats_mutex_);
+  return stats_;
+}
+
+void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
+  bool connected = true;
+  while (!stop_) {
+    try {
+      if (!connected) {
+        reader_.reconnect();
+        connected = true;
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.reconnects;
+      }
+      const std::vector<MapUpdate> updates = reader_.poll(config_.block_s);
+      if (updates.empty()) continue;
+      {
+        std::unique_lock lock(mutex);
+        apply_updates(map, reader_.submaps(), updates);
+      }
+      std::lock_guard lock(stats_mutex_);
+      stats_.live_updates += updates.size();
+      stats_.duplicates = reader_.stats().duplicates;
+    } catch (const Error& e) {
+      {
+        std::lock_guard lock(stats_mutex_);
+        stats_.last_error = e.what();
+      }
+      connected = false;
+      std::this_thread::sleep_for(std::chrono::duration<double>(config_.retry_s));
+    }
+  }
+}
+
+}  // namespace lshloc::fleet

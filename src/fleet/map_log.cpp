@@ -1,0 +1,230 @@
+#include "lshloc/fleet/map_log.hpp"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "lshloc/common/byte_codec.hpp"
+#include "lshloc/common/error.hpp"
+#include "lshloc/io/config_json.hpp"
+#include "lshloc/io/scan_record.hpp"
+
+namespace lshloc::fleet {
+
+namespace {
+
+constexpr std::uint8_t kRecordVersion = 1;
+constexpr std::string_view kSettingsField = "settings";
+constexpr std::string_view kSubmapCountField = "submap_count";
+constexpr std::string_view kSubmapFieldPrefix = "submap:";
+
+std::uint32_t crc_of(std::string_view bytes) {
+  return static_cast<std::uint32_t>(
+      crc32_z(crc32_z(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(bytes.data()), bytes.size()));
+}
+
+std::uint64_t parse_u64(std::string_view text, const std::string& what) {
+  std::uint64_t v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size())
+    throw Error(what + ": expected a non-negative integer, got '" + std::string(text) + "'");
+  return v;
+}
+
+/// The value of `field` in a stream entry's [field, value, ...] list, or null.
+const std::string* field_of(const Reply& fields, std::string_view field) {
+  for (std::size_t i = 0; i + 1 < fields.elements.size(); i += 2)
+    if (fields.elements[i].text == field) return &fields.elements[i + 1].text;
+  return nullptr;
+}
+
+}  // namespace
+
+std::string MapLogConfig::stream_key(std::string_view submap) const {
+  return prefix + ":{" + std::string(submap) + "}:log";
+}
+
+std::string encode_update(std::uint64_t seq, const LaserScan& scan) {
+  ByteWriter w;
+  w.reserve(1 + 8 + 7 * 8 + 10 + 4 * scan.ranges.size() + 4);
+  w.u8(kRecordVersion);
+  w.u64(seq);
+  io::write_scan_update(w, scan, scan.pose);
+  const auto& body = w.bytes();
+  w.u32(crc_of(std::string_view(reinterpret_cast<const char*>(body.data()), body.size())));
+  const auto& all = w.bytes();
+  return {reinterpret_cast<const char*>(all.data()), all.size()};
+}
+
+void decode_update(std::string_view record, const std::string& where, MapUpdate& out) {
+  if (record.size() < 1 + 8 + 4)
+    throw Error(where + ": a map log record of at least 13 bytes, got " + std::to_string(record.size()));
+  const std::string_view body = record.substr(0, record.size() - 4);
+  ByteReader tail(std::span(reinterpret_cast<const std::uint8_t*>(record.data()) + body.size(), 4), where);
+  if (tail.u32() != crc_of(body)) throw Error(where + ": checksum mismatch; the record is damaged");
+  ByteReader in(std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size()), where);
+  const std::uint8_t version = in.u8();
+  if (version != kRecordVersion)
+    in.fail("record version " + std::to_string(kRecordVersion) + ", got " + std::to_string(version));
+  out.seq = in.u64();
+  io::read_scan_update(in, out.scan);
+  in.expect_done();
+}
+
+// --- Writer ---
+
+MapLogWriter::MapLogWriter(RedisConnection& redis, std::string submap, const GlobalMapConfig& settings,
+                           MapLogConfig config)
+    : redis_(redis), submap_(std::move(submap)), config_(std::move(config)), key_(config_.stream_key(submap_)) {
+  if (submap_.empty() || submap_.size() > 200 || submap_.find_first_of("{}") != std::string::npos)
+    throw Error("submap name '" + submap_ + "': expected 1..200 characters without { or }");
+  const std::string registry = config_.registry_key();
+  const std::string mine = nlohmann::json(settings).dump();
+  redis_.command({"HSETNX", registry, kSettingsField, mine});
+  const Reply theirs = redis_.command({"HGET", registry, kSettingsField});
+  if (theirs.text != mine) {
+    const nlohmann::json a = nlohmann::json::parse(theirs.text, nullptr, false), b = nlohmann::json::parse(mine);
+    std::string differs = "?";
+    if (a.is_object())
+      for (const auto& [k, v] : b.items())
+        if (!a.contains(k) || a[k] != v) {
+          differs = k;
+          break;
+        }
+    throw Error(redis_.address().url() + " " + registry +
+                ": the map's registered settings differ from this "
+                "mapper's (first in '" +
+                differs + "'); a map takes one set of settings");
+  }
+  const std::string field = std::string(kSubmapFieldPrefix) + submap_;
+  if (redis_.command({"HGET", registry, field}).is_nil()) {
+    const Reply index = redis_.command({"HINCRBY", registry, kSubmapCountField, "1"});
+    redis_.command({"HSETNX", registry, field, std::to_string(index.integer)});
+  }
+  // Resume after the stream's last entry.
+  const Reply last = redis_.command({"XREVRANGE", key_, "+", "-", "COUNT", "1"});
+  if (!last.elements.empty()) {
+    const Reply& entry = last.elements[0];
+    const std::string* record = entry.elements.size() == 2 ? field_of(entry.elements[1], "rec") : nullptr;
+    if (!record) throw Error(redis_.address().url() + " " + key_ + ": its last entry has no rec field");
+    MapUpdate u;
+    decode_update(*record, redis_.address().url() + " " + key_ + " entry " + entry.elements[0].text, u);
+    next_seq_ = u.seq + 1;
+  }
+}
+
+void MapLogWriter::publish(std::span<const LaserScan> scans) {
+  std::vector<std::vector<std::string>> batch;
+  for (std::size_t i = 0; i < scans.size(); i += config_.batch) {
+    batch.clear();
+    const std::size_t end = std::min(scans.size(), i + config_.batch);
+    for (std::size_t k = i; k < end; ++k) {
+      const std::uint64_t seq = next_seq_ + (k - i);
+      batch.push_back({"XADD", key_, "*", "seq", std::to_string(seq), "rec", encode_update(seq, scans[k])});
+    }
+    redis_.pipeline(batch);
+    next_seq_ += end - i;
+  }
+}
+
+// --- Reader ---
+
+MapLogReader::MapLogReader(RedisConnection& redis, MapLogConfig config) : redis_(redis), config_(std::move(config)) {}
+
+GlobalMapConfig MapLogReader::settings() {
+  const std::string registry = config_.registry_key();
+  const Reply r = redis_.command({"HGET", registry, kSettingsField});
+  const std::string where = redis_.address().url() + " " + registry;
+  if (r.is_nil()) throw Error(where + ": no map settings registered (no mapper has published under this prefix)");
+  try {
+    GlobalMapConfig c = nlohmann::json::parse(r.text).get<GlobalMapConfig>();
+    c.validate();
+    return c;
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(where + ": settings this lshloc cannot use: " + e.what());
+  }
+}
+
+void MapLogReader::refresh_registry() {
+  const Reply all = redis_.command({"HGETALL", config_.registry_key()});
+  std::vector<std::pair<std::uint64_t, std::string>> found;
+  for (std::size_t i = 0; i + 1 < all.elements.size(); i += 2) {
+    const std::string& field = all.elements[i].text;
+    if (!field.starts_with(kSubmapFieldPrefix)) continue;
+    const std::string name = field.substr(kSubmapFieldPrefix.size());
+    if (positions_.contains(name)) continue;
+    found.emplace_back(parse_u64(all.elements[i + 1].text, config_.registry_key() + " field " + field), name);
+  }
+  std::sort(found.begin(), found.end());
+  for (auto& [index, name] : found) order_.push_back(name), positions_[name] = {};
+  stats_.submaps = order_.size();
+}
+
+std::vector<MapUpdate> MapLogReader::poll(double block_s) {
+  refresh_registry();
+  std::vector<MapUpdate> out;
+  if (order_.empty()) return out;
+  auto read = [&](bool block) {
+    std::vector<std::string> words = {"XREAD", "COUNT", std::to_string(config_.batch)};
+    if (block) words.insert(words.end(), {"BLOCK", std::to_string(std::max<long>(1, std::lround(block_s * 1e3)))});
+    words.push_back("STREAMS");
+    for (const auto& name : order_) words.push_back(config_.stream_key(name));
+    for (const auto& name : order_) words.push_back(positions_[name].last_id);
+    std::vector<std::string_view> args(words.begin(), words.end());
+    return redis_.command(args);
+  };
+  Reply r = read(false);
+  if (r.is_nil() && block_s > 0) r = read(true);
+  if (r.is_nil()) return out;
+  for (const Reply& stream : r.elements) {
+    if (stream.elements.size() != 2) continue;
+    const std::string& key = stream.elements[0].text;
+    const auto name_it =
+        std::find_if(order_.begin(), order_.end(), [&](const std::string& n) { return config_.stream_key(n) == key; });
+    if (name_it == order_.end()) continue;
+    Position& pos = positions_[*name_it];
+    for (const Reply& entry : stream.elements[1].elements) {
+      if (entry.elements.size() != 2) continue;
+      const std::string where = redis_.address().url() + " " + key + " entry " + entry.elements[0].text;
+      const std::string previous_id = pos.last_id;
+      pos.last_id = entry.elements[0].text;
+      const std::string* record = field_of(entry.elements[1], "rec");
+      if (!record) throw Error(where + ": expected a rec field");
+      MapUpdate u;
+      u.submap = *name_it;
+      decode_update(*record, where, u);
+      if (u.seq < pos.next_seq) {
+        ++stats_.duplicates;
+        continue;
+      }
+      if (u.seq > pos.next_seq) {
+        // Hand out what came before the gap first; the next poll reads the gap again and fails.
+        pos.last_id = previous_id;
+        if (!out.empty()) return out;
+        throw Error(where + ": sequence number " + std::to_string(u.seq) + " after " + std::to_string(pos.next_seq) +
+                    " was expected: updates of submap " + *name_it + " are missing");
+      }
+      ++pos.next_seq;
+      ++stats_.updates;
+      out.push_back(std::move(u));
+    }
+  }
+  return out;
+}
+
+std::size_t apply_updates(GlobalMap& map, std::span<const std::string> submaps, std::span<const MapUpdate> updates) {
+  for (const std::string& name : submaps)
+    if (!map.find_submap(name)) map.add_submap(name);
+  for (const MapUpdate& u : updates) {
+    const std::optional<std::uint32_t> found = map.find_submap(u.submap);
+    const std::uint32_t id = found ? *found : map.add_submap(u.submap);
+    map.add_scan(id, u.scan, u.scan.pose);
+  }
+  return updates.size();
+}
+
+}  // namespace lshloc::fleet

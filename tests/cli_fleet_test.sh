@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# A fleet on loopback, as a user runs it: the test's own redis-server on a
+# free port, two `lshloc mapper` processes publishing simulated buildings,
+# then `lshloc localize --map redis://...` must answer as the same logs given
+# as --map files (the same place within 5 cm and 1 degree: the map holds the
+# same scans, in another arrival order, so database ids differ; bit-identical
+# maps for the same order are tests/fleet_test.cpp's); and a localizer started while a mapper is still
+# publishing follows the map and localizes. Skips when redis-server is absent.
+# Usage: cli_fleet_test.sh LSHLOC
+set -euo pipefail
+LSHLOC=$1
+command -v redis-server >/dev/null || { echo "cli_fleet_test: redis-server not found (scripts/setup.sh installs it): skipped"; exit 0; }
+d=$(mktemp -d)
+port=$(python3 -c "import socket; s=socket.socket(); s.bind(('127.0.0.1', 0)); print(s.getsockname()[1]); s.close()")
+redis-server --port "$port" --bind 127.0.0.1 --save "" --appendonly no --dir "$d" --logfile redis.log &
+server=$!
+trap 'kill $server 2>/dev/null; wait $server 2>/dev/null; rm -rf "$d"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+url=redis://127.0.0.1:$port
+for _ in $(seq 50); do redis-cli -p "$port" ping >/dev/null 2>&1 && break; sleep 0.1; done
+
+"$LSHLOC" simulate --out "$d/sim" --buildings 2 --seed 3 --scans 600 >/dev/null
+a=$d/sim/sim-3-000/sim-3-000-corrected.log.gz b=$d/sim/sim-3-001/sim-3-001-corrected.log.gz
+target=(--target "$d/sim/sim-3-001/sim-3-001.log.gz" --start 300 --length 150 --json)
+
+"$LSHLOC" mapper --redis "$url" "$a" >"$d/ma.json" 2>/dev/null
+"$LSHLOC" mapper --redis "$url" "$b" >"$d/mb.json" 2>/dev/null
+"$LSHLOC" localize --map "$url" "${target[@]}" >"$d/fleet.json"
+"$LSHLOC" localize --map "$a" --map "$b" "${target[@]}" >"$d/files.json" 2>/dev/null
+python3 - "$d/ma.json" "$d/fleet.json" "$d/files.json" <<'PY' || fail "the fleet's map answers otherwise than the files"
+import json, sys
+m = json.load(open(sys.argv[1]))
+assert m["scans"] == 600 and m["first_seq"] == 0 and m["next_seq"] == 600, m
+f, g = json.load(open(sys.argv[2])), json.load(open(sys.argv[3]))
+assert f["map_log"]["history_updates"] == 1200 and f["map_log"]["duplicates"] == 0, f["map_log"]
+for k in ("localized", "final_submap", "map_features"):
+    assert f[k] == g[k], (k, f[k], g[k])
+import math
+(x, y, t), (u, v, w) = f["final_pose"], g["final_pose"]
+assert math.hypot(x - u, y - v) < 0.05 and abs(math.remainder(t - w, 2 * math.pi)) < math.radians(1), (f, g)
+assert f["localized"] and f["final_submap"] == "sim-3-001-corrected.log.gz"
+PY
+
+# A mapper restarted on its submap continues its sequence numbers.
+"$LSHLOC" mapper --redis "$url" --submap sim-3-000-corrected.log.gz "$a" >"$d/ma2.json" 2>/dev/null
+python3 -c "import json,sys; m=json.load(open(sys.argv[1])); assert m['first_seq']==600 and m['next_seq']==1200, m" \
+  "$d/ma2.json" || fail "a restarted mapper did not resume its sequence"
+
+# Live: building b is published at 400 scans/s while the target localizes.
+"$LSHLOC" mapper --redis "$url" --prefix live "$a" >/dev/null 2>&1
+"$LSHLOC" mapper --redis "$url" --prefix live --rate 400 "$b" >/dev/null 2>&1 &
+mapper=$!
+sleep 0.3
+"$LSHLOC" localize --map "$url" --map-prefix live "${target[@]}" >"$d/live.json"
+wait $mapper
+python3 - "$d/live.json" <<'PY' || fail "the localizer did not follow the live map"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["map_log"]["live_updates"] > 0, j["map_log"]
+assert j["localized"] and j["final_submap"] == "sim-3-001-corrected.log.gz", j
+PY
+
+# A wrong address names it.
+if "$LSHLOC" localize --map redis://127.0.0.1:1 "${target[@]}" >/dev/null 2>"$d/err"; then fail "a dead server was accepted"; fi
+grep -q "redis://127.0.0.1:1: cannot connect" "$d/err" || fail "dead server message: $(cat "$d/err")"
+echo "cli_fleet_test: passed"

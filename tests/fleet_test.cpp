@@ -1,0 +1,214 @@
+// The fleet's map log on Redis: records round-trip and refuse damage, a map
+// fed through a real redis-server (the test's own, on a loopback port) equals
+// the map built directly, duplicates are skipped and gaps refused, a
+// restarted mapper resumes its sequence, and other settings are refused.
+// Skips with a message when redis-server is not installed.
+#include <gtest/gtest.h>
+
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include "lshloc/common/error.hpp"
+#include "lshloc/fleet/map_log.hpp"
+#include "lshloc/sim/synthetic_scenario.hpp"
+#include "test_support.hpp"
+
+namespace lshloc {
+namespace {
+
+using fleet::MapLogConfig;
+using fleet::MapLogReader;
+using fleet::MapLogWriter;
+using fleet::RedisAddress;
+using fleet::RedisConnection;
+
+/// A redis-server of the test's own: a free loopback port, no persistence,
+/// a temporary directory; stopped (SIGTERM, then waited for) at destruction.
+class LocalRedis {
+ public:
+  LocalRedis() {
+    if (std::system("command -v redis-server >/dev/null 2>&1") != 0) return;
+    port_ = free_port();
+    dir_ = test::temp_path("-redis");
+    std::filesystem::create_directories(dir_);
+    pid_ = fork();
+    if (pid_ == 0) {
+      const std::string port = std::to_string(port_);
+      execlp("redis-server", "redis-server", "--port", port.c_str(), "--bind", "127.0.0.1", "--save", "",
+             "--appendonly", "no", "--dir", dir_.c_str(), "--logfile", "redis.log", static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    for (int i = 0; i < 100; ++i) {  // up to 5 s for the server to answer
+      try {
+        RedisConnection probe(address(), 1.0);
+        probe.command({"PING"});
+        running_ = true;
+        return;
+      } catch (const Error&) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
+    }
+  }
+  ~LocalRedis() {
+    if (pid_ > 0) {
+      kill(pid_, SIGTERM);
+      waitpid(pid_, nullptr, 0);
+    }
+    std::error_code ec;
+    if (!dir_.empty()) std::filesystem::remove_all(dir_, ec);
+  }
+  bool running() const { return running_; }
+  RedisAddress address() const { return {"127.0.0.1", port_}; }
+
+ private:
+  static int free_port() {
+    const int s = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    socklen_t n = sizeof a;
+    getsockname(s, reinterpret_cast<sockaddr*>(&a), &n);
+    close(s);
+    return ntohs(a.sin_port);
+  }
+  int port_ = 0;
+  pid_t pid_ = -1;
+  std::string dir_;
+  bool running_ = false;
+};
+
+#define LSHLOC_REQUIRE_REDIS(server)                          \
+  LocalRedis server;                                          \
+  if (!server.running())                                      \
+  GTEST_SKIP() << "redis-server not found or did not start: " \
+                  "scripts/setup.sh installs it"
+
+LaserScan scan_at(double x) {
+  LaserScan s;
+  s.timestamp = x;
+  s.angle_min = -1.5;
+  s.angle_increment = 0.01;
+  s.max_range = 30.0;
+  s.ranges.assign(301, static_cast<float>(2.0 + x));
+  s.pose = Pose2(x, 2.0 * x, 0.1);
+  return s;
+}
+
+TEST(FleetRecords, RoundTripAndRefuseDamage) {
+  const LaserScan s = scan_at(1.5);
+  const std::string rec = fleet::encode_update(42, s);
+  fleet::MapUpdate u;
+  fleet::decode_update(rec, "test", u);
+  EXPECT_EQ(u.seq, 42u);
+  EXPECT_EQ(u.scan.ranges, s.ranges);
+  EXPECT_EQ(u.scan.pose.x, s.pose.x);
+  EXPECT_EQ(u.scan.pose.theta, s.pose.theta);
+  EXPECT_EQ(u.scan.timestamp, s.timestamp);
+  for (std::size_t i = 0; i < rec.size(); i += 7) {
+    std::string bad = rec;
+    bad[i] = static_cast<char>(bad[i] ^ 0x10);
+    EXPECT_THROW(fleet::decode_update(bad, "test", u), Error) << "byte " << i;
+  }
+  EXPECT_THROW(fleet::decode_update(rec.substr(0, 10), "test", u), Error);
+}
+
+TEST(FleetRecords, AddressesParseOrSayWhatWasExpected) {
+  EXPECT_EQ(RedisAddress::parse("redis://127.0.0.1:7001").port, 7001);
+  EXPECT_EQ(RedisAddress::parse("redis://localhost").port, 6379);
+  EXPECT_EQ(RedisAddress::parse("redis://localhost").host, "localhost");
+  for (const char* bad : {"http://x:1", "redis://", "redis://h:0", "redis://h:99999", "redis://h:12ab"}) {
+    try {
+      RedisAddress::parse(bad);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("expected redis://HOST[:PORT]"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(FleetMapLog, AMapFedThroughRedisEqualsTheMapBuiltDirectly) {
+  LSHLOC_REQUIRE_REDIS(server);
+  const Scenario sc = sim::synthetic_scenario(test::small_world(300, 50));
+  const GlobalMapConfig settings;
+  {
+    RedisConnection redis(server.address());
+    for (const Submap& s : sc.submaps) MapLogWriter(redis, s.name, settings).publish(s.scans);
+  }
+  // One read takes each stream whole: the reader applies submap after submap.
+  RedisConnection redis(server.address());
+  MapLogReader reader(redis, MapLogConfig{.batch = 100000});
+  GlobalMap through_redis(reader.settings());
+  std::size_t applied = 0;
+  for (auto updates = reader.poll(); !updates.empty(); updates = reader.poll())
+    applied += fleet::apply_updates(through_redis, reader.submaps(), updates);
+  GlobalMap direct(settings);
+  std::size_t scans = 0;
+  for (const Submap& s : sc.submaps) {
+    const std::uint32_t id = direct.add_submap(s.name);
+    for (const LaserScan& scan : s.scans) direct.add_scan(id, scan, scan.pose), ++scans;
+  }
+  EXPECT_EQ(applied, scans);
+  for (std::uint32_t i = 0; i < direct.submap_count(); ++i) {
+    EXPECT_EQ(direct.submap_name(i), through_redis.submap_name(i));
+    EXPECT_EQ(direct.submap_scans(i), through_redis.submap_scans(i));
+  }
+  EXPECT_EQ(reader.stats().duplicates, 0u);
+  EXPECT_EQ(reader.submaps().size(), sc.submaps.size());
+  test::expect_same_map_contents(direct, through_redis);
+}
+
+TEST(FleetMapLog, DuplicatesAreSkippedGapsRefusedAndAMapperResumes) {
+  LSHLOC_REQUIRE_REDIS(server);
+  RedisConnection redis(server.address());
+  std::vector<LaserScan> scans;
+  for (int i = 0; i < 10; ++i) scans.push_back(scan_at(i));
+  MapLogWriter(redis, "hall", GlobalMapConfig{}).publish(scans);
+  // A restarted mapper continues the sequence.
+  MapLogWriter again(redis, "hall", GlobalMapConfig{});
+  EXPECT_EQ(again.next_seq(), 10u);
+  again.publish(std::span(scans).first(2));
+  MapLogReader reader(redis);
+  EXPECT_EQ(reader.poll().size(), 12u);
+  // A repeated entry (a retried XADD) is skipped ...
+  const std::string key = MapLogConfig{}.stream_key("hall");
+  redis.command({"XADD", key, "*", "seq", "11", "rec", fleet::encode_update(11, scans[1])});
+  EXPECT_TRUE(reader.poll().empty());
+  EXPECT_EQ(reader.stats().duplicates, 1u);
+  // ... and a gap (a lost update) is refused, naming the submap.
+  redis.command({"XADD", key, "*", "seq", "13", "rec", fleet::encode_update(13, scans[3])});
+  try {
+    reader.poll();
+    ADD_FAILURE() << "a gap was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("updates of submap hall are missing"), std::string::npos) << e.what();
+  }
+}
+
+TEST(FleetMapLog, AMapperWithOtherSettingsIsRefused) {
+  LSHLOC_REQUIRE_REDIS(server);
+  RedisConnection redis(server.address());
+  MapLogWriter(redis, "a", GlobalMapConfig{});
+  GlobalMapConfig other;
+  other.context_scans = 3;
+  try {
+    MapLogWriter(redis, "b", other);
+    ADD_FAILURE() << "other settings were accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("settings differ"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(MapLogWriter(redis, "bad{name}", GlobalMapConfig{}), Error);
+  RedisConnection empty(server.address());
+  MapLogReader reader(empty, MapLogConfig{.prefix = "nobody"});
+  EXPECT_THROW(reader.settings(), Error);
+}
+
+}  // namespace
+}  // namespace lshloc
