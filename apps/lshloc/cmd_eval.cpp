@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <shared_mutex>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -13,6 +14,7 @@
 
 #include "commands.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/fleet/map_follower.hpp"
 #include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
@@ -51,6 +53,8 @@ struct EvalOptions {
   bool live = false;     ///< every submap starts empty and its mapper replays while the target localizes
   bool threads = false;  ///< mappers on their own threads (with live), the target on this one
   LiveReplayConfig live_replay;
+  std::string map_redis;  ///< a fleet's map on Redis instead of building the scenario's
+  std::string map_prefix = "lshloc";
   LocalizerOptions localizer;
 };
 
@@ -192,11 +196,45 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
   return run;
 }
 
+/// The scenario's target localized on a fleet's map (`lshloc mapper
+/// --building ...` publishes the scenario's submaps): the history first, then
+/// what the mappers add while the target localizes. The target's submap is
+/// the fleet map's submap named after the target's building (sc.target_submap
+/// is set to its id there).
+ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const EvalOptions& opt,
+                             const Progress& progress, const LocalizerObserver& observer, nlohmann::json& extra) {
+  fleet::MapFollower follower(fleet::RedisAddress::parse(opt.map_redis),
+                              fleet::MapFollowerConfig{.log = {.prefix = opt.map_prefix}});
+  adopt_map_settings(follower.settings(), run_config, opt.map_redis);
+  GlobalMap map(run_config.map);
+  const auto t0 = std::chrono::steady_clock::now();
+  follower.catch_up(map);
+  const double catch_up_s = seconds_since(t0);
+  const std::string& target_name = sc.config.building;  // the scenario names submaps by building
+  const std::optional<std::uint32_t> id = map.find_submap(target_name);
+  if (!id)
+    throw Error(opt.map_redis + ": the fleet's map has no submap " + target_name +
+                " (publish the scenario with `lshloc mapper --building " + sc.config.building + " ...`)");
+  sc.target_submap = *id;
+  std::shared_mutex mutex;
+  follower.start(map, mutex);
+  ScenarioRun run = localize_target(map, sc.target, run_config.localizer, progress, observer, {}, &mutex);
+  follower.stop();
+  run.map_build_s = catch_up_s;
+  const fleet::MapFollowerStats st = follower.stats();
+  extra["map_log"] = {
+      {"history_updates", st.history_updates}, {"live_updates", st.live_updates}, {"duplicates", st.duplicates},
+      {"reconnects", st.reconnects},           {"catch_up_s", catch_up_s},        {"submaps", map.submap_count()}};
+  return run;
+}
+
 /// Runs one scenario: prints its JSON line, writes its figures and trace, and
 /// returns its error curve.
 io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config, const EvalOptions& opt,
                               bool suffix_trace) {
-  Scenario sc = opt.load_map.empty() ? load_eval_scenario(catalog, config) : io::load_scenario_target(catalog, config);
+  // A saved or a fleet's map holds the submaps: only the target's logs are read.
+  Scenario sc = opt.load_map.empty() && opt.map_redis.empty() ? load_eval_scenario(catalog, config)
+                                                              : io::load_scenario_target(catalog, config);
   ScenarioRunConfig run_config = make_run_config(opt.localizer);
   const bool tty = isatty(fileno(stderr));
   // With --trace: where the true hypothesis stands among the active ones.
@@ -222,6 +260,8 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     live = run_live_threaded(sc, run_config, opt.live_replay, opt.live, progress);
   } else if (opt.live) {
     live = run_live_scenario(sc, run_config, opt.live_replay, progress, observer);
+  } else if (!opt.map_redis.empty()) {
+    batch = run_on_fleet_map(sc, run_config, opt, progress, observer, map_store);
   } else {
     batch = run_eval(sc, run_config, opt, progress, observer, map_store);
   }
@@ -334,6 +374,16 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
       ->excludes("--load-map")
       ->excludes("--grid-maps")
       ->excludes("--trace");
+  cmd->add_option("--map-redis", opt->map_redis,
+                  "localize on a fleet's map on Redis, redis://HOST[:PORT], that `lshloc mapper --building B "
+                  "--submaps R` processes publish (docs/fleet.md), following it while the target localizes")
+      ->excludes("--save-map")
+      ->excludes("--load-map")
+      ->excludes("--grid-maps")
+      ->excludes("--live")
+      ->excludes("--threads")
+      ->excludes("--plot");
+  cmd->add_option("--map-prefix", opt->map_prefix, "key prefix of the fleet's map on Redis")->capture_default_str();
   cmd->add_option("--mapper-speed", opt->live_replay.mapper_speed,
                   "with --live: mapper log seconds replayed per second of the target's log")
       ->capture_default_str()

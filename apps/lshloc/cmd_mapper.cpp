@@ -1,10 +1,13 @@
 // `lshloc mapper`: a mapper robot of a fleet (docs/fleet.md). Publishes one
 // mapped log's scans, with their poses, as one submap's stream of the map log
 // on Redis; localizers anywhere follow it (`lshloc localize --map redis://...`).
+// With --building, it publishes (a share of) an evaluation scenario's submaps
+// instead, for `lshloc eval --map-redis`.
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
+#include <sstream>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -13,6 +16,7 @@
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
+#include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/fleet/map_log.hpp"
 #include "map_source.hpp"
 #include "option_checks.hpp"
@@ -30,44 +34,82 @@ struct MapperOptions {
   bool log_speed = false;
   bool slam = false;
   std::size_t batch = 256;
+  ScenarioConfig scenario;   ///< with --building: the scenario whose submaps to publish
+  std::string part = "0/1";  ///< K/N: submaps k with k % N == K
   LocalizerOptions settings;
 };
 
-void run_mapper(const MapperOptions& opt) {
-  const Submap source = load_map_argument(opt.log, opt.slam);
-  if (source.scans.empty()) throw Error(opt.log + ": no laser scans to publish");
-  const std::string name = opt.submap.empty() ? source.name : opt.submap;
+/// The submaps this mapper publishes: the log's, or its part of the scenario's.
+std::vector<Submap> submaps_to_publish(const MapperOptions& opt, const std::string& data_dir) {
+  if (opt.scenario.building.empty()) {
+    Submap s = load_map_argument(opt.log, opt.slam);
+    if (s.scans.empty()) throw Error(opt.log + ": no laser scans to publish");
+    if (!opt.submap.empty()) s.name = opt.submap;
+    return {std::move(s)};
+  }
+  std::size_t k = 0, n = 0;
+  char slash = 0;
+  std::istringstream in(opt.part);
+  if (!(in >> k >> slash >> n) || slash != '/' || n == 0 || k >= n || !in.eof())
+    throw Error("--part '" + opt.part + "': expected K/N with 0 <= K < N");
+  const io::DatasetCatalog catalog(data_dir);
+  Scenario sc = io::load_scenario(catalog, opt.scenario);
+  std::vector<Submap> mine;
+  for (std::size_t i = k; i < sc.submaps.size(); i += n) mine.push_back(std::move(sc.submaps[i]));
+  return mine;
+}
+
+void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
+  const std::vector<Submap> sources = submaps_to_publish(opt, data_dir);
   fleet::RedisConnection redis(fleet::RedisAddress::parse(opt.redis));
-  fleet::MapLogWriter writer(redis, name, make_run_config(opt.settings).map,
-                             fleet::MapLogConfig{.prefix = opt.prefix, .batch = opt.batch});
-  const std::uint64_t first_seq = writer.next_seq();
+  const GlobalMapConfig settings = make_run_config(opt.settings).map;
+  std::vector<fleet::MapLogWriter> writers;
+  std::size_t total = 0;
+  for (const Submap& s : sources) {
+    writers.emplace_back(redis, s.name, settings, fleet::MapLogConfig{.prefix = opt.prefix, .batch = opt.batch});
+    total += s.scans.size();
+  }
+  std::vector<std::uint64_t> first_seq;
+  for (const auto& w : writers) first_seq.push_back(w.next_seq());
   const bool tty = isatty(fileno(stderr));
   const auto t0 = std::chrono::steady_clock::now();
-  const std::span<const LaserScan> scans(source.scans);
   const bool paced = opt.rate_hz > 0.0 || opt.log_speed;
-  for (std::size_t i = 0; i < scans.size();) {
-    // Paced: one scan at a time when it is due; else batches as fast as Redis takes them.
-    std::size_t n = paced ? 1 : std::min(opt.batch, scans.size() - i);
-    if (paced) {
-      const double due =
-          opt.log_speed ? scans[i].timestamp - scans.front().timestamp : static_cast<double>(i) / opt.rate_hz;
-      const double wait = due - seconds_since(t0);
-      if (wait > 0) std::this_thread::sleep_for(std::chrono::duration<double>(wait));
+  const double t_first = sources.front().scans.empty() ? 0.0 : sources.front().scans.front().timestamp;
+  // Round robin over the submaps, as robots mapping at once: one scan each
+  // when paced, else a batch each, as fast as Redis takes them.
+  std::vector<std::size_t> done(sources.size(), 0);
+  std::size_t published = 0;
+  while (published < total) {
+    for (std::size_t r = 0; r < sources.size(); ++r) {
+      const std::span<const LaserScan> scans(sources[r].scans);
+      if (done[r] >= scans.size()) continue;
+      const std::size_t n = paced ? 1 : std::min(opt.batch, scans.size() - done[r]);
+      if (paced) {
+        const double due =
+            opt.log_speed ? scans[done[r]].timestamp - t_first : static_cast<double>(published) / opt.rate_hz;
+        const double wait = due - seconds_since(t0);
+        if (wait > 0) std::this_thread::sleep_for(std::chrono::duration<double>(wait));
+      }
+      writers[r].publish(scans.subspan(done[r], n));
+      done[r] += n, published += n;
+      if (tty && (published % 500 < n || published == total))
+        std::fprintf(stderr, "\rpublished %zu/%zu scans of %zu submaps%s", published, total, sources.size(),
+                     published == total ? "\n" : "");
     }
-    writer.publish(scans.subspan(i, n));
-    i += n;
-    if (tty && (i % 500 < n || i == scans.size()))
-      std::fprintf(stderr, "\r%s: %zu/%zu scans published%s", name.c_str(), i, scans.size(),
-                   i == scans.size() ? "\n" : "");
   }
   const double wall = seconds_since(t0);
+  nlohmann::json subs = nlohmann::json::array();
+  for (std::size_t r = 0; r < sources.size(); ++r)
+    subs.push_back({{"submap", sources[r].name},
+                    {"scans", sources[r].scans.size()},
+                    {"first_seq", first_seq[r]},
+                    {"next_seq", writers[r].next_seq()}});
   nlohmann::json j = {{"redis", redis.address().url()},
-                      {"submap", name},
-                      {"scans", scans.size()},
-                      {"first_seq", first_seq},
-                      {"next_seq", writer.next_seq()},
+                      {"scans", total},
                       {"seconds", wall},
-                      {"scans_per_s", wall > 0 ? static_cast<double>(scans.size()) / wall : 0.0}};
+                      {"scans_per_s", wall > 0 ? static_cast<double>(total) / wall : 0.0},
+                      {"submaps", subs}};
+  if (sources.size() == 1) j.update(subs[0]);  // one log: its fields at the top level too
   std::printf("%s\n", j.dump().c_str());
 }
 
@@ -83,7 +125,22 @@ void add_mapper_command(CLI::App& app, GlobalOptions& global) {
       "mapper continues its submap's sequence. Prints one JSON line: scans, sequence numbers, scans/s.");
   cmd->add_option("--redis", opt->redis, "the Redis server, redis://HOST[:PORT]")->capture_default_str();
   cmd->add_option("--submap", opt->submap, "the submap's name (default: the log's file name)");
-  cmd->add_option("LOG", opt->log, "the mapped log: LOG, LOG,POSES or LOG,slam")->required();
+  auto* log = cmd->add_option("LOG", opt->log, "the mapped log: LOG, LOG,POSES or LOG,slam");
+  auto* building = cmd->add_option("--building", opt->scenario.building,
+                                   "instead of a log: publish the evaluation scenario's submaps (its target's "
+                                   "building without the window and guard, and R-1 others) for `eval --map-redis`")
+                       ->excludes(log);
+  cmd->add_option("--submaps", opt->scenario.submaps, "with --building: R, the scenario's submaps")
+      ->capture_default_str()
+      ->check(within(1, 15))
+      ->needs(building);
+  cmd->add_option("--start", opt->scenario.start,
+                  "with --building: the target window's first scan (default: the "
+                  "building's)")
+      ->needs(building);
+  cmd->add_option("--part", opt->part, "with --building: publish submaps k with k % N == K (K/N), one of N mappers")
+      ->capture_default_str()
+      ->needs(building);
   cmd->add_option("--rate", opt->rate_hz, "scans per second (0: as fast as Redis takes them)")
       ->capture_default_str()
       ->check(within(0, 1e6));
@@ -94,11 +151,13 @@ void add_mapper_command(CLI::App& app, GlobalOptions& global) {
       ->check(within(1, 100000));
   cmd->add_flag("--slam", opt->slam, "a log given without poses is raw: pose it by lshloc's SLAM");
   add_localizer_options(*cmd, opt->settings);
-  cmd->callback([opt, &global] {
-    (void)global;
+  cmd->callback([opt, cmd, &global] {
     if (print_config_if_asked(opt->settings)) return;
     if (opt->rate_hz > 0 && opt->log_speed) throw Error("mapper: give --rate or --log-speed, not both");
-    run_mapper(*opt);
+    if (opt->log.empty() && opt->scenario.building.empty()) throw Error("mapper: give a LOG or --building");
+    if (!opt->scenario.building.empty() && cmd->count("--start") == 0)
+      opt->scenario.start = default_window_start(opt->scenario.building);
+    run_mapper(*opt, global.resolved_data_dir());
   });
 }
 
