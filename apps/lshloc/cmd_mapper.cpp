@@ -34,8 +34,8 @@ struct MapperOptions {
   bool log_speed = false;
   bool slam = false;
   std::size_t batch = 256;
-  ScenarioConfig scenario;   ///< with --building: the scenario whose submaps to publish
-  std::string part = "0/1";  ///< K/N: submaps k with k % N == K
+  ScenarioConfig scenario{.building = ""};  ///< with --building: the scenario whose submaps to publish
+  std::string part = "0/1";                 ///< K/N: submaps k with k % N == K
   LocalizerOptions settings;
 };
 
