@@ -165,6 +165,48 @@ TEST(FleetMapLog, AMapFedThroughRedisEqualsTheMapBuiltDirectly) {
   test::expect_same_map_contents(direct, through_redis);
 }
 
+TEST(FleetMapLog, AReaderResumedFromASnapshotsPositionsReachesTheSameMap) {
+  LSHLOC_REQUIRE_REDIS(server);
+  const Scenario sc = sim::synthetic_scenario(test::small_world(300, 50));
+  RedisConnection redis(server.address());
+  const GlobalMapConfig settings;
+  // First half of every submap, then a snapshot (map + positions) ...
+  std::vector<MapLogWriter> writers;
+  for (const Submap& s : sc.submaps) writers.emplace_back(redis, s.name, settings);
+  auto half = [](const Submap& s, bool second) {
+    const std::size_t h = s.scans.size() / 2;
+    return second ? std::span(s.scans).subspan(h) : std::span(s.scans).first(h);
+  };
+  for (std::size_t i = 0; i < sc.submaps.size(); ++i) writers[i].publish(half(sc.submaps[i], false));
+  MapLogReader first(redis);
+  GlobalMap snapshot(first.settings());
+  for (auto u = first.poll(); !u.empty(); u = first.poll()) fleet::apply_updates(snapshot, first.submaps(), u);
+  fleet::apply_updates(snapshot, first.submaps(), {});
+  const nlohmann::json saved = fleet::positions_to_json(first.positions());
+  // ... the rest is published; a reader resumed at the snapshot's positions
+  // applies only the rest, and ends with the map of one that read it all.
+  for (std::size_t i = 0; i < sc.submaps.size(); ++i) writers[i].publish(half(sc.submaps[i], true));
+  RedisConnection redis2(server.address());
+  MapLogReader resumed(redis2);
+  resumed.resume(fleet::positions_from_json(saved, "test"));
+  std::size_t rest = 0;
+  for (auto u = resumed.poll(); !u.empty(); u = resumed.poll())
+    rest += fleet::apply_updates(snapshot, resumed.submaps(), u);
+  MapLogReader whole(redis2, MapLogConfig{});
+  GlobalMap full(whole.settings());
+  for (auto u = whole.poll(); !u.empty(); u = whole.poll()) fleet::apply_updates(full, whole.submaps(), u);
+  std::size_t second_halves = 0;
+  for (const Submap& s : sc.submaps) second_halves += half(s, true).size();
+  EXPECT_EQ(rest, second_halves);
+  EXPECT_EQ(snapshot.stats().scans, full.stats().scans);
+  ASSERT_EQ(snapshot.submap_count(), full.submap_count());
+  for (std::uint32_t i = 0; i < full.submap_count(); ++i) {
+    EXPECT_EQ(snapshot.submap_name(i), full.submap_name(i));
+    EXPECT_EQ(snapshot.submap_scans(i), full.submap_scans(i));
+  }
+  EXPECT_THROW(fleet::positions_from_json(nlohmann::json::object(), "test"), Error);
+}
+
 TEST(FleetMapLog, DuplicatesAreSkippedGapsRefusedAndAMapperResumes) {
   LSHLOC_REQUIRE_REDIS(server);
   RedisConnection redis(server.address());

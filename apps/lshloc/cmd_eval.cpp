@@ -55,6 +55,7 @@ struct EvalOptions {
   LiveReplayConfig live_replay;
   std::string map_redis;  ///< a fleet's map on Redis instead of building the scenario's
   std::string map_prefix = "lshloc";
+  std::string map_snapshot;  ///< a `map from-redis` file the fleet's map starts from
   LocalizerOptions localizer;
 };
 
@@ -203,13 +204,8 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
 /// is set to its id there).
 ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const EvalOptions& opt,
                              const Progress& progress, const LocalizerObserver& observer, nlohmann::json& extra) {
-  fleet::MapFollower follower(fleet::RedisAddress::parse(opt.map_redis),
-                              fleet::MapFollowerConfig{.log = {.prefix = opt.map_prefix}});
-  adopt_map_settings(follower.settings(), run_config, opt.map_redis);
-  GlobalMap map(run_config.map);
-  const auto t0 = std::chrono::steady_clock::now();
-  follower.catch_up(map);
-  const double catch_up_s = seconds_since(t0);
+  FleetMap fleet = open_fleet_map(opt.map_redis, opt.map_prefix, opt.map_snapshot, run_config);
+  GlobalMap& map = *fleet.map;
   const std::string& target_name = sc.config.building;  // the scenario names submaps by building
   const std::optional<std::uint32_t> id = map.find_submap(target_name);
   if (!id)
@@ -217,14 +213,11 @@ ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const 
                 " (publish the scenario with `lshloc mapper --building " + sc.config.building + " ...`)");
   sc.target_submap = *id;
   std::shared_mutex mutex;
-  follower.start(map, mutex);
+  fleet.follower->start(map, mutex);
   ScenarioRun run = localize_target(map, sc.target, run_config.localizer, progress, observer, {}, &mutex);
-  follower.stop();
-  run.map_build_s = catch_up_s;
-  const fleet::MapFollowerStats st = follower.stats();
-  extra["map_log"] = {
-      {"history_updates", st.history_updates}, {"live_updates", st.live_updates}, {"duplicates", st.duplicates},
-      {"reconnects", st.reconnects},           {"catch_up_s", catch_up_s},        {"submaps", map.submap_count()}};
+  fleet.follower->stop();
+  run.map_build_s = fleet.catch_up_s;
+  extra["map_log"] = fleet_map_json(fleet);
   return run;
 }
 
@@ -384,6 +377,9 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
       ->excludes("--threads")
       ->excludes("--plot");
   cmd->add_option("--map-prefix", opt->map_prefix, "key prefix of the fleet's map on Redis")->capture_default_str();
+  cmd->add_option("--map-snapshot", opt->map_snapshot,
+                  "with --map-redis: start from this snapshot of the fleet's map (`lshloc map from-redis`) and read "
+                  "only what came after it");
   cmd->add_option("--mapper-speed", opt->live_replay.mapper_speed,
                   "with --live: mapper log seconds replayed per second of the target's log")
       ->capture_default_str()

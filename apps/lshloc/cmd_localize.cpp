@@ -44,6 +44,7 @@ struct LocalizeOptions {
   std::vector<std::string> targets;
   std::size_t threads = 0;            ///< localizer threads with several targets (0: one per target, up to the cores)
   std::string map_prefix = "lshloc";  ///< key prefix of a fleet's map on Redis
+  std::string map_snapshot;           ///< a `map from-redis` file to start the fleet's map from
   std::string out;
   std::string plot_dir;
   bool json = false;
@@ -393,6 +394,9 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       ->required();
   cmd->add_option("--map-prefix", opt->map_prefix, "key prefix of the fleet's map on Redis (--map redis://...)")
       ->capture_default_str();
+  cmd->add_option("--map-snapshot", opt->map_snapshot,
+                  "with --map redis://...: start from this snapshot of the fleet's map (`lshloc map from-redis`) "
+                  "and read only what came after it");
   cmd->add_option("--threads", opt->threads,
                   "localizer threads for several targets (0: one per target, at most the machine's cores)")
       ->capture_default_str()
@@ -447,18 +451,18 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     std::unique_ptr<GlobalMap> map;
     std::vector<std::string> built;
     // A fleet's map on Redis: its history now, what mappers add while the targets localize.
-    std::unique_ptr<fleet::MapFollower> follower;
+    FleetMap fleet_map;
     std::shared_mutex map_mutex;
     for (const auto& m : opt->maps) {
       if (!m.starts_with("redis://")) continue;
       if (opt->maps.size() > 1)
         throw Error("--map " + m + ": a fleet's map on Redis is the whole map; give no other --map");
-      follower = std::make_unique<fleet::MapFollower>(fleet::RedisAddress::parse(m),
-                                                      fleet::MapFollowerConfig{.log = {.prefix = opt->map_prefix}});
-      adopt_map_settings(follower->settings(), config, m);
-      map = std::make_unique<GlobalMap>(config.map);
-      follower->catch_up(*map);
+      fleet_map = open_fleet_map(m, opt->map_prefix, opt->map_snapshot, config);
+      map = std::move(fleet_map.map);
     }
+    if (!opt->map_snapshot.empty() && !fleet_map.follower)
+      throw Error("--map-snapshot " + opt->map_snapshot + ": goes with --map redis://HOST:PORT");
+    fleet::MapFollower* follower = fleet_map.follower.get();
     for (const auto& m : opt->maps) {
       if (follower) break;
       const bool saved = !is_grid_argument(m) && (io::looks_like_map_file(m) || m.ends_with(".map"));
@@ -501,11 +505,13 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
       if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, paths[k], *map, sources, runs[k]);
       nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
-      if (followed)
+      if (follower) {
         j["map_log"] = {{"history_updates", followed->history_updates},
                         {"live_updates", followed->live_updates},
                         {"duplicates", followed->duplicates},
-                        {"reconnects", followed->reconnects}};
+                        {"reconnects", followed->reconnects},
+                        {"catch_up_s", fleet_map.catch_up_s}};
+      }
       if (opt->json) {
         std::printf("%s\n", j.dump().c_str());
       } else {

@@ -13,6 +13,8 @@
 #include "lshloc/common/cpu_time.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
+#include "lshloc/fleet/map_follower.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/map_store.hpp"
 #include "lshloc/io/ros_map.hpp"
@@ -359,6 +361,41 @@ void add_compact(CLI::App& map_cmd) {
   });
 }
 
+void add_from_redis(CLI::App& map_cmd) {
+  struct Options {
+    std::string url, out, prefix = "lshloc";
+  };
+  auto opt = std::make_shared<Options>();
+  auto* cmd = map_cmd.add_subcommand(
+      "from-redis",
+      "Save a fleet's map (docs/fleet.md) as a map file: every update its map log on Redis holds now, with\n"
+      "each stream's position, so that `localize --map redis://... --map-snapshot FILE` (and `eval\n"
+      "--map-redis ... --map-snapshot FILE`) start from it and read only what came after.");
+  cmd->add_option("url", opt->url, "the Redis server, redis://HOST[:PORT]")->required();
+  cmd->add_option("--out", opt->out, "the map file to write (atomically)")->required();
+  cmd->add_option("--prefix", opt->prefix, "key prefix of the map on the server")->capture_default_str();
+  cmd->callback([opt] {
+    io::require_writable(opt->out);
+    const auto t0 = std::chrono::steady_clock::now();
+    fleet::MapFollower follower(fleet::RedisAddress::parse(opt->url),
+                                fleet::MapFollowerConfig{.log = {.prefix = opt->prefix}});
+    GlobalMap map(follower.settings());
+    const std::size_t updates = follower.catch_up(map);
+    const double read_s = seconds_since(t0);
+    io::save_map(opt->out, map,
+                 {{"made_by", "lshloc map from-redis"},
+                  {"map_log",
+                   {{"redis", opt->url},
+                    {"prefix", opt->prefix},
+                    {"positions", fleet::positions_to_json(follower.applied_positions())}}}});
+    std::printf(
+        "%s: %zu submaps, %zu scans, %zu features from %zu updates (read and applied in %.2f s, saved in "
+        "%.2f s)\n",
+        opt->out.c_str(), map.submap_count(), map.stats().scans, map.stats().features, updates, read_s,
+        seconds_since(t0) - read_s);
+  });
+}
+
 }  // namespace
 
 void add_map_command(CLI::App& app, GlobalOptions& global) {
@@ -372,6 +409,7 @@ void add_map_command(CLI::App& app, GlobalOptions& global) {
   add_compact(*cmd);
   add_to_grid(*cmd);
   add_from_grid(*cmd);
+  add_from_redis(*cmd);
 }
 
 }  // namespace lshloc::app

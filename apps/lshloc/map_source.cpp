@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/wall_time.hpp"
 #include "lshloc/eval/run_config_json.hpp"
 #include "lshloc/geometry/time_join.hpp"
 #include "lshloc/io/carmen_reader.hpp"
@@ -121,6 +122,43 @@ io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config)
   print_warnings(loaded.warnings);
   adopt_map_settings(loaded.map->config(), config, path);
   return loaded;
+}
+
+FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const std::string& snapshot,
+                        ScenarioRunConfig& config) {
+  const auto t0 = std::chrono::steady_clock::now();
+  FleetMap f;
+  f.follower = std::make_unique<fleet::MapFollower>(fleet::RedisAddress::parse(url),
+                                                    fleet::MapFollowerConfig{.log = {.prefix = prefix}});
+  adopt_map_settings(f.follower->settings(), config, url);
+  if (snapshot.empty()) {
+    f.map = std::make_unique<GlobalMap>(config.map);
+  } else {
+    io::LoadedMap loaded = io::load_map(snapshot);
+    print_warnings(loaded.warnings);
+    const nlohmann::json& meta = loaded.info.meta;
+    if (!meta.contains("map_log") || !meta["map_log"].is_object() || !meta["map_log"].contains("positions"))
+      throw Error(snapshot +
+                  ": not a snapshot of a fleet's map (no map_log stream positions in its meta; "
+                  "`lshloc map from-redis` writes them)");
+    if (meta["map_log"].value("prefix", "") != prefix)
+      throw Error(snapshot + ": a snapshot of the map under prefix '" + meta["map_log"].value("prefix", "") +
+                  "', not '" + prefix + "'");
+    if (nlohmann::json(loaded.map->config()) != nlohmann::json(config.map))
+      throw Error(snapshot + ": its map settings differ from the fleet's registered settings at " + url);
+    f.follower->resume(fleet::positions_from_json(meta["map_log"]["positions"], snapshot + ": meta map_log"));
+    f.map = std::move(loaded.map);
+  }
+  f.follower->catch_up(*f.map);
+  f.catch_up_s = seconds_since(t0);
+  return f;
+}
+
+nlohmann::json fleet_map_json(const FleetMap& fleet) {
+  const fleet::MapFollowerStats st = fleet.follower->stats();
+  return {{"history_updates", st.history_updates}, {"live_updates", st.live_updates},
+          {"duplicates", st.duplicates},           {"reconnects", st.reconnects},
+          {"catch_up_s", fleet.catch_up_s},        {"submaps", fleet.map->submap_count()}};
 }
 
 GridSubmapConfig GridMapOptions::resolve(const LaserScan* like) const {

@@ -9,6 +9,7 @@
 
 #include "lshloc/eval/scenario.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
+#include "lshloc/fleet/map_follower.hpp"
 #include "lshloc/io/map_store.hpp"
 #include "lshloc/localization/grid_submap.hpp"
 #include "lshloc/slam/occupancy_grid.hpp"
@@ -34,6 +35,21 @@ io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config)
 /// Takes a map's settings (from a file or a fleet's registry, named by
 /// `source`) into `config`, the same checks as open_saved_map.
 void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config, const std::string& source);
+
+/// A fleet's map on Redis (docs/fleet.md), ready to localize on: its settings
+/// adopted into the run's config, the map restored from `snapshot` (a file
+/// `lshloc map from-redis` wrote, with its stream positions) when one is
+/// given, and the map log's history, or what came after the snapshot, applied.
+/// follower->start() then follows the log.
+struct FleetMap {
+  std::unique_ptr<fleet::MapFollower> follower;
+  std::unique_ptr<GlobalMap> map;
+  double catch_up_s = 0.0;  ///< [s] wall time to load the snapshot and apply the rest
+};
+FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const std::string& snapshot,
+                        ScenarioRunConfig& config);
+/// JSON of the follower's counters for a command's answer.
+nlohmann::json fleet_map_json(const FleetMap& fleet);
 
 /// Command-line settings of submaps built from occupancy grids (a ROS map
 /// YAML given where a map log goes). The virtual laser is the target's

@@ -22,7 +22,13 @@ std::size_t MapFollower::catch_up(GlobalMap& map) {
   std::lock_guard lock(stats_mutex_);
   stats_.history_updates += n;
   stats_.duplicates = reader_.stats().duplicates;
+  applied_ = reader_.positions();
   return n;
+}
+
+std::vector<StreamPosition> MapFollower::applied_positions() const {
+  std::lock_guard lock(stats_mutex_);
+  return applied_;
 }
 
 void MapFollower::start(GlobalMap& map, std::shared_mutex& mutex) {
@@ -53,13 +59,12 @@ void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
       }
       const std::vector<MapUpdate> updates = reader_.poll(config_.block_s);
       if (updates.empty()) continue;
-      {
-        std::unique_lock lock(mutex);
-        apply_updates(map, reader_.submaps(), updates);
-      }
+      std::unique_lock map_lock(mutex);
+      apply_updates(map, reader_.submaps(), updates);
       std::lock_guard lock(stats_mutex_);
       stats_.live_updates += updates.size();
       stats_.duplicates = reader_.stats().duplicates;
+      applied_ = reader_.positions();
     } catch (const Error& e) {
       {
         std::lock_guard lock(stats_mutex_);

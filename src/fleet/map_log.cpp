@@ -216,6 +216,47 @@ std::vector<MapUpdate> MapLogReader::poll(double block_s) {
   return out;
 }
 
+nlohmann::json positions_to_json(const std::vector<StreamPosition>& positions) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& p : positions) j.push_back({{"submap", p.submap}, {"last_id", p.last_id}, {"next_seq", p.next_seq}});
+  return j;
+}
+
+std::vector<StreamPosition> positions_from_json(const nlohmann::json& j, const std::string& source) {
+  if (!j.is_array()) throw Error(source + ": expected the map log's stream positions as a JSON array");
+  std::vector<StreamPosition> out;
+  for (const auto& e : j) {
+    if (!e.is_object() || !e.contains("submap") || !e["submap"].is_string() || !e.contains("last_id") ||
+        !e["last_id"].is_string() || !e.contains("next_seq") || !e["next_seq"].is_number_unsigned())
+      throw Error(source +
+                  ": expected each stream position as {\"submap\": string, \"last_id\": string, "
+                  "\"next_seq\": unsigned}, got " +
+                  e.dump());
+    out.push_back(
+        {e["submap"].get<std::string>(), e["last_id"].get<std::string>(), e["next_seq"].get<std::uint64_t>()});
+  }
+  return out;
+}
+
+std::vector<StreamPosition> MapLogReader::positions() const {
+  std::vector<StreamPosition> out;
+  for (const auto& name : order_) {
+    const Position& p = positions_.at(name);
+    out.push_back({name, p.last_id, p.next_seq});
+  }
+  return out;
+}
+
+void MapLogReader::resume(const std::vector<StreamPosition>& positions) {
+  if (!order_.empty()) throw Error("MapLogReader::resume: the reader has read already");
+  for (const auto& p : positions) {
+    if (positions_.contains(p.submap)) throw Error("stream positions name submap " + p.submap + " twice");
+    order_.push_back(p.submap);
+    positions_[p.submap] = {p.last_id, p.next_seq};
+  }
+  stats_.submaps = order_.size();
+}
+
 std::size_t apply_updates(GlobalMap& map, std::span<const std::string> submaps, std::span<const MapUpdate> updates) {
   for (const std::string& name : submaps)
     if (!map.find_submap(name)) map.add_submap(name);

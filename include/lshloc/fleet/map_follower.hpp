@@ -42,9 +42,17 @@ class MapFollower {
   /// The map's settings: build the GlobalMap with them.
   const GlobalMapConfig& settings() const { return settings_; }
 
+  /// Continues from a snapshot of the map (a map file `lshloc map from-redis`
+  /// wrote, with its stream positions): call before catch_up(), which then
+  /// applies only what came after the snapshot.
+  void resume(const std::vector<StreamPosition>& positions) { reader_.resume(positions); }
+
   /// Applies every update already in the log to `map` (no lock: before any
   /// localizer reads it). Returns the updates applied.
   std::size_t catch_up(GlobalMap& map);
+  /// The stream positions of what has been applied to the map so far (read
+  /// it while holding the map's lock, shared, for a consistent snapshot).
+  std::vector<StreamPosition> applied_positions() const;
   /// Follows the log on a thread of its own until stop(): each batch is
   /// applied under `mutex` held exclusively. A lost server is retried every
   /// retry_s; positions are kept, so nothing is applied twice or skipped.
@@ -64,6 +72,7 @@ class MapFollower {
   std::thread thread_;
   mutable std::mutex stats_mutex_;
   MapFollowerStats stats_;
+  std::vector<StreamPosition> applied_;  ///< guarded by stats_mutex_
 };
 
 }  // namespace lshloc::fleet

@@ -14,6 +14,8 @@
 #include <string_view>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "lshloc/fleet/redis_connection.hpp"
 #include "lshloc/geometry/laser_scan.hpp"
 #include "lshloc/localization/global_map.hpp"
@@ -70,6 +72,19 @@ class MapLogWriter {
   std::uint64_t next_seq_ = 0;
 };
 
+/// Where a reader stands in one submap's stream: the last entry read and the
+/// next sequence number it expects. A snapshot of a map keeps them, so that
+/// a localizer started from it replays only the rest.
+struct StreamPosition {
+  std::string submap;
+  std::string last_id = "0-0";
+  std::uint64_t next_seq = 0;
+};
+/// As JSON: [{"submap": ..., "last_id": ..., "next_seq": ...}, ...].
+nlohmann::json positions_to_json(const std::vector<StreamPosition>& positions);
+/// Throws lshloc::Error naming `source` on anything else.
+std::vector<StreamPosition> positions_from_json(const nlohmann::json& j, const std::string& source);
+
 /// What a reader has seen.
 struct MapLogReaderStats {
   std::size_t updates = 0;     ///< updates returned (each once)
@@ -100,6 +115,11 @@ class MapLogReader {
 
   /// Submaps in registration order.
   const std::vector<std::string>& submaps() const { return order_; }
+  /// Every stream's position, submaps in registration order.
+  std::vector<StreamPosition> positions() const;
+  /// Continues from `positions` (a snapshot's), before the first poll: those
+  /// submaps first, in that order, each stream after its last entry read.
+  void resume(const std::vector<StreamPosition>& positions);
   const MapLogReaderStats& stats() const { return stats_; }
 
  private:
