@@ -506,11 +506,9 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, paths[k], *map, sources, runs[k]);
       nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
       if (follower) {
-        j["map_log"] = {{"history_updates", followed->history_updates},
-                        {"live_updates", followed->live_updates},
-                        {"duplicates", followed->duplicates},
-                        {"reconnects", followed->reconnects},
-                        {"catch_up_s", fleet_map.catch_up_s}};
+        j["map_log"] = {{"history_updates", followed->history_updates}, {"live_updates", followed->live_updates},
+                        {"duplicates", followed->duplicates},           {"reconnects", followed->reconnects},
+                        {"catch_up_s", fleet_map.catch_up_s},           {"map_scans", map->stats().scans}};
       }
       if (opt->json) {
         std::printf("%s\n", j.dump().c_str());

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <shared_mutex>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -364,6 +366,7 @@ void add_compact(CLI::App& map_cmd) {
 void add_from_redis(CLI::App& map_cmd) {
   struct Options {
     std::string url, out, prefix = "lshloc";
+    double follow_s = 0.0;
   };
   auto opt = std::make_shared<Options>();
   auto* cmd = map_cmd.add_subcommand(
@@ -374,13 +377,30 @@ void add_from_redis(CLI::App& map_cmd) {
   cmd->add_option("url", opt->url, "the Redis server, redis://HOST[:PORT]")->required();
   cmd->add_option("--out", opt->out, "the map file to write (atomically)")->required();
   cmd->add_option("--prefix", opt->prefix, "key prefix of the map on the server")->capture_default_str();
+  cmd->add_option("--follow", opt->follow_s,
+                  "[s] after the history, keep following the log (reconnecting if the server restarts) until no "
+                  "update arrived for this long, then save")
+      ->check(within(0, 1e6));
   cmd->callback([opt] {
     io::require_writable(opt->out);
     const auto t0 = std::chrono::steady_clock::now();
     fleet::MapFollower follower(fleet::RedisAddress::parse(opt->url),
                                 fleet::MapFollowerConfig{.log = {.prefix = opt->prefix}});
     GlobalMap map(follower.settings());
-    const std::size_t updates = follower.catch_up(map);
+    std::size_t updates = follower.catch_up(map);
+    if (opt->follow_s > 0) {
+      std::shared_mutex mutex;
+      follower.start(map, mutex);
+      std::size_t seen = 0;
+      auto quiet_since = std::chrono::steady_clock::now();
+      while (seconds_since(quiet_since) < opt->follow_s) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        const std::size_t now = follower.stats().live_updates;
+        if (now != seen) seen = now, quiet_since = std::chrono::steady_clock::now();
+      }
+      follower.stop();
+      updates += seen;
+    }
     const double read_s = seconds_since(t0);
     io::save_map(opt->out, map,
                  {{"made_by", "lshloc map from-redis"},
@@ -388,11 +408,19 @@ void add_from_redis(CLI::App& map_cmd) {
                    {{"redis", opt->url},
                     {"prefix", opt->prefix},
                     {"positions", fleet::positions_to_json(follower.applied_positions())}}}});
-    std::printf(
-        "%s: %zu submaps, %zu scans, %zu features from %zu updates (read and applied in %.2f s, saved in "
-        "%.2f s)\n",
-        opt->out.c_str(), map.submap_count(), map.stats().scans, map.stats().features, updates, read_s,
-        seconds_since(t0) - read_s);
+    const fleet::MapFollowerStats st = follower.stats();
+    std::fprintf(stderr, "%s: %zu submaps, %zu scans, %zu features (read and applied in %.2f s, saved in %.2f s)\n",
+                 opt->out.c_str(), map.submap_count(), map.stats().scans, map.stats().features, read_s,
+                 seconds_since(t0) - read_s);
+    const nlohmann::json j = {{"out", opt->out},
+                              {"submaps", map.submap_count()},
+                              {"scans", map.stats().scans},
+                              {"features", map.stats().features},
+                              {"updates", updates},
+                              {"duplicates", st.duplicates},
+                              {"reconnects", st.reconnects},
+                              {"read_s", read_s}};
+    std::printf("%s\n", j.dump().c_str());
   });
 }
 

@@ -36,6 +36,8 @@ struct MapperOptions {
   std::size_t batch = 256;
   ScenarioConfig scenario{.building = ""};  ///< with --building: the scenario whose submaps to publish
   std::string part = "0/1";                 ///< K/N: submaps k with k % N == K
+  std::size_t together = 0;                 ///< wait until this many mappers are ready, then publish at once
+  double retry_s = 60.0;                    ///< [s] how long to keep reconnecting after the server went away
   LocalizerOptions settings;
 };
 
@@ -59,6 +61,44 @@ std::vector<Submap> submaps_to_publish(const MapperOptions& opt, const std::stri
   return mine;
 }
 
+/// [s] since the Unix epoch: mappers in several processes compare their times.
+double unix_seconds() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+/// Reconnects (every 0.5 s, for at most `timeout_s`) and resyncs every
+/// writer; throws when it gives up.
+void reconnect_within(fleet::RedisConnection& redis, std::vector<fleet::MapLogWriter>& writers, double timeout_s,
+                      const std::string& why) {
+  std::fprintf(stderr, "lshloc mapper: %s; reconnecting\n", why.c_str());
+  const auto start = std::chrono::steady_clock::now();
+  for (;;) {
+    try {
+      redis.reconnect();
+      for (auto& w : writers) w.resync();
+      return;
+    } catch (const Error& e) {
+      if (seconds_since(start) > timeout_s) throw Error(std::string(e.what()) + " (gave up reconnecting)");
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    }
+  }
+}
+
+/// Waits until `n` mappers reached the barrier key (so that they publish at
+/// once: the ingest figure), at most `timeout_s`.
+void wait_for_mappers(fleet::RedisConnection& redis, const std::string& key, std::size_t n, double timeout_s) {
+  redis.command({"INCR", key});
+  const auto start = std::chrono::steady_clock::now();
+  while (true) {
+    const fleet::Reply r = redis.command({"GET", key});
+    if (!r.is_nil() && std::stoll(r.text) >= static_cast<long long>(n)) return;
+    if (seconds_since(start) > timeout_s)
+      throw Error(redis.address().url() + " " + key + ": fewer than " + std::to_string(n) + " mappers arrived in " +
+                  std::to_string(timeout_s) + " s");
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
 void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
   const std::vector<Submap> sources = submaps_to_publish(opt, data_dir);
   fleet::RedisConnection redis(fleet::RedisAddress::parse(opt.redis));
@@ -71,6 +111,7 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
   }
   std::vector<std::uint64_t> first_seq;
   for (const auto& w : writers) first_seq.push_back(w.next_seq());
+  if (opt.together > 0) wait_for_mappers(redis, opt.prefix + ":barrier", opt.together, 3600.0);
   const bool tty = isatty(fileno(stderr));
   const auto t0 = std::chrono::steady_clock::now();
   const bool paced = opt.rate_hz > 0.0 || opt.log_speed;
@@ -78,7 +119,8 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
   // Round robin over the submaps, as robots mapping at once: one scan each
   // when paced, else a batch each, as fast as Redis takes them.
   std::vector<std::size_t> done(sources.size(), 0);
-  std::size_t published = 0;
+  std::size_t published = 0, reconnects = 0;
+  const double started_at = unix_seconds();
   while (published < total) {
     for (std::size_t r = 0; r < sources.size(); ++r) {
       const std::span<const LaserScan> scans(sources[r].scans);
@@ -90,8 +132,17 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
         const double wait = due - seconds_since(t0);
         if (wait > 0) std::this_thread::sleep_for(std::chrono::duration<double>(wait));
       }
-      writers[r].publish(scans.subspan(done[r], n));
-      done[r] += n, published += n;
+      try {
+        writers[r].publish(scans.subspan(done[r], n));
+        done[r] += n, published += n;
+      } catch (const Error& e) {
+        // The server went away (a restart): reconnect, and go on from what each stream holds.
+        reconnect_within(redis, writers, opt.retry_s, e.what());
+        ++reconnects;
+        published = 0;
+        for (std::size_t q = 0; q < writers.size(); ++q)
+          done[q] = static_cast<std::size_t>(writers[q].next_seq() - first_seq[q]), published += done[q];
+      }
       if (tty && (published % 500 < n || published == total))
         std::fprintf(stderr, "\rpublished %zu/%zu scans of %zu submaps%s", published, total, sources.size(),
                      published == total ? "\n" : "");
@@ -108,6 +159,9 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
                       {"scans", total},
                       {"seconds", wall},
                       {"scans_per_s", wall > 0 ? static_cast<double>(total) / wall : 0.0},
+                      {"started_at", started_at},
+                      {"finished_at", unix_seconds()},
+                      {"reconnects", reconnects},
                       {"submaps", subs}};
   if (sources.size() == 1) j.update(subs[0]);  // one log: its fields at the top level too
   std::printf("%s\n", j.dump().c_str());
@@ -149,6 +203,12 @@ void add_mapper_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--batch", opt->batch, "scans per pipelined round trip when not paced")
       ->capture_default_str()
       ->check(within(1, 100000));
+  cmd->add_option("--together", opt->together,
+                  "wait until this many mappers (counted on the server) are ready, then publish at once")
+      ->check(within(0, 10000));
+  cmd->add_option("--retry", opt->retry_s, "[s] keep reconnecting this long after the server went away")
+      ->capture_default_str()
+      ->check(within(0, 1e6));
   cmd->add_flag("--slam", opt->slam, "a log given without poses is raw: pose it by lshloc's SLAM");
   add_localizer_options(*cmd, opt->settings);
   cmd->callback([opt, cmd, &global] {

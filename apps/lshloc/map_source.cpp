@@ -158,7 +158,8 @@ nlohmann::json fleet_map_json(const FleetMap& fleet) {
   const fleet::MapFollowerStats st = fleet.follower->stats();
   return {{"history_updates", st.history_updates}, {"live_updates", st.live_updates},
           {"duplicates", st.duplicates},           {"reconnects", st.reconnects},
-          {"catch_up_s", fleet.catch_up_s},        {"submaps", fleet.map->submap_count()}};
+          {"catch_up_s", fleet.catch_up_s},        {"submaps", fleet.map->submap_count()},
+          {"map_scans", fleet.map->stats().scans}};
 }
 
 GridSubmapConfig GridMapOptions::resolve(const LaserScan* like) const {

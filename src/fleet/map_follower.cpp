@@ -1,6 +1,7 @@
 #include "lshloc/fleet/map_follower.hpp"
 
 #include <chrono>
+#include <thread>
 
 #include "lshloc/common/error.hpp"
 
@@ -16,8 +17,28 @@ MapFollower::~MapFollower() { stop(); }
 
 std::size_t MapFollower::catch_up(GlobalMap& map) {
   std::size_t n = 0;
-  for (auto updates = reader_.poll(); !updates.empty(); updates = reader_.poll())
-    n += apply_updates(map, reader_.submaps(), updates);
+  const auto start = std::chrono::steady_clock::now();
+  for (;;) {
+    try {
+      const std::vector<MapUpdate> updates = reader_.poll();
+      if (updates.empty()) break;
+      n += apply_updates(map, reader_.submaps(), updates);
+    } catch (const Error& e) {
+      // A server restart: positions are kept; reconnect and read on, for a while.
+      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > config_.give_up_s) throw;
+      {
+        std::lock_guard lock(stats_mutex_);
+        stats_.last_error = e.what();
+      }
+      std::this_thread::sleep_for(std::chrono::duration<double>(config_.retry_s));
+      try {
+        reader_.reconnect();
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.reconnects;
+      } catch (const Error&) {
+      }
+    }
+  }
   apply_updates(map, reader_.submaps(), {});  // submaps registered without scans yet
   std::lock_guard lock(stats_mutex_);
   stats_.history_updates += n;

@@ -105,16 +105,19 @@ MapLogWriter::MapLogWriter(RedisConnection& redis, std::string submap, const Glo
     const Reply index = redis_.command({"HINCRBY", registry, kSubmapCountField, "1"});
     redis_.command({"HSETNX", registry, field, std::to_string(index.integer)});
   }
-  // Resume after the stream's last entry.
+  resync();
+}
+
+void MapLogWriter::resync() {
+  next_seq_ = 0;
   const Reply last = redis_.command({"XREVRANGE", key_, "+", "-", "COUNT", "1"});
-  if (!last.elements.empty()) {
-    const Reply& entry = last.elements[0];
-    const std::string* record = entry.elements.size() == 2 ? field_of(entry.elements[1], "rec") : nullptr;
-    if (!record) throw Error(redis_.address().url() + " " + key_ + ": its last entry has no rec field");
-    MapUpdate u;
-    decode_update(*record, redis_.address().url() + " " + key_ + " entry " + entry.elements[0].text, u);
-    next_seq_ = u.seq + 1;
-  }
+  if (last.elements.empty()) return;
+  const Reply& entry = last.elements[0];
+  const std::string* record = entry.elements.size() == 2 ? field_of(entry.elements[1], "rec") : nullptr;
+  if (!record) throw Error(redis_.address().url() + " " + key_ + ": its last entry has no rec field");
+  MapUpdate u;
+  decode_update(*record, redis_.address().url() + " " + key_ + " entry " + entry.elements[0].text, u);
+  next_seq_ = u.seq + 1;
 }
 
 void MapLogWriter::publish(std::span<const LaserScan> scans) {

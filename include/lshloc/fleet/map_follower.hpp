@@ -20,9 +20,10 @@ namespace lshloc::fleet {
 
 struct MapFollowerConfig {
   MapLogConfig log;
-  double block_s = 0.2;    ///< [s] how long one read waits for new updates (also how soon stop() returns)
-  double retry_s = 0.5;    ///< [s] between reconnect attempts after the server went away
-  double timeout_s = 5.0;  ///< [s] of one command beyond its wait
+  double block_s = 0.2;     ///< [s] how long one read waits for new updates (also how soon stop() returns)
+  double retry_s = 0.5;     ///< [s] between reconnect attempts after the server went away
+  double give_up_s = 60.0;  ///< [s] catch_up() stops retrying after this long
+  double timeout_s = 5.0;   ///< [s] of one command beyond its wait
 };
 
 struct MapFollowerStats {
@@ -48,7 +49,8 @@ class MapFollower {
   void resume(const std::vector<StreamPosition>& positions) { reader_.resume(positions); }
 
   /// Applies every update already in the log to `map` (no lock: before any
-  /// localizer reads it). Returns the updates applied.
+  /// localizer reads it), reconnecting for up to give_up_s if the server goes
+  /// away. Returns the updates applied.
   std::size_t catch_up(GlobalMap& map);
   /// The stream positions of what has been applied to the map so far (read
   /// it while holding the map's lock, shared, for a consistent snapshot).

@@ -61,6 +61,10 @@ class MapLogWriter {
   /// Appends the scans (scan.pose: laser pose in the submap's frame) in
   /// pipelined batches; when it returns, Redis has acknowledged every one.
   void publish(std::span<const LaserScan> scans);
+  /// Reads the stream's last sequence number again (after a reconnect: a
+  /// batch whose replies were lost may or may not be in the stream), so
+  /// that publishing goes on without a duplicate or a gap.
+  void resync();
   std::uint64_t next_seq() const { return next_seq_; }
   const std::string& submap() const { return submap_; }
 
