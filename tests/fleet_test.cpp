@@ -12,10 +12,14 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <shared_mutex>
 #include <filesystem>
 #include <thread>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
+#include "lshloc/eval/scenario_runner.hpp"
+#include "lshloc/fleet/map_follower.hpp"
 #include "lshloc/fleet/map_log.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "test_support.hpp"
@@ -250,6 +254,53 @@ TEST(FleetMapLog, AMapperWithOtherSettingsIsRefused) {
   RedisConnection empty(server.address());
   MapLogReader reader(empty, MapLogConfig{.prefix = "nobody"});
   EXPECT_THROW(reader.settings(), Error);
+}
+
+// A localizer reads the map while the follower's thread writes what a mapper
+// publishes meanwhile (ThreadSanitizer runs this: scripts/sanitize.sh --thread).
+TEST(LiveFleet, AFollowerFeedsTheMapWhileALocalizerReadsIt) {
+  LSHLOC_REQUIRE_REDIS(server);
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
+  RedisConnection redis(server.address());
+  const GlobalMapConfig settings;
+  std::vector<MapLogWriter> writers;
+  for (const Submap& s : sc.submaps) writers.emplace_back(redis, s.name, settings);
+  // Every building but the target's is mapped before the target starts.
+  for (std::size_t i = 0; i < sc.submaps.size(); ++i)
+    if (i != sc.target_submap) writers[i].publish(sc.submaps[i].scans);
+  fleet::MapFollower follower(server.address(), fleet::MapFollowerConfig{.block_s = 0.05});
+  GlobalMap map(follower.settings());
+  follower.catch_up(map);
+  std::shared_mutex mutex;
+  follower.start(map, mutex);
+  // The target's building is published while the target localizes.
+  std::jthread mapper([&] {
+    const std::span<const LaserScan> scans(sc.submaps[sc.target_submap].scans);
+    for (std::size_t i = 0; i < scans.size(); i += 50) {
+      writers[sc.target_submap].publish(scans.subspan(i, std::min<std::size_t>(50, scans.size() - i)));
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  const ScenarioRun run = localize_target(map, sc.target, LocalizerConfig{}, {}, {}, {}, &mutex);
+  mapper.join();
+  // Let the follower take the rest, then stop it.
+  std::size_t total = 0;
+  for (const Submap& s : sc.submaps) total += s.scans.size();
+  for (int i = 0; i < 500; ++i) {
+    {
+      std::shared_lock lock(mutex);
+      if (map.stats().scans == total) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  follower.stop();
+  EXPECT_EQ(map.stats().scans, total);
+  EXPECT_GT(follower.stats().live_updates, 0u);
+  EXPECT_EQ(follower.stats().duplicates, 0u);
+  const std::optional<std::uint32_t> target = map.find_submap(sc.submaps[sc.target_submap].name);
+  ASSERT_TRUE(target.has_value());
+  const auto m = evaluate_localization(run.scan_estimates(), sc.target.truth, *target);
+  EXPECT_TRUE(m.success);
 }
 
 }  // namespace
