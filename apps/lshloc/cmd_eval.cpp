@@ -217,7 +217,7 @@ ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const 
   ScenarioRun run = localize_target(map, sc.target, run_config.localizer, progress, observer, {}, &mutex);
   fleet.follower->stop();
   run.map_build_s = fleet.catch_up_s;
-  extra["map_log"] = fleet_map_json(fleet);
+  extra["map_log"] = fleet_map_json(fleet, map);
   return run;
 }
 

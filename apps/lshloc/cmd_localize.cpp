@@ -506,9 +506,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, paths[k], *map, sources, runs[k]);
       nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
       if (follower) {
-        j["map_log"] = {{"history_updates", followed->history_updates}, {"live_updates", followed->live_updates},
-                        {"duplicates", followed->duplicates},           {"reconnects", followed->reconnects},
-                        {"catch_up_s", fleet_map.catch_up_s},           {"map_scans", map->stats().scans}};
+        j["map_log"] = fleet_map_json(fleet_map, *map);
       }
       if (opt->json) {
         std::printf("%s\n", j.dump().c_str());

@@ -154,12 +154,11 @@ FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const
   return f;
 }
 
-nlohmann::json fleet_map_json(const FleetMap& fleet) {
+nlohmann::json fleet_map_json(const FleetMap& fleet, const GlobalMap& map) {
   const fleet::MapFollowerStats st = fleet.follower->stats();
-  return {{"history_updates", st.history_updates}, {"live_updates", st.live_updates},
-          {"duplicates", st.duplicates},           {"reconnects", st.reconnects},
-          {"catch_up_s", fleet.catch_up_s},        {"submaps", fleet.map->submap_count()},
-          {"map_scans", fleet.map->stats().scans}};
+  return {{"history_updates", st.history_updates}, {"live_updates", st.live_updates}, {"duplicates", st.duplicates},
+          {"reconnects", st.reconnects},           {"catch_up_s", fleet.catch_up_s},  {"submaps", map.submap_count()},
+          {"map_scans", map.stats().scans}};
 }
 
 GridSubmapConfig GridMapOptions::resolve(const LaserScan* like) const {

@@ -48,8 +48,9 @@ struct FleetMap {
 };
 FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const std::string& snapshot,
                         ScenarioRunConfig& config);
-/// JSON of the follower's counters for a command's answer.
-nlohmann::json fleet_map_json(const FleetMap& fleet);
+/// JSON of the follower's counters and the map it fed (`fleet.map`, or where
+/// the command moved it) for a command's answer.
+nlohmann::json fleet_map_json(const FleetMap& fleet, const GlobalMap& map);
 
 /// Command-line settings of submaps built from occupancy grids (a ROS map
 /// YAML given where a map log goes). The virtual laser is the target's
