@@ -69,6 +69,8 @@ def main():
         ("bench", "matching"): ["--viewpoints", "300", "--warm-up", "10"],
         ("bench", "scale"): ["--submaps", "1", "--map-scans", "100", "--target-scans", "20", "--targets", "1",
                               "--no-random"],
+        ("bench", "shards"): ["--submaps", "2", "--shards", "1", "--targets", "1", "--map-scans", "100",
+                              "--target-scans", "20"],
         ("map", "append"): [os.path.join(work, "append.map"), corrected, "--count", "10"],
         ("map", "to-grid"): [corrected, "--out", os.path.join(work, "g2")],
         ("map", "from-grid"): [grid, "--out", os.path.join(work, "fromgrid.map"), "--grid-spacing", "3"],

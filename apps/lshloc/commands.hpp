@@ -34,6 +34,7 @@ void add_mapper_command(CLI::App& app, GlobalOptions& global);
 // `bench` is a group: each add_bench_<name>_command adds `bench <name>` to it.
 void add_bench_matching_command(CLI::App& bench, GlobalOptions& global);
 void add_bench_robots_command(CLI::App& bench, GlobalOptions& global);
+void add_bench_shards_command(CLI::App& bench, GlobalOptions& global);
 void add_recall_command(CLI::App& app, GlobalOptions& global);
 void add_calibration_command(CLI::App& app, GlobalOptions& global);
 

@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   lshloc::app::add_bench_matching_command(*bench, global);
   lshloc::app::add_bench_scale_command(*bench, global);
   lshloc::app::add_bench_robots_command(*bench, global);
+  lshloc::app::add_bench_shards_command(*bench, global);
   lshloc::app::add_recall_command(app, global);
   lshloc::app::add_calibration_command(app, global);
   lshloc::app::check_numeric_options(app);
