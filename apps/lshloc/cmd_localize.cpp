@@ -477,7 +477,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     const MapSources sources = add_map_arguments(*map, built, opt->map_slam,
                                                  opt->grid.resolve(targets.empty() ? nullptr : &targets[0].scans[0]));
     const double map_s = seconds_since(t0);
-    if (map->stats().features == 0)
+    // (A fleet's map may still be empty: its mappers fill it while the targets localize.)
+    if (map->stats().features == 0 && !follower)
       throw Error("the map has no features (" + std::to_string(map->submap_count()) + " submaps, " +
                   std::to_string(map->stats().scans) +
                   " scans): nothing to localize against; expected map scans that see walls within " +
