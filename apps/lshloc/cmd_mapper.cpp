@@ -115,7 +115,6 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
   const bool tty = isatty(fileno(stderr));
   const auto t0 = std::chrono::steady_clock::now();
   const bool paced = opt.rate_hz > 0.0 || opt.log_speed;
-  const double t_first = sources.front().scans.empty() ? 0.0 : sources.front().scans.front().timestamp;
   // Round robin over the submaps, as robots mapping at once: one scan each
   // when paced, else a batch each, as fast as Redis takes them.
   std::vector<std::size_t> done(sources.size(), 0);
@@ -127,8 +126,9 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
       if (done[r] >= scans.size()) continue;
       const std::size_t n = paced ? 1 : std::min(opt.batch, scans.size() - done[r]);
       if (paced) {
-        const double due =
-            opt.log_speed ? scans[done[r]].timestamp - t_first : static_cast<double>(published) / opt.rate_hz;
+        // At log speed each submap keeps its own log's pace (logs of other buildings have other clocks).
+        const double due = opt.log_speed ? scans[done[r]].timestamp - scans.front().timestamp
+                                         : static_cast<double>(published) / opt.rate_hz;
         const double wait = due - seconds_since(t0);
         if (wait > 0) std::this_thread::sleep_for(std::chrono::duration<double>(wait));
       }
@@ -141,7 +141,8 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
         ++reconnects;
         published = 0;
         for (std::size_t q = 0; q < writers.size(); ++q)
-          done[q] = static_cast<std::size_t>(writers[q].next_seq() - first_seq[q]), published += done[q];
+          done[q] = std::min(sources[q].scans.size(), static_cast<std::size_t>(writers[q].next_seq() - first_seq[q])),
+          published += done[q];
       }
       if (tty && (published % 500 < n || published == total))
         std::fprintf(stderr, "\rpublished %zu/%zu scans of %zu submaps%s", published, total, sources.size(),
