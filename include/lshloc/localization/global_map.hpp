@@ -3,9 +3,12 @@
 // the appearance database, the location store and the occupancy and
 // free-space pose grids.
 // Poses [m, rad] in each submap's frame; times [s] of CPU.
-// Thread safety: not thread-safe; feed and query it from one thread, or
-// guard it with one lock (the live threaded mode: a shared_mutex, exclusive
-// for each add_scan, shared for each target scan; eval/live_replay.hpp).
+// Thread safety: const methods (what localizers read) may run concurrently
+// with each other: several localizers on their own threads share one map.
+// Writes (add_submap, add_scan, mark_*) must not run concurrently with
+// anything: feed and query from one thread, or guard the map with one lock
+// (a shared_mutex, exclusive for each write, shared for each target scan:
+// eval/live_replay.hpp, fleet/map_follower.hpp).
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -85,7 +88,7 @@ struct MapSectionView {
 /// The global map G = {G_1..G_R}: submaps in their own frames, the appearance
 /// database, the location store and the pose grids. Mapper robots feed it one
 /// scan at a time (in any interleaving across submaps); nothing is rebuilt.
-/// Not thread-safe: feed it from one thread and do not query it concurrently.
+/// Thread safety: see the top of this file (concurrent reads, exclusive writes).
 class GlobalMap {
  public:
   explicit GlobalMap(GlobalMapConfig config = {});
