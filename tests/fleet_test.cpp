@@ -268,7 +268,7 @@ TEST(LiveFleet, AFollowerFeedsTheMapWhileALocalizerReadsIt) {
   // Every building but the target's is mapped before the target starts.
   for (std::size_t i = 0; i < sc.submaps.size(); ++i)
     if (i != sc.target_submap) writers[i].publish(sc.submaps[i].scans);
-  fleet::MapFollower follower(server.address(), fleet::MapFollowerConfig{.block_s = 0.05});
+  fleet::MapFollower follower(server.address(), fleet::MapFollowerConfig{.log = {}, .block_s = 0.05});
   GlobalMap map(follower.settings());
   follower.catch_up(map);
   std::shared_mutex mutex;

@@ -21,6 +21,7 @@
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "option_checks.hpp"
 #include "process_memory.hpp"
+#include "scenario_report.hpp"
 
 namespace lshloc::app {
 
@@ -64,11 +65,7 @@ void localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
     if (m.success && m.localized_at) o.localized_at.push_back(static_cast<double>(*m.localized_at));
     o.query_s += run.localizer.query_s, o.features += static_cast<double>(run.localizer.features);
     o.score_s += run.localizer.ransac_s, o.scores += static_cast<double>(run.localizer.ransac.scores);
-    o.per_target.push_back({{"building", targets[t].building},
-                            {"success", m.success},
-                            {"final_error_m", m.final_error_m ? nlohmann::json(*m.final_error_m) : nlohmann::json()},
-                            {"localized_at", m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json()},
-                            {"confident_wrong", m.confident_wrong}});
+    o.per_target.push_back(target_outcome_json(targets[t].building, m));
   }
   if (tty) std::fprintf(stderr, "\n");
 }

@@ -21,6 +21,7 @@
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "option_checks.hpp"
 #include "process_memory.hpp"
+#include "scenario_report.hpp"
 
 namespace lshloc::app {
 
@@ -105,11 +106,7 @@ nlohmann::json run_sharded(const ShardsOptions& opt, std::size_t k, bool tty) {
     const auto m = evaluate_localization(merged, target.truth, static_cast<std::uint32_t>(target_global));
     localized += m.success, wrong += m.confident_wrong;
     if (m.success && m.localized_at) localized_at.push_back(static_cast<double>(*m.localized_at));
-    per_target.push_back({{"building", target.building},
-                          {"success", m.success},
-                          {"final_error_m", m.final_error_m ? nlohmann::json(*m.final_error_m) : nlohmann::json()},
-                          {"localized_at", m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json()},
-                          {"confident_wrong", m.confident_wrong}});
+    per_target.push_back(target_outcome_json(target.building, m));
   }
   std::sort(localized_at.begin(), localized_at.end());
   std::size_t features = 0;

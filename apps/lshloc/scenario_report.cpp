@@ -53,6 +53,14 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   return j;
 }
 
+nlohmann::json target_outcome_json(const std::string& building, const LocalizationMetrics& m) {
+  return {{"building", building},
+          {"success", m.success},
+          {"final_error_m", m.final_error_m ? nlohmann::json(*m.final_error_m) : nlohmann::json()},
+          {"localized_at", m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json()},
+          {"confident_wrong", m.confident_wrong}};
+}
+
 void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run) {
   const double scans = static_cast<double>(std::max<std::size_t>(run.estimates.size(), 1));
   const LocalizerStats& s = run.localizer;

@@ -18,6 +18,9 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
 /// Keys are added to `j`.
 void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run);
 
+/// One target's outcome in a benchmark's per_target list.
+nlohmann::json target_outcome_json(const std::string& building, const LocalizationMetrics& m);
+
 /// Writes STEM-error.{png,svg} (error per viewpoint, the paper's Fig. 8) and
 /// STEM-map.{png,svg} (trajectories over the target's submap, Figs. 5-6) into
 /// `dir`; returns STEM.

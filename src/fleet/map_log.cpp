@@ -163,7 +163,8 @@ void MapLogReader::refresh_registry() {
     found.emplace_back(parse_u64(all.elements[i + 1].text, config_.registry_key() + " field " + field), name);
   }
   std::sort(found.begin(), found.end());
-  for (auto& [index, name] : found) order_.push_back(name), positions_[name] = {};
+  for (auto& [index, name] : found)
+    order_.push_back(name), positions_[name] = {}, submap_of_key_[config_.stream_key(name)] = name;
   stats_.submaps = order_.size();
 }
 
@@ -186,10 +187,10 @@ std::vector<MapUpdate> MapLogReader::poll(double block_s) {
   for (const Reply& stream : r.elements) {
     if (stream.elements.size() != 2) continue;
     const std::string& key = stream.elements[0].text;
-    const auto name_it =
-        std::find_if(order_.begin(), order_.end(), [&](const std::string& n) { return config_.stream_key(n) == key; });
-    if (name_it == order_.end()) continue;
-    Position& pos = positions_[*name_it];
+    const auto known = submap_of_key_.find(key);
+    if (known == submap_of_key_.end()) continue;
+    const std::string& name = known->second;
+    Position& pos = positions_[name];
     for (const Reply& entry : stream.elements[1].elements) {
       if (entry.elements.size() != 2) continue;
       const std::string where = redis_.address().url() + " " + key + " entry " + entry.elements[0].text;
@@ -198,7 +199,7 @@ std::vector<MapUpdate> MapLogReader::poll(double block_s) {
       const std::string* record = field_of(entry.elements[1], "rec");
       if (!record) throw Error(where + ": expected a rec field");
       MapUpdate u;
-      u.submap = *name_it;
+      u.submap = name;
       decode_update(*record, where, u);
       if (u.seq < pos.next_seq) {
         ++stats_.duplicates;
@@ -209,7 +210,7 @@ std::vector<MapUpdate> MapLogReader::poll(double block_s) {
         pos.last_id = previous_id;
         if (!out.empty()) return out;
         throw Error(where + ": sequence number " + std::to_string(u.seq) + " after " + std::to_string(pos.next_seq) +
-                    " was expected: updates of submap " + *name_it + " are missing");
+                    " was expected: updates of submap " + name + " are missing");
       }
       ++pos.next_seq;
       ++stats_.updates;
@@ -256,6 +257,7 @@ void MapLogReader::resume(const std::vector<StreamPosition>& positions) {
     if (positions_.contains(p.submap)) throw Error("stream positions name submap " + p.submap + " twice");
     order_.push_back(p.submap);
     positions_[p.submap] = {p.last_id, p.next_seq};
+    submap_of_key_[config_.stream_key(p.submap)] = p.submap;
   }
   stats_.submaps = order_.size();
 }

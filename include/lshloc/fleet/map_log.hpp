@@ -136,6 +136,7 @@ class MapLogReader {
   MapLogConfig config_;
   std::vector<std::string> order_;
   std::map<std::string, Position> positions_;
+  std::map<std::string, std::string> submap_of_key_;  ///< stream key -> submap name
   MapLogReaderStats stats_;
 };
 
