@@ -14,11 +14,16 @@ $LSHLOC (default build/bin/lshloc) against them:
               map of one that read everything
   catch-up    a late localizer on a 1e6-feature map: from a snapshot and from
               the stream alone
-  cluster     not yet (docs/fleet.md)
+  cluster     a 3-master Redis Cluster (scripts/redis_cluster.sh): the 4 mappers
+              publish there, and a localizer's per-scan trace equals the
+              single-Redis one byte for byte
+  throughput  ingest with 1 and 4 mappers (fr079 R = 15) and with 16
+              (simulated buildings, the catch-up case's first half)
 
 Prints progress on stderr and one JSON line last on stdout; exits 0 only when
 every case passed. Needs the shared logs (../shared/data or $LSHLOC_DATA).
 Usage: LSHLOC=build/bin/lshloc scripts/fleet_test.sh"""
+import filecmp
 import json
 import os
 import shutil
@@ -91,29 +96,75 @@ def last_json(text):
     return json.loads(lines[-1]) if lines else None
 
 
-def functional_and_ingest(redis, result):
+def publish_scenario(url, prefix, mappers):
+    """`mappers` processes publish fr079's default scenario (R = 15) at once,
+    each its part; returns (scans, seconds from the first start to the last
+    finish) or None."""
+    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", url, "--prefix", prefix, "--building", "fr079",
+                               "--submaps", "15", "--part", f"{k}/{mappers}", "--together", str(mappers)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for k in range(mappers)]
+    done = [p.communicate() for p in procs]
+    outs = [last_json(o) for o, _ in done]
+    if any(o is None for o in outs) or any(p.returncode for p in procs):
+        log("a mapper failed: " + " | ".join(e for _, e in done))
+        return None
+    return sum(o["scans"] for o in outs), max(o["finished_at"] for o in outs) - min(o["started_at"] for o in outs)
+
+
+def localize_scenario(url, prefix, trace=None):
+    args = ["eval", "--building", "fr079", "--submaps", "15", "--map-redis", url, "--map-prefix", prefix, "--json"]
+    return subprocess.Popen([LSHLOC, *args, *(["--trace", trace] if trace else [])], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def functional_and_ingest(redis, work, result):
+    log("ingest: 1 mapper publishes fr079 R=15 alone")
+    one = publish_scenario(redis.url, "one", 1)
+    if one:
+        result["ingest_scans_per_s_1_mapper"] = round(one[0] / one[1]) if one[1] > 0 else 0
+        log(f"ingest: {one[0]} scans in {one[1]:.2f} s = {result['ingest_scans_per_s_1_mapper']} scans/s")
     log("functional: 4 mappers publish fr079 R=15 at once, then 2 localizers")
-    mappers = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "fn", "--building", "fr079",
-                                 "--submaps", "15", "--part", f"{k}/4", "--together", "4"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for k in range(4)]
-    outs = [last_json(m.communicate()[0]) for m in mappers]
-    if any(o is None for o in outs) or any(m.returncode for m in mappers):
-        log("a mapper failed: " + " | ".join(m.stderr.read() if m.stderr else "" for m in mappers))
+    four = publish_scenario(redis.url, "fn", 4)
+    if four is None:
         return False
-    scans = sum(o["scans"] for o in outs)
-    window = max(o["finished_at"] for o in outs) - min(o["started_at"] for o in outs)
+    scans, window = four
     result["ingest_scans_per_s_4_mappers"] = round(scans / window) if window > 0 else 0
     result["ingest_scans"] = scans
     log(f"ingest: {scans} scans in {window:.2f} s = {result['ingest_scans_per_s_4_mappers']} scans/s")
-    locs = [subprocess.Popen([LSHLOC, "eval", "--building", "fr079", "--submaps", "15", "--map-redis", redis.url,
-                              "--map-prefix", "fn", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             text=True) for _ in range(2)]
+    locs = [localize_scenario(redis.url, "fn", os.path.join(work, "single.trace.csv") if k == 0 else None)
+            for k in range(2)]
     answers = [last_json(p.communicate()[0]) for p in locs]
     result["localizers"] = len(locs)
     result["localizers_correct"] = sum(1 for a in answers if a and a.get("success"))
     result["localizer_final_error_m"] = [a.get("final_error_m") if a else None for a in answers]
     log(f"localizers correct: {result['localizers_correct']}/2, final errors {result['localizer_final_error_m']}")
     return result["localizers_correct"] == 2
+
+
+def cluster(work, result):
+    log("cluster: a 3-master Redis Cluster (scripts/redis_cluster.sh); 4 mappers publish fr079 R=15, a localizer")
+    script, where = os.path.join(ROOT, "scripts", "redis_cluster.sh"), os.path.join(work, "cluster")
+    started = subprocess.run([script, "start", where], capture_output=True, text=True)
+    if started.returncode:
+        log("cluster: did not start: " + started.stderr)
+        return False
+    try:
+        url = started.stdout.split()[-1]
+        four = publish_scenario(url, "fn", 4)
+        if four is None:
+            return False
+        result["ingest_scans_per_s_4_mappers_cluster"] = round(four[0] / four[1]) if four[1] > 0 else 0
+        trace = os.path.join(work, "cluster.trace.csv")
+        answer = last_json(localize_scenario(url, "fn", trace).communicate()[0])
+        single = os.path.join(work, "single.trace.csv")
+        same = answer is not None and os.path.exists(single) and filecmp.cmp(single, trace, shallow=False)
+        result["cluster_final_error_m"] = answer.get("final_error_m") if answer else None
+        log(f"cluster: ingest {result['ingest_scans_per_s_4_mappers_cluster']} scans/s; the localizer's per-scan "
+            f"trace is {'byte-identical to' if same else 'NOT the same as'} the single Redis run's "
+            f"(final error {result['cluster_final_error_m']} m)")
+        return same
+    finally:
+        subprocess.run([script, "stop", where])
 
 
 def kill_mapper(redis, result):
@@ -208,10 +259,16 @@ def catch_up(redis, work, result):
     run(["simulate", "--out", sim, "--buildings", "32", "--seed", "9", "--scans", "3300"], check=True)
     logs = sorted(os.path.join(sim, d, f"{d}-corrected.log.gz") for d in os.listdir(sim)
                   if os.path.isdir(os.path.join(sim, d)))
-    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "big", l],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for l in logs[:16]]
-    for p in procs:
-        p.wait()
+    # The first 16 publish at once: the ingest figure with 16 mappers.
+    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "big", "--together", "16", l],
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) for l in logs[:16]]
+    outs = [last_json(p.communicate()[0]) for p in procs]
+    if all(outs):
+        scans = sum(o["scans"] for o in outs)
+        window = max(o["finished_at"] for o in outs) - min(o["started_at"] for o in outs)
+        result["ingest_scans_per_s_16_mappers"] = round(scans / window) if window > 0 else 0
+        log(f"ingest: 16 mappers (simulated buildings) {scans} scans in {window:.2f} s = "
+            f"{result['ingest_scans_per_s_16_mappers']} scans/s")
     procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "big", l],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for l in logs[16:]]
     for p in procs:
@@ -241,7 +298,7 @@ def main():
               "ingest_scans_per_s_4_mappers": 0, "catch_up_s_1e6_snapshot": None}
     ok = {}
     try:
-        ok["functional"] = functional_and_ingest(redis, result)
+        ok["functional"] = functional_and_ingest(redis, work, result)
         ok["ingest"] = result["ingest_scans_per_s_4_mappers"] >= 5000
         km = kill_mapper(redis, result)
         rr = restart_redis(redis, result)
@@ -252,7 +309,7 @@ def main():
         result["restarted_localizer_same_map"] = restart_localizer(redis, work, result)
         ok["localizer"] = result["restarted_localizer_same_map"]
         ok["catch_up"] = catch_up(redis, work, result) and result["catch_up_s_1e6_snapshot"] <= 10
-        ok["cluster"] = False  # not yet: docs/fleet.md
+        ok["cluster"] = result["cluster_same_estimates"] = cluster(work, result)
     finally:
         redis.stop()
         shutil.rmtree(work, ignore_errors=True)

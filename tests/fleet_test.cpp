@@ -1,7 +1,10 @@
 // The fleet's map log on Redis: records round-trip and refuse damage, a map
 // fed through a real redis-server (the test's own, on a loopback port) equals
 // the map built directly, duplicates are skipped and gaps refused, a
-// restarted mapper resumes its sequence, and other settings are refused.
+// restarted mapper resumes its sequence, and other settings are refused. On
+// a 3-master Redis Cluster of the test's own (scripts/redis_cluster.sh): key
+// slots equal the server's, the map equals the one built directly, and MOVED
+// and ASK redirects are followed while a submap's slot migrates.
 // Skips with a message when redis-server is not installed.
 #include <gtest/gtest.h>
 
@@ -12,6 +15,9 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
+#include <random>
+#include <set>
 #include <shared_mutex>
 #include <filesystem>
 #include <thread>
@@ -31,6 +37,7 @@ using fleet::MapLogConfig;
 using fleet::MapLogReader;
 using fleet::MapLogWriter;
 using fleet::RedisAddress;
+using fleet::RedisClient;
 using fleet::RedisConnection;
 
 /// A redis-server of the test's own: a free loopback port, no persistence,
@@ -89,6 +96,45 @@ class LocalRedis {
   bool running_ = false;
 };
 
+/// A 3-master Redis Cluster of the test's own (scripts/redis_cluster.sh, on
+/// free loopback ports), taken down at destruction.
+class LocalRedisCluster {
+ public:
+  LocalRedisCluster() {
+    if (std::system("command -v redis-server >/dev/null 2>&1 && command -v redis-cli >/dev/null 2>&1") != 0) return;
+    dir_ = test::temp_path("-cluster");
+    FILE* p = popen((script() + " start " + dir_).c_str(), "r");
+    if (!p) return;
+    char line[256] = {};
+    const bool got = std::fgets(line, sizeof line, p) != nullptr;
+    if (pclose(p) != 0 || !got) return;
+    std::string url(line);
+    while (!url.empty() && std::isspace(static_cast<unsigned char>(url.back()))) url.pop_back();
+    seed_ = RedisAddress::parse(url);
+    running_ = true;
+  }
+  ~LocalRedisCluster() {
+    if (dir_.empty()) return;
+    [[maybe_unused]] const int rc = std::system((script() + " stop " + dir_).c_str());
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+  bool running() const { return running_; }
+  RedisAddress address() const { return seed_; }
+
+ private:
+  static std::string script() { return std::string(LSHLOC_SOURCE_DIR) + "/scripts/redis_cluster.sh"; }
+  std::string dir_;
+  RedisAddress seed_;
+  bool running_ = false;
+};
+
+#define LSHLOC_REQUIRE_REDIS_CLUSTER(cluster)                                \
+  LocalRedisCluster cluster;                                                 \
+  if (!cluster.running())                                                    \
+  GTEST_SKIP() << "redis-server/redis-cli not found or the cluster did not " \
+                  "start: scripts/setup.sh installs them"
+
 #define LSHLOC_REQUIRE_REDIS(server)                          \
   LocalRedis server;                                          \
   if (!server.running())                                      \
@@ -143,23 +189,23 @@ TEST(FleetMapLog, AMapFedThroughRedisEqualsTheMapBuiltDirectly) {
   const Scenario sc = sim::synthetic_scenario(test::small_world(300, 50));
   const GlobalMapConfig settings;
   {
-    RedisConnection redis(server.address());
+    RedisClient redis(server.address());
     for (const Submap& s : sc.submaps) MapLogWriter(redis, s.name, settings).publish(s.scans);
   }
-  // One read takes each stream whole: the reader applies submap after submap.
-  RedisConnection redis(server.address());
-  MapLogReader reader(redis, MapLogConfig{.batch = 100000});
+  // Reads of 7 updates per stream, handed out round robin, as MapFeeder
+  // feeds a map from files: the same map, bit for bit.
+  RedisClient redis(server.address());
+  MapLogReader reader(redis, MapLogConfig{.batch = 7});
   GlobalMap through_redis(reader.settings());
-  std::size_t applied = 0;
+  std::size_t applied = 0, polls = 0;
   for (auto updates = reader.poll(); !updates.empty(); updates = reader.poll())
-    applied += fleet::apply_updates(through_redis, reader.submaps(), updates);
+    applied += fleet::apply_updates(through_redis, reader.submaps(), updates), ++polls;
   GlobalMap direct(settings);
+  MapFeeder(direct, sc.submaps).feed_until(1.0);
   std::size_t scans = 0;
-  for (const Submap& s : sc.submaps) {
-    const std::uint32_t id = direct.add_submap(s.name);
-    for (const LaserScan& scan : s.scans) direct.add_scan(id, scan, scan.pose), ++scans;
-  }
+  for (const Submap& s : sc.submaps) scans += s.scans.size();
   EXPECT_EQ(applied, scans);
+  EXPECT_GT(polls, 2u);
   for (std::uint32_t i = 0; i < direct.submap_count(); ++i) {
     EXPECT_EQ(direct.submap_name(i), through_redis.submap_name(i));
     EXPECT_EQ(direct.submap_scans(i), through_redis.submap_scans(i));
@@ -172,7 +218,7 @@ TEST(FleetMapLog, AMapFedThroughRedisEqualsTheMapBuiltDirectly) {
 TEST(FleetMapLog, AReaderResumedFromASnapshotsPositionsReachesTheSameMap) {
   LSHLOC_REQUIRE_REDIS(server);
   const Scenario sc = sim::synthetic_scenario(test::small_world(300, 50));
-  RedisConnection redis(server.address());
+  RedisClient redis(server.address());
   const GlobalMapConfig settings;
   // First half of every submap, then a snapshot (map + positions) ...
   std::vector<MapLogWriter> writers;
@@ -190,7 +236,7 @@ TEST(FleetMapLog, AReaderResumedFromASnapshotsPositionsReachesTheSameMap) {
   // ... the rest is published; a reader resumed at the snapshot's positions
   // applies only the rest, and ends with the map of one that read it all.
   for (std::size_t i = 0; i < sc.submaps.size(); ++i) writers[i].publish(half(sc.submaps[i], true));
-  RedisConnection redis2(server.address());
+  RedisClient redis2(server.address());
   MapLogReader resumed(redis2);
   resumed.resume(fleet::positions_from_json(saved, "test"));
   std::size_t rest = 0;
@@ -213,7 +259,7 @@ TEST(FleetMapLog, AReaderResumedFromASnapshotsPositionsReachesTheSameMap) {
 
 TEST(FleetMapLog, DuplicatesAreSkippedGapsRefusedAndAMapperResumes) {
   LSHLOC_REQUIRE_REDIS(server);
-  RedisConnection redis(server.address());
+  RedisClient redis(server.address());
   std::vector<LaserScan> scans;
   for (int i = 0; i < 10; ++i) scans.push_back(scan_at(i));
   MapLogWriter(redis, "hall", GlobalMapConfig{}).publish(scans);
@@ -238,9 +284,24 @@ TEST(FleetMapLog, DuplicatesAreSkippedGapsRefusedAndAMapperResumes) {
   }
 }
 
+TEST(FleetMapLog, SubmapsAreRegisteredInTheOrderOfTheFirstListAndOnce) {
+  LSHLOC_REQUIRE_REDIS(server);
+  RedisClient redis(server.address());
+  const std::vector<std::string> scenario = {"c", "a", "b"}, later = {"a", "d", "c"};
+  // Mappers of one scenario register its whole list: the first one fixes the order.
+  fleet::register_map(redis, GlobalMapConfig{}, scenario);
+  fleet::register_map(redis, GlobalMapConfig{}, later);
+  MapLogWriter(redis, "b", GlobalMapConfig{});
+  MapLogReader reader(redis);
+  reader.poll();
+  EXPECT_EQ(reader.submaps(), (std::vector<std::string>{"c", "a", "b", "d"}));
+  EXPECT_EQ(redis.command({"HGET", MapLogConfig{}.registry_key(), "submap_count"}).text, "4");
+  EXPECT_THROW(fleet::register_map(redis, GlobalMapConfig{}, std::vector<std::string>{"ok", "x}"}), Error);
+}
+
 TEST(FleetMapLog, AMapperWithOtherSettingsIsRefused) {
   LSHLOC_REQUIRE_REDIS(server);
-  RedisConnection redis(server.address());
+  RedisClient redis(server.address());
   MapLogWriter(redis, "a", GlobalMapConfig{});
   GlobalMapConfig other;
   other.context_scans = 3;
@@ -251,9 +312,113 @@ TEST(FleetMapLog, AMapperWithOtherSettingsIsRefused) {
     EXPECT_NE(std::string(e.what()).find("settings differ"), std::string::npos) << e.what();
   }
   EXPECT_THROW(MapLogWriter(redis, "bad{name}", GlobalMapConfig{}), Error);
-  RedisConnection empty(server.address());
+  RedisClient empty(server.address());
   MapLogReader reader(empty, MapLogConfig{.prefix = "nobody"});
   EXPECT_THROW(reader.settings(), Error);
+}
+
+TEST(FleetCluster, HashSlotsAreTheServersOwn) {
+  // The CRC-16/XMODEM check value of "123456789" is 0x31C3; Redis's
+  // CLUSTER KEYSLOT documentation gives somekey 11058 and foo{hash_tag} 2515.
+  EXPECT_EQ(fleet::hash_slot("123456789"), 0x31C3 % 16384);
+  EXPECT_EQ(fleet::hash_slot("somekey"), 11058);
+  EXPECT_EQ(fleet::hash_slot("foo{hash_tag}"), 2515);
+  EXPECT_EQ(fleet::hash_slot("{user1000}.following"), fleet::hash_slot("{user1000}.followers"));
+  EXPECT_NE(fleet::hash_slot("foo{}{bar}"), fleet::hash_slot("bar"));
+  EXPECT_EQ(fleet::hash_slot("foo{{bar}}zap"), fleet::hash_slot("{bar"));
+  EXPECT_EQ(fleet::hash_slot("foo{bar}{zap}"), fleet::hash_slot("bar"));
+  EXPECT_EQ(fleet::routing_key(std::vector<std::string>{"XREAD", "COUNT", "5", "streams", "k1", "k2", "0", "0"}), "k1");
+  EXPECT_EQ(fleet::routing_key(std::vector<std::string>{"HGET", "reg", "f"}), "reg");
+  LSHLOC_REQUIRE_REDIS_CLUSTER(cluster);
+  RedisConnection node(cluster.address());
+  std::mt19937 rng(7);
+  const std::string alphabet = "abcXYZ019{}:-_ ";
+  for (int i = 0; i < 300; ++i) {
+    std::string key(1 + rng() % 12, ' ');
+    for (char& c : key) c = alphabet[rng() % alphabet.size()];
+    const fleet::Reply r = node.command({"CLUSTER", "KEYSLOT", key});
+    EXPECT_EQ(fleet::hash_slot(key), r.integer) << "key '" << key << "'";
+  }
+}
+
+TEST(FleetCluster, AMapFedThroughAClusterEqualsTheMapBuiltDirectly) {
+  LSHLOC_REQUIRE_REDIS_CLUSTER(cluster);
+  const Scenario sc = sim::synthetic_scenario(test::small_world(300, 50));
+  const GlobalMapConfig settings;
+  RedisClient redis(cluster.address());
+  ASSERT_TRUE(redis.is_cluster());
+  std::set<std::size_t> nodes;
+  for (const Submap& s : sc.submaps) {
+    MapLogWriter(redis, s.name, settings).publish(s.scans);
+    nodes.insert(redis.node_of(MapLogConfig{}.stream_key(s.name)));
+  }
+  EXPECT_GE(nodes.size(), 2u) << "the submaps' streams should spread over the masters";
+  // The follower reads every stream (one XREAD per stream, pipelined per node).
+  fleet::MapFollower follower(cluster.address(), fleet::MapFollowerConfig{.log = {.batch = 9}, .block_s = 0.05});
+  GlobalMap through_cluster(follower.settings());
+  GlobalMap direct(settings);
+  MapFeeder(direct, sc.submaps).feed_until(1.0);
+  std::size_t scans = 0;
+  for (const Submap& s : sc.submaps) scans += s.scans.size();
+  EXPECT_EQ(follower.catch_up(through_cluster), scans);
+  test::expect_same_map_contents(direct, through_cluster);
+  // What is published later arrives through the following thread's waits.
+  std::shared_mutex mutex;
+  follower.start(through_cluster, mutex);
+  std::vector<LaserScan> more;
+  for (int i = 0; i < 20; ++i) more.push_back(scan_at(i));
+  MapLogWriter(redis, "annex", settings).publish(more);
+  for (int i = 0; i < 500 && follower.stats().live_updates < more.size(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  follower.stop();
+  EXPECT_EQ(follower.stats().live_updates, more.size());
+  EXPECT_EQ(through_cluster.stats().scans, scans + more.size());
+}
+
+TEST(FleetCluster, RedirectsAreFollowedWhileASubmapsSlotMigratesAndAfter) {
+  LSHLOC_REQUIRE_REDIS_CLUSTER(cluster);
+  RedisClient writer_client(cluster.address());
+  RedisClient reader_client(cluster.address());
+  const MapLogConfig config;
+  const std::string key = config.stream_key("hall");
+  ASSERT_NE(fleet::hash_slot(key), fleet::hash_slot(config.registry_key()));
+  std::vector<LaserScan> scans;
+  for (int i = 0; i < 30; ++i) scans.push_back(scan_at(i));
+  MapLogWriter writer(writer_client, "hall", GlobalMapConfig{});
+  MapLogReader reader(reader_client);
+  writer.publish(std::span(scans).first(10));
+  EXPECT_EQ(reader.poll().size(), 10u);
+  // Move the stream's slot from its master to another, the way
+  // redis-cli --cluster reshard does: both clients still hold the old table.
+  const std::string slot = std::to_string(fleet::hash_slot(key));
+  const std::vector<RedisAddress> masters = writer_client.nodes();
+  ASSERT_EQ(masters.size(), 3u);
+  const RedisAddress& from = masters[writer_client.node_of(key)];
+  const RedisAddress& to = masters[(writer_client.node_of(key) + 1) % 3];
+  RedisConnection src(from), dst(to);
+  const std::string src_id = src.command({"CLUSTER", "MYID"}).text, dst_id = dst.command({"CLUSTER", "MYID"}).text;
+  dst.command({"CLUSTER", "SETSLOT", slot, "IMPORTING", src_id});
+  src.command({"CLUSTER", "SETSLOT", slot, "MIGRATING", dst_id});
+  src.command({"MIGRATE", to.host, std::to_string(to.port), "", "0", "5000", "KEYS", key});
+  // Mid-migration the old master answers ASK for the key that has gone.
+  writer.publish(std::span(scans).subspan(10, 10));
+  EXPECT_GE(writer_client.stats().asked, 1u);
+  std::vector<fleet::MapUpdate> got = reader.poll();
+  EXPECT_GE(reader_client.stats().asked, 1u);
+  for (const RedisAddress& m : masters) RedisConnection(m).command({"CLUSTER", "SETSLOT", slot, "NODE", dst_id});
+  // Now the slot has moved for good: MOVED, and both learn the new table.
+  writer.publish(std::span(scans).subspan(20, 10));
+  EXPECT_GE(writer_client.stats().moved, 1u);
+  for (auto more = reader.poll(); !more.empty(); more = reader.poll()) got.insert(got.end(), more.begin(), more.end());
+  EXPECT_GE(reader_client.stats().moved, 1u);
+  ASSERT_EQ(got.size(), 20u);
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].seq, 10 + i);
+    EXPECT_EQ(got[i].scan.ranges, scans[10 + i].ranges);
+  }
+  EXPECT_EQ(reader.stats().duplicates, 0u);
+  EXPECT_EQ(writer_client.node_of(key), reader_client.node_of(key));
+  EXPECT_EQ(dst.command({"XLEN", key}).integer, 30);
 }
 
 // A localizer reads the map while the follower's thread writes what a mapper
@@ -261,7 +426,7 @@ TEST(FleetMapLog, AMapperWithOtherSettingsIsRefused) {
 TEST(LiveFleet, AFollowerFeedsTheMapWhileALocalizerReadsIt) {
   LSHLOC_REQUIRE_REDIS(server);
   const Scenario sc = sim::synthetic_scenario(test::small_world());
-  RedisConnection redis(server.address());
+  RedisClient redis(server.address());
   const GlobalMapConfig settings;
   std::vector<MapLogWriter> writers;
   for (const Submap& s : sc.submaps) writers.emplace_back(redis, s.name, settings);

@@ -41,12 +41,15 @@ struct MapperOptions {
   LocalizerOptions settings;
 };
 
-/// The submaps this mapper publishes: the log's, or its part of the scenario's.
-std::vector<Submap> submaps_to_publish(const MapperOptions& opt, const std::string& data_dir) {
+/// The submaps this mapper publishes: the log's, or its part of the scenario's
+/// (`registered`: every submap of the scenario, in its order).
+std::vector<Submap> submaps_to_publish(const MapperOptions& opt, const std::string& data_dir,
+                                       std::vector<std::string>& registered) {
   if (opt.scenario.building.empty()) {
     Submap s = load_map_argument(opt.log, opt.slam);
     if (s.scans.empty()) throw Error(opt.log + ": no laser scans to publish");
     if (!opt.submap.empty()) s.name = opt.submap;
+    registered = {s.name};
     return {std::move(s)};
   }
   std::size_t k = 0, n = 0;
@@ -57,6 +60,7 @@ std::vector<Submap> submaps_to_publish(const MapperOptions& opt, const std::stri
   const io::DatasetCatalog catalog(data_dir);
   Scenario sc = io::load_scenario(catalog, opt.scenario);
   std::vector<Submap> mine;
+  for (const Submap& s : sc.submaps) registered.push_back(s.name);
   for (std::size_t i = k; i < sc.submaps.size(); i += n) mine.push_back(std::move(sc.submaps[i]));
   return mine;
 }
@@ -68,7 +72,7 @@ double unix_seconds() {
 
 /// Reconnects (every 0.5 s, for at most `timeout_s`) and resyncs every
 /// writer; throws when it gives up.
-void reconnect_within(fleet::RedisConnection& redis, std::vector<fleet::MapLogWriter>& writers, double timeout_s,
+void reconnect_within(fleet::RedisClient& redis, std::vector<fleet::MapLogWriter>& writers, double timeout_s,
                       const std::string& why) {
   std::fprintf(stderr, "lshloc mapper: %s; reconnecting\n", why.c_str());
   const auto start = std::chrono::steady_clock::now();
@@ -86,7 +90,7 @@ void reconnect_within(fleet::RedisConnection& redis, std::vector<fleet::MapLogWr
 
 /// Waits until `n` mappers reached the barrier key (so that they publish at
 /// once: the ingest figure), at most `timeout_s`.
-void wait_for_mappers(fleet::RedisConnection& redis, const std::string& key, std::size_t n, double timeout_s) {
+void wait_for_mappers(fleet::RedisClient& redis, const std::string& key, std::size_t n, double timeout_s) {
   redis.command({"INCR", key});
   const auto start = std::chrono::steady_clock::now();
   while (true) {
@@ -100,13 +104,18 @@ void wait_for_mappers(fleet::RedisConnection& redis, const std::string& key, std
 }
 
 void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
-  const std::vector<Submap> sources = submaps_to_publish(opt, data_dir);
-  fleet::RedisConnection redis(fleet::RedisAddress::parse(opt.redis));
+  std::vector<std::string> registered;
+  const std::vector<Submap> sources = submaps_to_publish(opt, data_dir, registered);
+  fleet::RedisClient redis(fleet::RedisAddress::parse(opt.redis));
   const GlobalMapConfig settings = make_run_config(opt.settings).map;
+  // The scenario's submaps in its order, whichever of its mappers comes first:
+  // every run of the scenario gives localizers the same submap ids.
+  const fleet::MapLogConfig log_config{.prefix = opt.prefix, .batch = opt.batch};
+  fleet::register_map(redis, settings, registered, log_config);
   std::vector<fleet::MapLogWriter> writers;
   std::size_t total = 0;
   for (const Submap& s : sources) {
-    writers.emplace_back(redis, s.name, settings, fleet::MapLogConfig{.prefix = opt.prefix, .batch = opt.batch});
+    writers.emplace_back(redis, s.name, settings, log_config);
     total += s.scans.size();
   }
   std::vector<std::uint64_t> first_seq;

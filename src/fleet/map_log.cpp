@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cmath>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -19,7 +21,6 @@ namespace {
 
 constexpr std::uint8_t kRecordVersion = 1;
 constexpr std::string_view kSettingsField = "settings";
-constexpr std::string_view kSubmapCountField = "submap_count";
 constexpr std::string_view kSubmapFieldPrefix = "submap:";
 
 std::uint32_t crc_of(std::string_view bytes) {
@@ -77,15 +78,15 @@ void decode_update(std::string_view record, const std::string& where, MapUpdate&
 
 // --- Writer ---
 
-MapLogWriter::MapLogWriter(RedisConnection& redis, std::string submap, const GlobalMapConfig& settings,
-                           MapLogConfig config)
-    : redis_(redis), submap_(std::move(submap)), config_(std::move(config)), key_(config_.stream_key(submap_)) {
-  if (submap_.empty() || submap_.size() > 200 || submap_.find_first_of("{}") != std::string::npos)
-    throw Error("submap name '" + submap_ + "': expected 1..200 characters without { or }");
-  const std::string registry = config_.registry_key();
+void register_map(RedisClient& redis, const GlobalMapConfig& settings, std::span<const std::string> submaps,
+                  const MapLogConfig& config) {
+  for (const std::string& name : submaps)
+    if (name.empty() || name.size() > 200 || name.find_first_of("{}") != std::string::npos)
+      throw Error("submap name '" + name + "': expected 1..200 characters without { or }");
+  const std::string registry = config.registry_key();
   const std::string mine = nlohmann::json(settings).dump();
-  redis_.command({"HSETNX", registry, kSettingsField, mine});
-  const Reply theirs = redis_.command({"HGET", registry, kSettingsField});
+  redis.command({"HSETNX", registry, kSettingsField, mine});
+  const Reply theirs = redis.command({"HGET", registry, kSettingsField});
   if (theirs.text != mine) {
     const nlohmann::json a = nlohmann::json::parse(theirs.text, nullptr, false), b = nlohmann::json::parse(mine);
     std::string differs = "?";
@@ -95,16 +96,29 @@ MapLogWriter::MapLogWriter(RedisConnection& redis, std::string submap, const Glo
           differs = k;
           break;
         }
-    throw Error(redis_.address().url() + " " + registry +
+    throw Error(redis.address().url() + " " + registry +
                 ": the map's registered settings differ from this "
                 "mapper's (first in '" +
                 differs + "'); a map takes one set of settings");
   }
-  const std::string field = std::string(kSubmapFieldPrefix) + submap_;
-  if (redis_.command({"HGET", registry, field}).is_nil()) {
-    const Reply index = redis_.command({"HINCRBY", registry, kSubmapCountField, "1"});
-    redis_.command({"HSETNX", registry, field, std::to_string(index.integer)});
-  }
+  // One script, so that it runs atomically: mappers registering the same list
+  // at once agree on its order (and so on every localizer's submap ids).
+  static constexpr std::string_view kRegister = R"(
+for _, name in ipairs(ARGV) do
+  local field = 'submap:' .. name
+  if redis.call('HEXISTS', KEYS[1], field) == 0 then
+    redis.call('HSET', KEYS[1], field, redis.call('HINCRBY', KEYS[1], 'submap_count', 1))
+  end
+end
+return 0)";
+  std::vector<std::string_view> words = {"EVAL", kRegister, "1", registry};
+  words.insert(words.end(), submaps.begin(), submaps.end());
+  redis.command(words);
+}
+
+MapLogWriter::MapLogWriter(RedisClient& redis, std::string submap, const GlobalMapConfig& settings, MapLogConfig config)
+    : redis_(redis), submap_(std::move(submap)), config_(std::move(config)), key_(config_.stream_key(submap_)) {
+  register_map(redis_, settings, std::span(&submap_, 1), config_);
   resync();
 }
 
@@ -136,7 +150,7 @@ void MapLogWriter::publish(std::span<const LaserScan> scans) {
 
 // --- Reader ---
 
-MapLogReader::MapLogReader(RedisConnection& redis, MapLogConfig config) : redis_(redis), config_(std::move(config)) {}
+MapLogReader::MapLogReader(RedisClient& redis, MapLogConfig config) : redis_(redis), config_(std::move(config)) {}
 
 GlobalMapConfig MapLogReader::settings() {
   const std::string registry = config_.registry_key();
@@ -172,51 +186,86 @@ std::vector<MapUpdate> MapLogReader::poll(double block_s) {
   refresh_registry();
   std::vector<MapUpdate> out;
   if (order_.empty()) return out;
-  auto read = [&](bool block) {
+  auto xread = [&](std::span<const std::string> names, double wait_s) {
     std::vector<std::string> words = {"XREAD", "COUNT", std::to_string(config_.batch)};
-    if (block) words.insert(words.end(), {"BLOCK", std::to_string(std::max<long>(1, std::lround(block_s * 1e3)))});
+    if (wait_s > 0) words.insert(words.end(), {"BLOCK", std::to_string(std::max<long>(1, std::lround(wait_s * 1e3)))});
     words.push_back("STREAMS");
-    for (const auto& name : order_) words.push_back(config_.stream_key(name));
-    for (const auto& name : order_) words.push_back(positions_[name].last_id);
-    std::vector<std::string_view> args(words.begin(), words.end());
-    return redis_.command(args);
+    for (const auto& name : names) words.push_back(config_.stream_key(name));
+    for (const auto& name : names) words.push_back(positions_[name].last_id);
+    return words;
   };
-  Reply r = read(false);
-  if (r.is_nil() && block_s > 0) r = read(true);
-  if (r.is_nil()) return out;
-  for (const Reply& stream : r.elements) {
-    if (stream.elements.size() != 2) continue;
-    const std::string& key = stream.elements[0].text;
-    const auto known = submap_of_key_.find(key);
-    if (known == submap_of_key_.end()) continue;
-    const std::string& name = known->second;
-    Position& pos = positions_[name];
-    for (const Reply& entry : stream.elements[1].elements) {
-      if (entry.elements.size() != 2) continue;
-      const std::string where = redis_.address().url() + " " + key + " entry " + entry.elements[0].text;
-      const std::string previous_id = pos.last_id;
-      pos.last_id = entry.elements[0].text;
-      const std::string* record = field_of(entry.elements[1], "rec");
-      if (!record) throw Error(where + ": expected a rec field");
-      MapUpdate u;
-      u.submap = name;
-      decode_update(*record, where, u);
-      if (u.seq < pos.next_seq) {
-        ++stats_.duplicates;
-        continue;
+  // One server reads every stream with one XREAD; a cluster one per stream
+  // (a command's keys must share a slot), each node's pipelined.
+  std::vector<std::vector<std::string>> reads;
+  if (redis_.is_cluster())
+    for (std::size_t i = 0; i < order_.size(); ++i) reads.push_back(xread(std::span(order_).subspan(i, 1), 0.0));
+  else
+    reads.push_back(xread(order_, 0.0));
+  auto nothing = [](const std::vector<Reply>& replies) {
+    return std::all_of(replies.begin(), replies.end(), [](const Reply& r) { return r.is_nil(); });
+  };
+  std::vector<Reply> replies = redis_.pipeline(reads);
+  if (nothing(replies) && block_s > 0) {
+    if (!redis_.is_cluster()) {
+      replies = redis_.pipeline({xread(order_, block_s)});
+    } else {
+      const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(block_s);
+      while (nothing(replies) && std::chrono::steady_clock::now() < until) {
+        std::this_thread::sleep_for(std::chrono::duration<double>(config_.cluster_poll_s));
+        replies = redis_.pipeline(reads);
       }
-      if (u.seq > pos.next_seq) {
-        // Hand out what came before the gap first; the next poll reads the gap again and fails.
-        pos.last_id = previous_id;
-        if (!out.empty()) return out;
-        throw Error(where + ": sequence number " + std::to_string(u.seq) + " after " + std::to_string(pos.next_seq) +
-                    " was expected: updates of submap " + name + " are missing");
-      }
-      ++pos.next_seq;
-      ++stats_.updates;
-      out.push_back(std::move(u));
     }
   }
+  // Each stream's new updates, streams in registration order; a gap stops
+  // the reading there.
+  std::vector<std::vector<MapUpdate>> streams;
+  std::size_t collected = 0;
+  bool gap = false;
+  for (const Reply& r : replies) {
+    for (const Reply& stream : r.elements) {
+      if (gap || stream.elements.size() != 2) continue;
+      const std::string& key = stream.elements[0].text;
+      const auto known = submap_of_key_.find(key);
+      if (known == submap_of_key_.end()) continue;
+      const std::string& name = known->second;
+      Position& pos = positions_[name];
+      std::vector<MapUpdate>& mine = streams.emplace_back();
+      for (const Reply& entry : stream.elements[1].elements) {
+        if (entry.elements.size() != 2) continue;
+        const std::string where = redis_.address().url() + " " + key + " entry " + entry.elements[0].text;
+        const std::string* record = field_of(entry.elements[1], "rec");
+        if (!record) throw Error(where + ": expected a rec field");
+        MapUpdate u;
+        u.submap = name;
+        decode_update(*record, where, u);
+        if (u.seq > pos.next_seq) {
+          // Hand out what came before the gap first; the next poll reads the gap again and fails.
+          if (collected > 0) {
+            gap = true;
+            break;
+          }
+          throw Error(where + ": sequence number " + std::to_string(u.seq) + " after " + std::to_string(pos.next_seq) +
+                      " was expected: updates of submap " + name + " are missing");
+        }
+        pos.last_id = entry.elements[0].text;
+        if (u.seq < pos.next_seq) {
+          ++stats_.duplicates;
+          continue;
+        }
+        ++pos.next_seq;
+        ++stats_.updates;
+        ++collected;
+        mine.push_back(std::move(u));
+      }
+    }
+  }
+  // Round robin, one update of each submap in turn: the order in which a map
+  // built from files is fed (eval/scenario_runner.hpp MapFeeder), so that a
+  // localizer that catches up on a finished map gets the same map.
+  out.reserve(collected);
+  for (std::size_t i = 0; out.size() < collected; ++i)
+    for (auto& mine : streams)
+      if (i < mine.size()) out.push_back(std::move(mine[i]));
   return out;
 }
 

@@ -31,6 +31,9 @@ Reply convert(const redisReply* r) {
     case REDIS_REPLY_INTEGER:
       out.type = Reply::Type::kInteger, out.integer = r->integer;
       break;
+    case REDIS_REPLY_ERROR:
+      out.type = Reply::Type::kError, out.text.assign(r->str, r->len);
+      break;
     case REDIS_REPLY_ARRAY:
       out.type = Reply::Type::kArray;
       out.elements.reserve(r->elements);
@@ -97,25 +100,29 @@ void RedisConnection::reconnect() {
   connect();
 }
 
-Reply RedisConnection::command(std::span<const std::string_view> args) {
+Reply RedisConnection::exchange(std::span<const std::string_view> args) {
   if (!context_) throw Error(address_.url() + ": not connected");
   std::vector<const char*> argv;
   std::vector<std::size_t> lens;
   for (const auto& a : args) argv.push_back(a.data()), lens.push_back(a.size());
   auto* r =
       static_cast<redisReply*>(redisCommandArgv(context_->c, static_cast<int>(argv.size()), argv.data(), lens.data()));
-  const std::string name = args.empty() ? "" : std::string(args[0]);
   if (r == nullptr) {
     const std::string why = context_->c->errstr;
     context_.reset();  // hiredis cannot reuse a context after an I/O error
-    throw Error(address_.url() + ": " + name + " failed: " + why);
+    throw Error(address_.url() + ": " + (args.empty() ? "" : std::string(args[0])) + " failed: " + why);
   }
   std::unique_ptr<redisReply, void (*)(void*)> owned(r, freeReplyObject);
-  if (r->type == REDIS_REPLY_ERROR) throw Error(address_.url() + ": " + name + ": " + std::string(r->str, r->len));
   return convert(r);
 }
 
-std::vector<Reply> RedisConnection::pipeline(const std::vector<std::vector<std::string>>& commands) {
+Reply RedisConnection::command(std::span<const std::string_view> args) {
+  Reply r = exchange(args);
+  if (r.is_error()) throw Error(address_.url() + ": " + (args.empty() ? "" : std::string(args[0])) + ": " + r.text);
+  return r;
+}
+
+std::vector<Reply> RedisConnection::exchange_all(const std::vector<std::vector<std::string>>& commands) {
   if (!context_) throw Error(address_.url() + ": not connected");
   for (const auto& cmd : commands) {
     std::vector<const char*> argv;
@@ -126,7 +133,6 @@ std::vector<Reply> RedisConnection::pipeline(const std::vector<std::vector<std::
   }
   std::vector<Reply> replies;
   replies.reserve(commands.size());
-  std::string first_error;
   for (std::size_t i = 0; i < commands.size(); ++i) {
     void* raw = nullptr;
     if (redisGetReply(context_->c, &raw) != REDIS_OK || raw == nullptr) {
@@ -135,11 +141,15 @@ std::vector<Reply> RedisConnection::pipeline(const std::vector<std::vector<std::
       throw Error(address_.url() + ": pipelined " + commands[i].front() + " failed: " + why);
     }
     std::unique_ptr<redisReply, void (*)(void*)> owned(static_cast<redisReply*>(raw), freeReplyObject);
-    if (owned->type == REDIS_REPLY_ERROR && first_error.empty())
-      first_error = commands[i].front() + ": " + std::string(owned->str, owned->len);
     replies.push_back(convert(owned.get()));
   }
-  if (!first_error.empty()) throw Error(address_.url() + ": " + first_error);
+  return replies;
+}
+
+std::vector<Reply> RedisConnection::pipeline(const std::vector<std::vector<std::string>>& commands) {
+  std::vector<Reply> replies = exchange_all(commands);
+  for (std::size_t i = 0; i < replies.size(); ++i)
+    if (replies[i].is_error()) throw Error(address_.url() + ": " + commands[i].front() + ": " + replies[i].text);
   return replies;
 }
 

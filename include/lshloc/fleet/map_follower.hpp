@@ -67,7 +67,7 @@ class MapFollower {
  private:
   void follow(GlobalMap& map, std::shared_mutex& mutex);
   MapFollowerConfig config_;
-  RedisConnection redis_;
+  RedisClient redis_;
   MapLogReader reader_;
   GlobalMapConfig settings_;
   std::atomic<bool> stop_{false};

@@ -6,7 +6,8 @@
 // in-memory GlobalMap with it.
 // Poses [m, rad], times [s].
 // Thread safety: writers and readers are one thread's objects, each over its
-// own RedisConnection; any number of them, in any processes, share a server.
+// own RedisClient; any number of them, in any processes, share a server or a
+// Redis Cluster.
 #include <cstdint>
 #include <map>
 #include <span>
@@ -16,7 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "lshloc/fleet/redis_connection.hpp"
+#include "lshloc/fleet/redis_client.hpp"
 #include "lshloc/geometry/laser_scan.hpp"
 #include "lshloc/localization/global_map.hpp"
 
@@ -27,7 +28,8 @@ namespace lshloc::fleet {
 /// submap's stream lands on one node and submaps spread over the nodes).
 struct MapLogConfig {
   std::string prefix = "lshloc";
-  std::size_t batch = 256;  ///< updates per pipelined round trip (writer) or per stream read (reader)
+  std::size_t batch = 256;        ///< updates per pipelined round trip (writer) or per stream read (reader)
+  double cluster_poll_s = 0.005;  ///< [s] between a reader's polls while it waits on a cluster
 
   std::string registry_key() const { return prefix + ":registry"; }
   std::string stream_key(std::string_view submap) const;
@@ -48,15 +50,20 @@ std::string encode_update(std::uint64_t seq, const LaserScan& scan);
 /// lshloc::Error naming `where` on a bad checksum, version or structure.
 void decode_update(std::string_view record, const std::string& where, MapUpdate& out);
 
+/// Registers the map's settings (the first mapper's; other settings are
+/// refused with lshloc::Error saying which differ) and `submaps` in this
+/// order, in one atomic step: mappers that register the same list at once
+/// agree on its order. Names: 1..200 characters without braces.
+void register_map(RedisClient& redis, const GlobalMapConfig& settings, std::span<const std::string> submaps,
+                  const MapLogConfig& config = {});
+
 /// A mapper robot's end of one submap's stream.
 class MapLogWriter {
  public:
-  /// Registers the submap (name: 1..200 characters, no braces) and, for the
-  /// map's first writer, the map's settings; a writer whose settings differ
-  /// from the registered ones is refused (lshloc::Error saying which). Sequence
+  /// Registers the submap and the map's settings (register_map()). Sequence
   /// numbers continue after the stream's last entry, so a restarted mapper
   /// resumes its submap.
-  MapLogWriter(RedisConnection& redis, std::string submap, const GlobalMapConfig& settings, MapLogConfig config = {});
+  MapLogWriter(RedisClient& redis, std::string submap, const GlobalMapConfig& settings, MapLogConfig config = {});
 
   /// Appends the scans (scan.pose: laser pose in the submap's frame) in
   /// pipelined batches; when it returns, Redis has acknowledged every one.
@@ -69,7 +76,7 @@ class MapLogWriter {
   const std::string& submap() const { return submap_; }
 
  private:
-  RedisConnection& redis_;
+  RedisClient& redis_;
   std::string submap_;
   MapLogConfig config_;
   std::string key_;
@@ -99,15 +106,19 @@ struct MapLogReaderStats {
 /// A localizer's follower of every submap's stream.
 class MapLogReader {
  public:
-  explicit MapLogReader(RedisConnection& redis, MapLogConfig config = {});
+  explicit MapLogReader(RedisClient& redis, MapLogConfig config = {});
 
   /// The map's settings from the registry; throws lshloc::Error when no
   /// mapper has registered any (an empty or wrong server / prefix).
   GlobalMapConfig settings();
 
-  /// The updates that arrived since the last poll, each stream's in order
-  /// (submaps in their registration order). When there are none, waits up to
-  /// `block_s` for new ones (0: no wait). A gap in a stream's sequence
+  /// The updates that arrived since the last poll, each stream's in order,
+  /// interleaved round robin: the first new update of each submap (in
+  /// registration order), then the second, ... (the order a map built from
+  /// files is fed in). When there are none, waits up to
+  /// `block_s` for new ones (0: no wait): one XREAD BLOCK on one server; on a
+  /// cluster, whose multi-stream reads cannot span slots, one XREAD per
+  /// stream, pipelined per node, repeated every `cluster_poll_s`. A gap in a stream's sequence
   /// numbers throws lshloc::Error naming the submap and the numbers (an
   /// update was lost); an entry whose number was seen is skipped as a
   /// duplicate.
@@ -132,7 +143,7 @@ class MapLogReader {
     std::string last_id = "0-0";  ///< the last stream entry read
     std::uint64_t next_seq = 0;
   };
-  RedisConnection& redis_;
+  RedisClient& redis_;
   MapLogConfig config_;
   std::vector<std::string> order_;
   std::map<std::string, Position> positions_;

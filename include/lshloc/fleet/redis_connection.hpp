@@ -26,13 +26,14 @@ struct RedisAddress {
 
 /// One reply, as RESP2 gives it.
 struct Reply {
-  enum class Type : std::uint8_t { kNil, kString, kStatus, kInteger, kArray };
+  enum class Type : std::uint8_t { kNil, kString, kStatus, kInteger, kArray, kError };
   Type type = Type::kNil;
-  std::string text;  ///< kString (binary-safe) and kStatus
+  std::string text;  ///< kString (binary-safe), kStatus and kError (the server's message)
   long long integer = 0;
   std::vector<Reply> elements;  ///< kArray
 
   bool is_nil() const { return type == Type::kNil; }
+  bool is_error() const { return type == Type::kError; }
 };
 
 class RedisConnection {
@@ -57,6 +58,12 @@ class RedisConnection {
   /// Sends every command at once and reads the replies in order (one round
   /// trip for all: how mappers publish fast). Throws on the first error reply.
   std::vector<Reply> pipeline(const std::vector<std::vector<std::string>>& commands);
+
+  /// As command() and pipeline(), but an error reply comes back as a Reply
+  /// of type kError instead of throwing (what a cluster client needs to see
+  /// MOVED and ASK redirects); a lost connection still throws.
+  Reply exchange(std::span<const std::string_view> args);
+  std::vector<Reply> exchange_all(const std::vector<std::vector<std::string>>& commands);
 
   /// Drops the connection and connects again (after a server restart).
   void reconnect();
