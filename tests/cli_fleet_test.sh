@@ -2,10 +2,10 @@
 # A fleet on loopback, as a user runs it: the test's own redis-server on a
 # free port, two `lshloc mapper` processes publishing simulated buildings,
 # then `lshloc localize --map redis://...` must answer as the same logs given
-# as --map files (the same place within 5 cm and 1 degree: the map holds the
-# same scans, in another arrival order, so database ids differ; bit-identical
-# maps for the same order are tests/fleet_test.cpp's); and a localizer started while a mapper is still
-# publishing follows the map and localizes. Skips when redis-server is absent.
+# as --map files, in the same order: the same trajectory, byte for byte (the
+# reader hands each poll's updates out round robin, as files are fed); and a
+# localizer started while a mapper is still publishing follows the map and
+# localizes. Skips when redis-server is absent.
 # Usage: cli_fleet_test.sh LSHLOC
 set -euo pipefail
 LSHLOC=$1
@@ -25,19 +25,17 @@ target=(--target "$d/sim/sim-3-001/sim-3-001.log.gz" --start 300 --length 150 --
 
 "$LSHLOC" mapper --redis "$url" "$a" >"$d/ma.json" 2>/dev/null
 "$LSHLOC" mapper --redis "$url" "$b" >"$d/mb.json" 2>/dev/null
-"$LSHLOC" localize --map "$url" "${target[@]}" >"$d/fleet.json"
-"$LSHLOC" localize --map "$a" --map "$b" "${target[@]}" >"$d/files.json" 2>/dev/null
+"$LSHLOC" localize --map "$url" "${target[@]}" --out "$d/fleet.tum" >"$d/fleet.json"
+"$LSHLOC" localize --map "$a" --map "$b" "${target[@]}" --out "$d/files.tum" >"$d/files.json" 2>/dev/null
+cmp "$d/fleet.tum" "$d/files.tum" || fail "the fleet's map gives another trajectory than the files"
 python3 - "$d/ma.json" "$d/fleet.json" "$d/files.json" <<'PY' || fail "the fleet's map answers otherwise than the files"
 import json, sys
 m = json.load(open(sys.argv[1]))
 assert m["scans"] == 600 and m["first_seq"] == 0 and m["next_seq"] == 600, m
 f, g = json.load(open(sys.argv[2])), json.load(open(sys.argv[3]))
 assert f["map_log"]["history_updates"] == 1200 and f["map_log"]["duplicates"] == 0, f["map_log"]
-for k in ("localized", "final_submap", "map_features"):
+for k in ("localized", "final_submap", "map_features", "final_pose"):
     assert f[k] == g[k], (k, f[k], g[k])
-import math
-(x, y, t), (u, v, w) = f["final_pose"], g["final_pose"]
-assert math.hypot(x - u, y - v) < 0.05 and abs(math.remainder(t - w, 2 * math.pi)) < math.radians(1), (f, g)
 assert f["localized"] and f["final_submap"] == "sim-3-001-corrected.log.gz"
 PY
 
@@ -46,20 +44,24 @@ PY
 python3 -c "import json,sys; m=json.load(open(sys.argv[1])); assert m['first_seq']==600 and m['next_seq']==1200, m" \
   "$d/ma2.json" || fail "a restarted mapper did not resume its sequence"
 
-# Live: building b is published at 400 scans/s while the localizer starts and localizes.
+# Live: building b is published at 2000 scans/s while the localizer starts and localizes.
 "$LSHLOC" mapper --redis "$url" --prefix live "$a" >/dev/null 2>&1
-"$LSHLOC" mapper --redis "$url" --prefix live --rate 400 "$b" >/dev/null 2>&1 &
+"$LSHLOC" mapper --redis "$url" --prefix live --rate 2000 "$b" >/dev/null 2>&1 &
 mapper=$!
-sleep 0.3
+sleep 0.1
 "$LSHLOC" localize --map "$url" --map-prefix live "${target[@]}" >"$d/live.json"
 wait $mapper
-python3 - "$d/live.json" <<'PY' || fail "the localizer on a map still being published did not localize"
-import json, sys
-j = json.load(open(sys.argv[1]))
+python3 - "$d/live.json" "$d/files.json" <<'PY' || fail "the localizer on a map still being published did not localize"
+import json, math, sys
+j, g = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
 # Every scan arrives, in the catch-up or live (how many live depends on the machine's speed:
 # LiveFleet in tests/fleet_test.cpp checks live application deterministically).
 assert j["map_log"]["history_updates"] + j["map_log"]["live_updates"] <= 1200, j["map_log"]
-assert j["localized"] and j["final_submap"] == "sim-3-001-corrected.log.gz", j
+# It was confident at some scan (how late depends on the machine's speed too) and ends at the
+# place the finished map gives.
+assert j["first_localized_at"] is not None and j["final_submap"] == "sim-3-001-corrected.log.gz", j
+(x, y, t), (u, v, w) = j["final_pose"], g["final_pose"]
+assert math.hypot(x - u, y - v) < 0.5 and abs(math.remainder(t - w, 2 * math.pi)) < math.radians(5), (j, g)
 PY
 
 # A wrong address names it.
