@@ -12,8 +12,10 @@ ground-truth scans only, each building weighing the same; a scan is right when i
 submap within 2 m and 10 degrees. Prints the weights, the expected calibration
 error (10 equal-width bins) per building and overall, and the flag's figures
 (rises at --up, held while the place is kept and the value stays >= --hold)
-as the acceptance check counts them. With --weights, judges those instead of
-fitting. --diagram writes the reliability diagram's bins (all buildings).
+as the acceptance check counts them; --flag evidence replays the localizer's
+own flag rule from the evidence columns instead, with its parameters as
+options (how they were chosen: docs/results/confidence.md). With --weights,
+judges those instead of fitting. --diagram writes the reliability diagram's bins (all buildings).
 """
 import argparse
 import csv
@@ -122,15 +124,39 @@ def ece(pairs, bins=10):
                for i, c in enumerate(table)]
 
 
-def judge_run(scans, w, up, hold):
-    """The flag over one run and the acceptance check's per-run figures."""
-    flag, changes, first, wrong = False, 0, None, 0
-    flags = []
-    prev_kept = 0
-    for i, s in enumerate(scans):
+def value_flag(w, up, hold):
+    """The flag as the value above `up`, held while the place is kept and the value stays >= `hold`."""
+    def rule(s, flag, state):
         p = value(w, s["x"])
         kept = s["x"] is not None and s["x"][4] > 0.0
-        new = p >= up or (flag and kept and p >= hold)
+        return p >= up or (flag and kept and p >= hold)
+    return rule
+
+
+def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15):
+    """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
+    hold_max_mean_contradiction, contradiction_smoothing) replayed from a trace's evidence columns."""
+    def rule(s, flag, state):
+        x = s["x"]
+        if x is None:
+            return False
+        margin, place_supported, stable, supported, fit, evidence = x[2], x[5], x[6], x[7], x[8], x[9]
+        kept = x[4] > 0.0
+        penalty = 0.5 * (evidence - fit)
+        state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
+        rises = stable > 0 and supported > 0 and margin >= min_margin and fit >= rise_fit
+        held = flag and kept and place_supported > 0 and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
+        return rises or held
+    return rule
+
+
+def judge_run(scans, rule):
+    """The flag over one run and the acceptance check's per-run figures (as `eval` counts them)."""
+    flag, changes, first, wrong = False, 0, None, 0
+    flags = []
+    state = {}
+    for i, s in enumerate(scans):
+        new = rule(s, flag, state)
         changes += new != flag
         flag = new
         flags.append(flag)
@@ -145,7 +171,8 @@ def judge_run(scans, w, up, hold):
             last_bad = i
     localized_at = None
     if truth_idx and last_bad != truth_idx[-1]:
-        localized_at = 0 if last_bad is None else last_bad + 1
+        # eval's localized_at: the first ground-truth scan after the last incorrect one.
+        localized_at = truth_idx[0] if last_bad is None else next(i for i in truth_idx if i > last_bad)
     share = None
     if localized_at is not None:
         after = [i for i in truth_idx if i >= localized_at]
@@ -177,6 +204,13 @@ def main():
     ap.add_argument("--hold", type=float, default=0.5)
     ap.add_argument("--weights")
     ap.add_argument("--diagram")
+    ap.add_argument("--flag", choices=["value", "evidence"], default="value",
+                    help="the flag judged: the value above --up, held at --hold (value), or the localizer's rule "
+                         "from the evidence columns with --rise-fit, --hold-penalty, --hold-mean-penalty, --smoothing")
+    ap.add_argument("--rise-fit", type=float, default=0.1)
+    ap.add_argument("--hold-penalty", type=float, default=0.13)
+    ap.add_argument("--hold-mean-penalty", type=float, default=0.1)
+    ap.add_argument("--smoothing", type=float, default=0.3)
     a = ap.parse_args()
     runs = load(a.trace_dir)
     train = set(a.train.split(","))
@@ -190,6 +224,8 @@ def main():
         total = sum(len(r) for r in rows.values())
         w = fit([(x, y, total / (len(rows) * len(r))) for r in rows.values() for x, y in r])
     print("weights (" + ", ".join(FEATURES) + "): " + ",".join(f"{v:.4f}" for v in w))
+    flag_rule = (value_flag(w, a.up, a.hold) if a.flag == "value" else
+                 evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing))
     buildings = sorted({b for b, _, _ in runs})
     everything = []
     for b in buildings:
@@ -197,10 +233,10 @@ def main():
                  if s["truth"]]
         everything += pairs
         e, _ = ece(pairs)
-        results = [judge_run(scans, w, a.up, a.hold) for bb, _, scans in runs if bb == b]
+        results = [judge_run(scans, flag_rule) for bb, _, scans in runs if bb == b]
         summary(f"{b} ({'train' if b in train else 'unseen'}, ECE {e:.4f})", results)
     e, table = ece(everything)
-    summary(f"all (ECE {e:.4f})", [judge_run(scans, w, a.up, a.hold) for _, _, scans in runs])
+    summary(f"all (ECE {e:.4f})", [judge_run(scans, flag_rule) for _, _, scans in runs])
     if a.diagram:
         with open(a.diagram, "w") as f:
             f.write("lo,hi,count,mean_value,share_right\n")

@@ -77,6 +77,7 @@ TEST(ReportPolicy, NoHypothesisNoEstimate) {
 TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
   ReportPolicy policy(plain(), kPreference);
   FakeSample sample;
+  sample.score_of = [](const Hypothesis&) { return 0.5; };  // the newest points fit the place
   const Hypothesis place = at(2, 10.0, 5.0, 0.3);
   const std::size_t stable = plain().confidence.stable_scans;
   for (std::size_t i = 0; i < stable; ++i) {
@@ -96,6 +97,63 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
     EXPECT_FALSE(e.localized);
     EXPECT_NEAR(e.margin, 0.1, 1e-9);
   }
+}
+
+TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnContradiction) {
+  const ReportPolicyConfig config = plain();
+  const std::size_t stable = config.confidence.stable_scans;
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
+  FakeSample sample;
+  // Stable, strong, unrivalled support but the newest points score nothing
+  // at the place (newest fit 0 < rise_min_newest_fit): the flag stays down.
+  ReportPolicy silent(config, kPreference);
+  for (std::size_t i = 0; i < stable + 3; ++i) EXPECT_FALSE(step(silent, {scored(place, 0.6, 1000)}, sample).localized);
+  // With a newest fit of 0.5 it rises ...
+  ReportPolicy policy(config, kPreference);
+  double newest = 0.5;
+  sample.score_of = [&](const Hypothesis&) { return newest; };
+  LocalizationEstimate e;
+  for (std::size_t i = 0; i < stable; ++i) e = step(policy, {scored(place, 0.6, 1000)}, sample);
+  EXPECT_TRUE(e.localized);
+  // ... and is held while the place is kept: a rival within min_margin, the
+  // newest points scoring nothing (the map knows nothing there), ...
+  newest = 0.0;
+  for (int i = 0; i < 20; ++i) {
+    e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.55, 1000)}, sample);
+    EXPECT_TRUE(e.localized) << "scan " << i;
+    EXPECT_LT(e.margin, config.confidence.min_margin);
+  }
+  // ... a penalty of 0.1 per newest point (below both limits) too ...
+  newest = -0.1;
+  e = step(policy, {scored(place, 0.6, 1000)}, sample);
+  EXPECT_TRUE(e.localized);
+  // ... but the map contradicting the newest points drops it (penalty 0.5 >
+  // hold_max_contradiction), and it rises again only on the rise test.
+  newest = -0.5;
+  EXPECT_FALSE(step(policy, {scored(place, 0.6, 1000)}, sample).localized);
+  newest = 0.5;
+  EXPECT_TRUE(step(policy, {scored(place, 0.6, 1000)}, sample).localized);
+  // A penalty of 0.12 each scan stays under the one-scan limit (0.13) but
+  // its mean passes hold_max_mean_contradiction (0.1) after a few scans.
+  newest = -0.12;
+  std::size_t held = 0;
+  while (held < 50 && step(policy, {scored(place, 0.6, 1000)}, sample).localized) ++held;
+  EXPECT_GE(held, 1u);
+  EXPECT_LT(held, 50u);
+  // A move elsewhere (the rival wins the duel) drops it at once.
+  newest = 0.5;
+  EXPECT_TRUE(step(policy, {scored(place, 0.6, 1000)}, sample).localized);
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? 0.9 : 0.0; };
+  e = step(policy, {scored(rival, 0.9, 5000)}, sample);
+  EXPECT_EQ(e.submap, rival.submap);
+  EXPECT_FALSE(e.localized);
+  sample.score_of = [&](const Hypothesis&) { return newest; };
+  // So does a scan without any hypothesis.
+  ReportPolicy lost(config, kPreference);
+  for (std::size_t i = 0; i < stable; ++i) e = step(lost, {scored(place, 0.6, 1000)}, sample);
+  EXPECT_TRUE(e.localized);
+  EXPECT_FALSE(step(lost, {}, sample).localized);
+  EXPECT_FALSE(step(lost, {scored(place, 0.6, 1000)}, sample).localized);
 }
 
 TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {

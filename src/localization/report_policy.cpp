@@ -34,6 +34,8 @@ void ReportPolicyConfig::validate() const {
   require(confidence.stable_scans >= 1, "ReportPolicyConfig.confidence.stable_scans", ">= 1", confidence.stable_scans);
   require(confidence.newest_points <= 1000000, "ReportPolicyConfig.confidence.newest_points", "<= 1e6",
           confidence.newest_points);
+  require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
+          "ReportPolicyConfig.confidence.contradiction_smoothing", "in (0, 1]", confidence.contradiction_smoothing);
   for (double w : confidence.value_weights)
     require(std::isfinite(w), "ReportPolicyConfig.confidence.value_weights", "finite numbers", w);
   if (refine_points == 0) return;
@@ -120,7 +122,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   best = hold_or_move(best, active, local_pose, sample);
   recent_best_.push_back(best ? std::optional<Hypothesis>(best->hypothesis) : std::nullopt);
   if (recent_best_.size() > cc.stable_scans) recent_best_.pop_front();
-  if (!best) return e;
+  if (!best) {
+    flag_ = false;
+    return e;
+  }
   // Tracking: the reported place follows the local map's drift by a small
   // search on recent data-points, from the last report when the place is
   // kept (or iRANSAC's hypothesis there, whichever fits better).
@@ -153,8 +158,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   for (const auto& h : recent_best_) {
     stable = stable && h && same_place(*h, best->hypothesis, local_pose, cc.same_place_m, same_angle);
   }
+  bool sample_has_newest = false;
   if (cc.newest_points > 0) {
     const std::size_t taken = sample.take_newest(cc.newest_points);
+    sample_has_newest = taken > 0;
     if (taken > 0) {
       const std::array<Hypothesis, 2> twice{*reported_, *reported_};
       SampleScorer::PairSums pair;
@@ -180,7 +187,18 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   double z = 0.0;
   for (std::size_t i = 0; i < f.size(); ++i) z += cc.value_weights[i] * f[i];
   e.confidence = 1.0 / (1.0 + std::exp(-z));
-  e.localized = stable && e.supported && e.margin >= cc.min_margin;
+  const bool newest_known = cc.newest_points > 0 && sample_has_newest;
+  const bool rises =
+      stable && e.supported && e.margin >= cc.min_margin && (!newest_known || e.newest_fit >= cc.rise_min_newest_fit);
+  // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
+  const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;
+  mean_contradiction_ =
+      flag_ ? (1.0 - cc.contradiction_smoothing) * mean_contradiction_ + cc.contradiction_smoothing * contradiction
+            : contradiction;
+  const bool held = flag_ && kept && reported_supported_ && contradiction <= cc.hold_max_contradiction &&
+                    mean_contradiction_ <= cc.hold_max_mean_contradiction;
+  flag_ = rises || held;
+  e.localized = flag_;
   return e;
 }
 

@@ -70,6 +70,23 @@ struct ConfidenceConfig {
   /// scans (a fast turn the scan matcher lost) leaves an estimate whose older
   /// support is intact but whose heading is wrong now.
   std::size_t newest_points = 100;
+  /// The flag rises on the test above (stable, supported, min_margin) when
+  /// the reported place also fits the newest data-points: newest fit at
+  /// least `rise_min_newest_fit` (a local map broken by a fast turn fits its
+  /// older scans but not its newest). Once up it is held while the place is
+  /// kept and was once supported, unless the map contradicts the newest
+  /// data-points at the reported pose: their mean penalty (the negative part
+  /// of their scores, (newest_evidence - newest_fit) / 2), above
+  /// `hold_max_contradiction` on one scan, or above
+  /// `hold_max_mean_contradiction` on average (exponential, weight
+  /// `contradiction_smoothing` per scan). Where the map says nothing about
+  /// the newest scans (a robot in a corridor the mappers saw from far away)
+  /// the held flag stays up: silence is no evidence against the place.
+  /// Chosen on fr079 and intel only (docs/results/confidence.md).
+  double rise_min_newest_fit = 0.1;
+  double hold_max_contradiction = 0.13;
+  double hold_max_mean_contradiction = 0.1;
+  double contradiction_smoothing = 0.3;
   /// The confidence value, P(the estimate is right: true submap, within 2 m
   /// and 10 deg) = 1 / (1 + exp(-w . f)) with f = (1, C/N, margin, ln(1 + N),
   /// ln(1 + kept_scans), place_supported, stable, supported, newest_fit,
@@ -110,7 +127,7 @@ struct ReportPolicyConfig {
 /// The localizer's answer for one target scan.
 struct LocalizationEstimate {
   bool has_estimate = false;
-  bool localized = false;   ///< the confidence flag (stable, supported, min_margin)
+  bool localized = false;   ///< the confidence flag (ConfidenceConfig: the rise test, then held)
   double confidence = 0.0;  ///< the calibrated confidence value in [0, 1] (ConfidenceConfig::value_weights)
   std::uint32_t submap = 0;
   Pose2 pose;  ///< the scan's laser pose in the submap frame
@@ -218,8 +235,10 @@ class ReportPolicy {
   /// The reported place has met the confidence test's absolute part
   /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
   bool reported_supported_ = false;
-  std::uint32_t kept_scans_ = 0;  ///< scans in a row the reported place has been kept
-  std::size_t last_drawn_ = 0;    ///< size of the sample last drawn
+  std::uint32_t kept_scans_ = 0;     ///< scans in a row the reported place has been kept
+  bool flag_ = false;                ///< the confidence flag of the last report
+  double mean_contradiction_ = 0.0;  ///< exponential mean of the newest points' contradicted share while flagged
+  std::size_t last_drawn_ = 0;       ///< size of the sample last drawn
   std::array<Hypothesis, 6> children_;
   std::vector<double> sums_;
   ReportPolicyStats stats_;
