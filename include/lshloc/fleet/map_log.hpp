@@ -115,10 +115,10 @@ class MapLogReader {
   /// The updates that arrived since the last poll, each stream's in order,
   /// interleaved round robin: the first new update of each submap (in
   /// registration order), then the second, ... (the order a map built from
-  /// files is fed in). When there are none, waits up to
-  /// `block_s` for new ones (0: no wait): one XREAD BLOCK on one server; on a
-  /// cluster, whose multi-stream reads cannot span slots, one XREAD per
-  /// stream, pipelined per node, repeated every `cluster_poll_s`. A gap in a stream's sequence
+  /// files is fed in). When there are none, waits up to `block_s` for new
+  /// ones (0: no wait): one XREAD BLOCK on one server; on a cluster, whose
+  /// multi-stream reads cannot span slots, one XREAD per stream, pipelined
+  /// per node, repeated every `cluster_poll_s`. A gap in a stream's sequence
   /// numbers throws lshloc::Error naming the submap and the numbers (an
   /// update was lost); an entry whose number was seen is skipped as a
   /// duplicate.

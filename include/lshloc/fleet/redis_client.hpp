@@ -46,7 +46,8 @@ class RedisClient {
   /// The address it was given (messages name it).
   const RedisAddress& address() const { return seed_; }
   bool is_cluster() const { return cluster_; }
-  /// The masters serving slots (one: the server itself).
+  /// The nodes it knows, the seed first: the masters serving slots (one
+  /// without a cluster).
   std::vector<RedisAddress> nodes() const { return nodes_; }
   /// The node index serving `key` (0 without a cluster).
   std::size_t node_of(std::string_view key) const;

@@ -237,7 +237,7 @@ class ReportPolicy {
   bool reported_supported_ = false;
   std::uint32_t kept_scans_ = 0;     ///< scans in a row the reported place has been kept
   bool flag_ = false;                ///< the confidence flag of the last report
-  double mean_contradiction_ = 0.0;  ///< exponential mean of the newest points' contradicted share while flagged
+  double mean_contradiction_ = 0.0;  ///< exponential mean of the newest points' penalty while flagged
   std::size_t last_drawn_ = 0;       ///< size of the sample last drawn
   std::array<Hypothesis, 6> children_;
   std::vector<double> sums_;
