@@ -202,8 +202,9 @@ std::vector<Reply> RedisClient::pipeline(const std::vector<std::vector<std::stri
       std::vector<Reply> got = connection(node).exchange_all(mine);
       for (std::size_t k = 0; k < got.size(); ++k) replies[share[node][k]] = std::move(got[k]);
     }
-    // A redirected command did not run: run it where it belongs, in order
-    // (commands on one slot were all redirected from the first that was).
+    // A redirected command did not run: run it where it belongs, in order.
+    // Commands on one key keep theirs: once one was redirected, every later
+    // one on that key was too (the key had moved, or gone ahead in a migration).
     for (std::size_t i = 0; i < commands.size(); ++i)
       if (is_redirect(replies[i])) replies[i] = run(commands[i]);
   }
