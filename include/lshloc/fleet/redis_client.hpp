@@ -61,7 +61,7 @@ class RedisClient {
   /// Sends the commands, each node's share pipelined in one round trip, and
   /// returns the replies in the commands' order; commands that were
   /// redirected run again, in their order, on the node the redirect names.
-  /// Commands on one slot keep their order. Throws on the first error reply.
+  /// Commands on one key keep their order. Throws on the first error reply.
   std::vector<Reply> pipeline(const std::vector<std::vector<std::string>>& commands);
 
   /// Drops every connection and reads the slot table again from the seed (or
