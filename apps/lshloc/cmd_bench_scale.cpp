@@ -44,14 +44,6 @@ struct Outcomes {
   std::vector<double> localized_at;  ///< of the targets that succeeded
   double query_s = 0, features = 0, score_s = 0, scores = 0;
   nlohmann::json per_target = nlohmann::json::array();
-
-  /// The median scan at which successful targets were localized (null: none).
-  nlohmann::json median_localized_at() const {
-    if (localized_at.empty()) return nullptr;
-    std::vector<double> v = localized_at;
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-  }
 };
 
 void localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
@@ -192,10 +184,10 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
   j["ns_per_score"] = lsh.scores > 0 ? 1e9 * lsh.score_s / lsh.scores : 0.0;
   j["targets"] = opt.targets;
   j["targets_localized"] = lsh.localized;
-  j["median_localized_at"] = lsh.median_localized_at();
+  j["median_localized_at"] = median_localized_at(lsh.localized_at);
   if (opt.random_control) {
     j["random_targets_localized"] = random.localized;
-    j["random_median_localized_at"] = random.median_localized_at();
+    j["random_median_localized_at"] = median_localized_at(random.localized_at);
   }
   if (opt.recall_queries > 0) {
     const double covered = static_cast<double>(std::max<std::size_t>(recall_covered, 1));

@@ -108,7 +108,6 @@ nlohmann::json run_sharded(const ShardsOptions& opt, std::size_t k, bool tty) {
     if (m.success && m.localized_at) localized_at.push_back(static_cast<double>(*m.localized_at));
     per_target.push_back(target_outcome_json(target.building, m));
   }
-  std::sort(localized_at.begin(), localized_at.end());
   std::size_t features = 0;
   for (const auto& m : maps) features += m->stats().features;
   return {{"submaps", opt.submaps},
@@ -117,8 +116,7 @@ nlohmann::json run_sharded(const ShardsOptions& opt, std::size_t k, bool tty) {
           {"build_s", build_s},
           {"targets", targets.size()},
           {"targets_localized", localized},
-          {"median_localized_at",
-           localized_at.empty() ? nlohmann::json() : nlohmann::json(localized_at[localized_at.size() / 2])},
+          {"median_localized_at", median_localized_at(localized_at)},
           {"confident_wrong", wrong},
           {"ms_per_scan_wall", 1e3 * wall_s / scans},
           {"ms_per_scan_cpu_all_workers", 1e3 * cpu_s / scans},

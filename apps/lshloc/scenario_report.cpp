@@ -1,5 +1,7 @@
 #include "scenario_report.hpp"
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -59,6 +61,12 @@ nlohmann::json target_outcome_json(const std::string& building, const Localizati
           {"final_error_m", m.final_error_m ? nlohmann::json(*m.final_error_m) : nlohmann::json()},
           {"localized_at", m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json()},
           {"confident_wrong", m.confident_wrong}};
+}
+
+nlohmann::json median_localized_at(std::vector<double> scans) {
+  if (scans.empty()) return nullptr;
+  std::sort(scans.begin(), scans.end());
+  return scans[scans.size() / 2];
 }
 
 void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run) {

@@ -2,6 +2,7 @@
 // What eval and demo report about one scenario run: its JSON line, its
 // figures and a per-scan trace.
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -20,6 +21,10 @@ void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run);
 
 /// One target's outcome in a benchmark's per_target list.
 nlohmann::json target_outcome_json(const std::string& building, const LocalizationMetrics& m);
+
+/// The median of the scans at which a benchmark's targets were localized
+/// (the upper one of an even count), null when none was.
+nlohmann::json median_localized_at(std::vector<double> scans);
 
 /// Writes STEM-error.{png,svg} (error per viewpoint, the paper's Fig. 8) and
 /// STEM-map.{png,svg} (trajectories over the target's submap, Figs. 5-6) into
