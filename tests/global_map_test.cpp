@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -128,6 +129,41 @@ TEST(GlobalMap, RaysAlongAWallDoNotMarkItFree) {
   // The open corridor in front of the wall still reads free.
   EXPECT_TRUE(seen_free(map, 3.0, 0.3));
   EXPECT_TRUE(seen_free(map, 1.0, 0.5));
+}
+
+TEST(GlobalMap, KeepsTheKeysOfItsNewestFeaturesOnly) {
+  GlobalMapConfig config;
+  config.recent_keys = 8;
+  GlobalMap map(config);
+  map.add_submap("room");
+  // A curved wall seen from a few places: some features per scan.
+  for (double x = 0.0; map.locations().size() < 20 && x < 15.0; x += 0.3)
+    map.add_scan(0, half_blind_scan(3.0), Pose2(x, 0.1 * x, 0.05 * x));
+  const std::size_t n = map.locations().size();
+  ASSERT_GT(n, 8u) << "the test needs more features than the ring holds";
+  LshQuery q(map.database());
+  std::vector<std::uint32_t> ids;
+  std::vector<std::uint16_t> counts;
+  for (std::size_t id = 0; id < n; ++id) {
+    const auto key = map.recent_key(static_cast<std::uint32_t>(id));
+    ASSERT_EQ(key.has_value(), id + 8 >= n) << id;
+    if (!key) continue;
+    // The key finds its own feature in every table.
+    map.database().query_counts(*key, 1000, ids, counts, q);
+    const auto at = std::find(ids.begin(), ids.end(), static_cast<std::uint32_t>(id));
+    ASSERT_NE(at, ids.end()) << id;
+    EXPECT_EQ(counts[static_cast<std::size_t>(at - ids.begin())], map.config().database.L) << id;
+  }
+  EXPECT_FALSE(map.recent_key(static_cast<std::uint32_t>(n)).has_value());
+  // A map loaded from a snapshot has no keys for what it loaded, only for what it adds next.
+  const std::vector<MapSection> sections = map.snapshot();
+  std::vector<MapSectionView> views;
+  for (const MapSection& s : sections) views.push_back({s.name, s.bytes});
+  const auto loaded = GlobalMap::from_snapshot(config, views, "test");
+  EXPECT_FALSE(loaded->recent_key(static_cast<std::uint32_t>(n - 1)).has_value());
+  loaded->add_scan(0, half_blind_scan(3.0), Pose2(0.5, 0.5, 0.3));
+  ASSERT_GT(loaded->locations().size(), n);
+  EXPECT_TRUE(loaded->recent_key(static_cast<std::uint32_t>(n)).has_value());
 }
 
 }  // namespace

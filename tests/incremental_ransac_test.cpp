@@ -297,6 +297,61 @@ TEST(IncrementalRansac, FreshFirstScoresEachNewFeatureOnceThenRecentOnes) {
   EXPECT_EQ(seen, (std::vector<float>{115, 116, 117, 118, 119}));
 }
 
+TEST(IncrementalRansac, ReachBackWidensTheRecentWindowUntilReset) {
+  IncrementalRansacConfig cfg;
+  cfg.recent_window = 10;
+  cfg.block_size = 1000000;  // no preemption: the 3 hypotheses stay
+  IncrementalRansac ransac(cfg);
+  ransac.add_hypotheses(std::vector<Hypothesis>(3));
+  std::vector<LocalPoint> features(100);
+  for (int k = 0; k < 100; ++k) features[k].x = static_cast<float>(k);
+  ransac.add_features(features);
+  float oldest = 1e9f;
+  auto scorer = [&](const LocalPoint& x, const HypothesisBatch& v, float* out) {
+    oldest = std::min(oldest, x.x);
+    for (std::size_t j = 0; j < v.size; ++j) out[j] = 0.0f;
+  };
+  ransac.iterate(scorer, 200);
+  EXPECT_GE(oldest, 90.0f) << "the newest 10 only";
+  ransac.reach_back(100);
+  oldest = 1e9f;
+  ransac.iterate(scorer, 200);
+  EXPECT_LT(oldest, 50.0f) << "200 draws over all 100 reach the older half";
+  ransac.reach_back(0);
+  oldest = 1e9f;
+  ransac.iterate(scorer, 200);
+  EXPECT_GE(oldest, 90.0f);
+}
+
+TEST(IncrementalRansac, PreScoredHypothesesKeepTheirScoresAndCompeteByThem) {
+  IncrementalRansacConfig cfg;
+  cfg.min_score = 0.0;
+  cfg.preference_z = 0.0;
+  IncrementalRansac ransac(cfg);
+  Hypothesis a, b;
+  a.T_submap_local = Pose2(1.0, 0.0, 0.0);
+  b.T_submap_local = Pose2(2.0, 0.0, 0.0);
+  ransac.add_hypotheses(std::vector<Hypothesis>{a});
+  ransac.add_scored_hypotheses(std::vector<ScoredHypothesis>{{b, 30.0, 40}});
+  const std::vector<ScoredHypothesis> active = ransac.active();
+  ASSERT_EQ(active.size(), 2u);
+  for (const ScoredHypothesis& h : active) {
+    const bool pre_scored = h.hypothesis.T_submap_local.x == 2.0;
+    EXPECT_EQ(h.scored, pre_scored ? 40u : 0u);
+    EXPECT_EQ(h.score, pre_scored ? 30.0 : 0.0);
+  }
+  ransac.add_features(std::vector<LocalPoint>(1));
+  // Every data-point scores 0.5 for both: b's head start (0.75 over 40) keeps it ahead.
+  auto half = [](const LocalPoint&, const HypothesisBatch& v, float* out) {
+    for (std::size_t j = 0; j < v.size; ++j) out[j] = 0.5f;
+  };
+  ransac.iterate(half, 10);
+  ASSERT_TRUE(ransac.best().has_value());
+  EXPECT_EQ(ransac.best()->hypothesis.T_submap_local.x, 2.0);
+  EXPECT_EQ(ransac.best()->scored, 50u);
+  EXPECT_DOUBLE_EQ(ransac.best()->score, 35.0);
+}
+
 TEST(IncrementalRansac, NothingHappensWithoutFeaturesOrHypotheses) {
   IncrementalRansac ransac;
   int calls = 0;

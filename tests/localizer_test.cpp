@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <thread>
 
@@ -233,6 +234,67 @@ TEST(Localizer, GivesUpAWellSupportedPlaceOnlyForASupportedChallenger) {
   EXPECT_EQ(unsupported_moves(true), 0u);
   // Measured: without the rule the look-alike takes over at scan 144 with C/N 0.26.
   EXPECT_GT(unsupported_moves(false), 0u) << "the look-alike no longer takes over: the rule goes untested";
+}
+
+TEST(Localizer, APlaceMappedAfterTheTargetSawItStillProposesHypotheses) {
+  // The live map's case (aces, issue 18): the target tours its building
+  // before any mapper has been there; the building's map scans all arrive
+  // after the tour, while the target stands still and sees nothing (blank
+  // scans). Only the newly mapped features, looked up among the features
+  // the target saw, can propose its place.
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
+  const std::size_t target = sc.target_submap;
+  std::vector<Submap> others = sc.submaps;
+  others[target].scans.clear();
+  const LaserScan blank = sc.target.scans.back();
+  const std::optional<Pose2> last_truth = sc.target.truth.back();
+  ASSERT_TRUE(last_truth.has_value());
+  const auto final_estimate = [&](std::size_t newly_mapped_candidates, LocalizerStats& stats) {
+    GlobalMap map;
+    MapFeeder(map, others).feed_until(1.0);
+    LocalizerConfig config;
+    config.newly_mapped_candidates = newly_mapped_candidates;
+    config.scan_matcher.laser_offset = sc.target.laser_offset;
+    Localizer localizer(map, config);
+    for (const LaserScan& s : sc.target.scans) localizer.add_scan(s);
+    for (const LaserScan& s : sc.submaps[target].scans) map.add_scan(static_cast<std::uint32_t>(target), s, s.pose);
+    LocalizationEstimate e;
+    LaserScan still = blank;
+    std::fill(still.ranges.begin(), still.ranges.end(), std::numeric_limits<float>::quiet_NaN());
+    for (int i = 0; i < 30; ++i) {
+      still.timestamp += 0.1;
+      e = localizer.add_scan(still);
+    }
+    stats = localizer.stats();
+    return e;
+  };
+  LocalizerStats with_stats, without_stats;
+  const LocalizationEstimate with = final_estimate(LocalizerConfig{}.newly_mapped_candidates, with_stats);
+  EXPECT_GT(with_stats.newly_mapped_features, 1000u);
+  EXPECT_GT(with_stats.newly_mapped_pairs, 0u);
+  ASSERT_TRUE(with.has_estimate);
+  EXPECT_EQ(with.submap, target);
+  EXPECT_LT(translation_distance(with.pose, *last_truth), 0.5);
+  const LocalizationEstimate without = final_estimate(0, without_stats);
+  EXPECT_EQ(without_stats.newly_mapped_pairs, 0u);
+  EXPECT_FALSE(without.has_estimate && without.submap == target &&
+               translation_distance(without.pose, *last_truth) < 0.5)
+      << "the place is found without the lookups: the test no longer tests them";
+}
+
+TEST(Localizer, AMapCompleteBeforeTheFirstScanGivesTheSameEstimatesWithOrWithoutNewlyMappedLookups) {
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
+  ScenarioRunConfig off;
+  off.localizer.newly_mapped_candidates = 0;
+  const ScenarioRun a = run_scenario(sc, ScenarioRunConfig{}), b = run_scenario(sc, off);
+  ASSERT_EQ(a.estimates.size(), b.estimates.size());
+  for (std::size_t i = 0; i < a.estimates.size(); ++i) {
+    EXPECT_EQ(a.estimates[i].submap, b.estimates[i].submap) << i;
+    EXPECT_EQ(a.estimates[i].pose.x, b.estimates[i].pose.x) << i;
+    EXPECT_EQ(a.estimates[i].pose.theta, b.estimates[i].pose.theta) << i;
+    EXPECT_EQ(a.estimates[i].localized, b.estimates[i].localized) << i;
+  }
+  EXPECT_EQ(a.localizer.newly_mapped_features, 0u);
 }
 
 }  // namespace

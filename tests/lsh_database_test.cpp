@@ -231,5 +231,44 @@ TEST(LocationStore, IdsAreIndicesAndUnknownIdsThrow) {
   EXPECT_THROW(store.at(2), Error);
 }
 
+TEST(LshDatabase, AKeyInsertsAndQueriesAsItsDescriptorDoes) {
+  // A second database of the same hashing, fed only the first one's keys,
+  // answers every query as the first does; queries by key equal queries by
+  // descriptor.
+  const auto data = clustered(3000, 300, 0.15, 17);
+  LshDatabase a, b;
+  ASSERT_TRUE(same_hashing(a.config(), b.config()));
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    const auto id = static_cast<std::uint32_t>(i);
+    a.insert(data[i], id);
+    const std::vector<std::uint32_t> tags(a.last_insert_tags().begin(), a.last_insert_tags().end());
+    b.insert(LshKeyView{tags, a.sketch_of(id)}, id);
+  }
+  LshQuery qa(a), qb(b), qk(a);
+  std::vector<std::uint32_t> ia, ib, ik;
+  std::vector<std::uint16_t> ca, cb, ck;
+  const auto queries = clustered(200, 300, 0.15, 18);
+  std::size_t found = 0;
+  for (const Descriptor& d : queries) {
+    a.query_counts(d, 20, ia, ca, qa);
+    b.query_counts(d, 20, ib, cb, qb);
+    EXPECT_EQ(ia, ib);
+    EXPECT_EQ(ca, cb);
+    const std::vector<std::uint32_t> tags(qa.last_key().tags.begin(), qa.last_key().tags.end());
+    const std::vector<std::uint64_t> sketch(qa.last_key().sketch.begin(), qa.last_key().sketch.end());
+    a.query_counts(LshKeyView{tags, sketch}, 20, ik, ck, qk);
+    EXPECT_EQ(ia, ik);
+    EXPECT_EQ(ca, ck);
+    found += ia.size();
+  }
+  EXPECT_GT(found, 200u) << "the queries find something to compare";
+  const std::vector<std::uint32_t> short_tags(3, 0);
+  EXPECT_THROW(a.query_counts(LshKeyView{short_tags, {}}, 5, ik, ck, qk), Error);
+  EXPECT_THROW(b.insert(LshKeyView{short_tags, {}}, 0), Error);
+  LshConfig other;
+  other.seed += 1;
+  EXPECT_FALSE(same_hashing(a.config(), other));
+}
+
 }  // namespace
 }  // namespace lshloc

@@ -50,6 +50,8 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["duels_won"] = run.localizer.report.duels_won;
   j["matcher_velocity_matches"] = run.localizer.scan_matcher.velocity_matches;
   j["matcher_odometry_fallbacks"] = run.localizer.scan_matcher.odometry_fallbacks;
+  j["newly_mapped_features"] = run.localizer.newly_mapped_features;
+  j["newly_mapped_pairs"] = run.localizer.newly_mapped_pairs;
   j["map_build_s"] = run.map_build_s;
   j["bytes_per_feature"] = run.map.bytes_per_feature();
   return j;

@@ -39,6 +39,10 @@ void LshConfig::validate() const {
           initial_slots);
 }
 
+bool same_hashing(const LshConfig& a, const LshConfig& b) {
+  return a.K == b.K && a.L == b.L && a.w == b.w && a.seed == b.seed && a.sketch_bits == b.sketch_bits;
+}
+
 LshQuery::LshQuery(const LshDatabase& db) {
   const LshConfig& c = db.config_;
   projections_.resize(static_cast<Eigen::Index>(c.K * c.L));
@@ -171,6 +175,32 @@ void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) {
 
 void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
   hash(descriptor, insert_projections_, insert_tags_);
+  place(id);
+  if (sketch_words_ > 0) sketch(descriptor, sketch_slot(id));
+  ++entries_;
+}
+
+void LshDatabase::insert(LshKeyView key, std::uint32_t id) {
+  if (key.tags.size() != config_.L || key.sketch.size() != sketch_words_) {
+    throw Error("LshDatabase::insert: a key of " + std::to_string(key.tags.size()) + " tags and " +
+                std::to_string(key.sketch.size()) + " sketch words, expected " + std::to_string(config_.L) + " and " +
+                std::to_string(sketch_words_));
+  }
+  std::copy(key.tags.begin(), key.tags.end(), insert_tags_.begin());
+  place(id);
+  if (sketch_words_ > 0) std::copy(key.sketch.begin(), key.sketch.end(), sketch_slot(id));
+  ++entries_;
+}
+
+std::uint64_t* LshDatabase::sketch_slot(std::uint32_t id) {
+  if (id >= sketch_ids_) {
+    sketch_ids_ = static_cast<std::size_t>(id) + 1;
+    sketches_.resize(sketch_ids_ * sketch_words_, 0);
+  }
+  return sketches_.data() + static_cast<std::size_t>(id) * sketch_words_;
+}
+
+void LshDatabase::place(std::uint32_t id) {
   // Three passes over the tables so that their cache misses overlap: find
   // the home slots (prefetching them), find the buckets (prefetching where
   // the id goes), then write.
@@ -199,14 +229,6 @@ void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
     }
     push(table, slot, id);
   }
-  if (sketch_words_ > 0) {
-    if (id >= sketch_ids_) {
-      sketch_ids_ = static_cast<std::size_t>(id) + 1;
-      sketches_.resize(sketch_ids_ * sketch_words_, 0);
-    }
-    sketch(descriptor, sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
-  }
-  ++entries_;
 }
 
 void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out) {
@@ -221,11 +243,40 @@ void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector
 
 void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
                                std::vector<std::uint16_t>& counts, LshQuery& q) const {
+  check_scratch(q);
+  hash(descriptor, q.projections_, q.tags_);
+  q.sketch_.resize(sketch_words_);
+  if (sketch_words_ > 0) sketch(descriptor, q.sketch_.data());
+  query_tags(q.tags_, q.sketch_, k, out, counts, q);
+}
+
+void LshDatabase::query_counts(LshKeyView key, std::size_t k, std::vector<std::uint32_t>& out,
+                               std::vector<std::uint16_t>& counts, LshQuery& q) const {
+  if (key.tags.size() != config_.L || key.sketch.size() != sketch_words_) {
+    throw Error("LshDatabase::query: a key of " + std::to_string(key.tags.size()) + " tags and " +
+                std::to_string(key.sketch.size()) + " sketch words, expected " + std::to_string(config_.L) + " and " +
+                std::to_string(sketch_words_));
+  }
+  check_scratch(q);
+  query_tags(key.tags, key.sketch, k, out, counts, q);
+}
+
+void LshDatabase::check_scratch(const LshQuery& q) const {
+  if (q.mask_ + 1 < 2 * std::min(config_.max_candidates, config_.L * config_.bucket_capacity) ||
+      q.tags_.size() != config_.L)
+    throw Error("LshDatabase::query: the LshQuery was made for another database configuration");
+}
+
+std::span<const std::uint64_t> LshDatabase::sketch_of(std::uint32_t id) const {
+  if (sketch_words_ == 0 || id >= sketch_ids_) return {};
+  return {sketches_.data() + static_cast<std::size_t>(id) * sketch_words_, sketch_words_};
+}
+
+void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<const std::uint64_t> query_sketch,
+                             std::size_t k, std::vector<std::uint32_t>& out, std::vector<std::uint16_t>& counts,
+                             LshQuery& q) const {
   out.clear();
   counts.clear();
-  if (q.mask_ + 1 < 2 * std::min(config_.max_candidates, config_.L * config_.bucket_capacity))
-    throw Error("LshDatabase::query: the LshQuery was made for another database configuration");
-  hash(descriptor, q.projections_, q.tags_);
   if (++q.stamp_ == 0) {  // stamps wrapped: clear once every 2^32 queries
     std::fill(q.slot_stamp_.begin(), q.slot_stamp_.end(), 0u);
     q.stamp_ = 1;
@@ -233,11 +284,11 @@ void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std:
   q.found_.clear();
   // As in insert(): find all buckets first (prefetching), then read them.
   for (std::size_t t = 0; t < tables_.size(); ++t)
-    __builtin_prefetch(&tables_[t].slots[home(q.tags_[t], tables_[t].bits)]);
+    __builtin_prefetch(&tables_[t].slots[home(tags[t], tables_[t].bits)]);
   q.blocks_.clear();
   for (std::size_t t = 0; t < tables_.size(); ++t) {
     const Table& table = tables_[t];
-    const std::uint32_t tag = q.tags_[t];
+    const std::uint32_t tag = tags[t];
     const std::size_t mask = table.slots.size() - 1;
     std::size_t i = home(tag, table.bits);
     while (table.slots[i].inserted != 0 && table.slots[i].tag != tag) i = (i + 1) & mask;
@@ -283,7 +334,7 @@ void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std:
   }
   q.ranked_.resize(q.found_.size());
   for (std::uint32_t s : q.found_) q.ranked_[q.histogram_[q.slot_count_[s]]++] = s;
-  if (sketch_words_ > 0) rerank_by_sketch(descriptor, q);
+  if (sketch_words_ > 0) rerank_by_sketch(query_sketch, q);
   const std::size_t n = std::min(k, q.ranked_.size());
   out.reserve(n);
   counts.reserve(n);
@@ -305,12 +356,10 @@ void LshDatabase::sketch(const Descriptor& descriptor, std::uint64_t* words) con
   }
 }
 
-void LshDatabase::rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) const {
+void LshDatabase::rerank_by_sketch(std::span<const std::uint64_t> query_sketch, LshQuery& q) const {
   // The Hamming distance between sign sketches estimates the angle between
   // descriptors (unit vectors: monotone in L2). A stable counting sort by it
   // keeps the collision-count order among equal distances.
-  q.sketch_.resize(sketch_words_);
-  sketch(descriptor, q.sketch_.data());
   const std::size_t n = q.ranked_.size();
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t id = q.slot_id_[q.ranked_[i]];
@@ -327,7 +376,7 @@ void LshDatabase::rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) co
       const std::uint64_t* e = sketches_.data() + static_cast<std::size_t>(id) * sketch_words_;
       d = 0;
       for (std::size_t w = 0; w < sketch_words_; ++w)
-        d += static_cast<std::uint32_t>(std::popcount(e[w] ^ q.sketch_[w]));
+        d += static_cast<std::uint32_t>(std::popcount(e[w] ^ query_sketch[w]));
       // Each table the candidate missed costs `weight` bits.
       d += static_cast<std::uint32_t>(weight *
                                       (config_.L - std::min<std::size_t>(q.slot_count_[q.ranked_[i]], config_.L)));

@@ -88,7 +88,8 @@ LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement,
                    loop_context_nodes, loop_min_score, loop_max_runner_up, loop_sigma_xy, loop_sigma_theta_deg,
                    optimize_above)
 LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, endpoint_spacing, free_ray_stride,
-                   free_ray_margin, free_ray_max_range, free_ray_no_return_range, context_scans, context_spacing)
+                   free_ray_margin, free_ray_max_range, free_ray_no_return_range, context_scans, context_spacing,
+                   recent_keys)
 LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, stable_scans, switch_margin, duel_points,
                    duel_margin, duel_z, duel_recent_margin, duel_recent_min_evidence, challenger_needs_support,
                    same_place_m, same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
@@ -97,8 +98,9 @@ LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty,
                    return_support, contested_penalty, context_scans, context_spacing, data_point_spacing,
-                   free_points_per_surface_point, free_point_fraction, free_point_margin, hypothesis_source, report,
-                   seed)
+                   free_points_per_surface_point, free_point_fraction, free_point_margin, hypothesis_source,
+                   newly_mapped_candidates, newly_mapped_per_scan, newly_mapped_share, newly_mapped_scan_window,
+                   newly_mapped_points, newly_mapped_reach_scans, seen_features_kept, report, seed)
 
 }  // namespace lshloc
 

@@ -1,5 +1,6 @@
 #include "lshloc/localization/global_map.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "lshloc/common/error.hpp"
@@ -20,12 +21,13 @@ void GlobalMapConfig::validate() const {
   require(free_ray_max_range > 0.0, "GlobalMapConfig.free_ray_max_range", "> 0 m", free_ray_max_range);
   require(free_ray_no_return_range >= 0.0, "GlobalMapConfig.free_ray_no_return_range", ">= 0 m",
           free_ray_no_return_range);
+  require(recent_keys <= (std::size_t{1} << 24), "GlobalMapConfig.recent_keys", "0..2^24 features", recent_keys);
 }
 
 double GlobalMapStats::bytes_per_feature() const {
   if (features == 0) return 0.0;
-  const double bytes =
-      static_cast<double>(database.bytes + occupancy.memory_bytes + free_space.memory_bytes + location_bytes);
+  const double bytes = static_cast<double>(database.bytes + occupancy.memory_bytes + free_space.memory_bytes +
+                                           location_bytes + recent_key_bytes);
   return bytes / static_cast<double>(features);
 }
 
@@ -67,7 +69,11 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   stats_.extract_s += watch.seconds();
 
   watch = CpuStopwatch();
-  for (const Feature& f : features) database_.insert(f.descriptor, locations_.append(submap, f.pose));
+  for (const Feature& f : features) {
+    const std::uint32_t id = locations_.append(submap, f.pose);
+    database_.insert(f.descriptor, id);
+    keep_recent_key(id);
+  }
   stats_.database_insert_s += watch.seconds();
   stats_.features += features.size();
 
@@ -80,6 +86,21 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   state.context.offer(surface);
   if (added) added->insert(added->end(), features.begin(), features.end());
   return features.size();
+}
+
+void GlobalMap::keep_recent_key(std::uint32_t id) {
+  const std::size_t ring = config_.recent_keys;
+  if (ring == 0) return;
+  const std::span<const std::uint32_t> tags = database_.last_insert_tags();
+  if (recent_tags_.empty()) recent_tags_.resize(ring * tags.size());
+  std::copy(tags.begin(), tags.end(), recent_tags_.begin() + static_cast<std::ptrdiff_t>((id % ring) * tags.size()));
+}
+
+std::optional<LshKeyView> GlobalMap::recent_key(std::uint32_t id) const {
+  const std::size_t ring = config_.recent_keys, size = locations_.size();
+  if (ring == 0 || recent_tags_.empty() || id < recent_first_ || id >= size || size - id > ring) return std::nullopt;
+  const std::size_t L = config_.database.L;
+  return LshKeyView{{recent_tags_.data() + (id % ring) * L, L}, database_.sketch_of(id)};
 }
 
 void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
@@ -249,6 +270,7 @@ std::unique_ptr<GlobalMap> GlobalMap::from_snapshot(const GlobalMapConfig& confi
   if (map->database_.size() != map->locations_.size())
     throw Error(source + ": section database holds " + std::to_string(map->database_.size()) +
                 " entries; expected one per location (" + std::to_string(map->locations_.size()) + ")");
+  map->recent_first_ = static_cast<std::uint32_t>(map->locations_.size());
   return map;
 }
 
@@ -259,6 +281,7 @@ GlobalMapStats GlobalMap::stats() const {
   s.occupancy = occupancy_.stats();
   s.free_space = free_space_.stats();
   s.location_bytes = locations_.bytes();
+  s.recent_key_bytes = recent_tags_.capacity() * sizeof(std::uint32_t);
   return s;
 }
 

@@ -71,6 +71,9 @@ void LocalizerConfig::validate() const {
   require(free_space_penalty >= 0.0, "LocalizerConfig.free_space_penalty", ">= 0", free_space_penalty);
   require(return_support >= 0.0, "LocalizerConfig.return_support", ">= 0", return_support);
   require(contested_penalty >= 0.0, "LocalizerConfig.contested_penalty", ">= 0", contested_penalty);
+  require(seen_features_kept >= 2, "LocalizerConfig.seen_features_kept", ">= 2", seen_features_kept);
+  require(newly_mapped_share >= 0.0 && newly_mapped_share <= 1.0, "LocalizerConfig.newly_mapped_share", "in [0, 1]",
+          newly_mapped_share);
 }
 
 Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
@@ -86,7 +89,8 @@ Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
                                .recent_window = config_.ransac.recent_window}),
       context_(config_.context_scans, config_.context_spacing),
       rng_(config_.seed),
-      sample_(std::make_unique<DataPointSample>(ransac_, scorer_, rng_)) {}
+      sample_(std::make_unique<DataPointSample>(ransac_, scorer_, rng_)),
+      seen_query_(map.database()) {}
 
 Localizer::~Localizer() = default;
 
@@ -105,6 +109,7 @@ LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
   const Pose2 local_pose = update_local_map(scan);
   const std::vector<Feature> features = extract_features(scan, local_pose);
   retrieve_hypotheses(features);
+  remember_features(features);
   // The reported place's tracking children go first: iRANSAC keeps only the
   // first |V_new| hypotheses of a scan.
   const std::span<const Hypothesis> children = policy_.tracking_children(local_pose);
@@ -138,13 +143,14 @@ void Localizer::retrieve_hypotheses(const std::vector<Feature>& features) {
   CpuStopwatch watch;
   candidates_.clear();
   hypotheses_.clear();
+  newly_mapped_seen_.clear();
+  newly_mapped_hypotheses_.clear();
+  feature_tags_.clear();
+  feature_sketches_.clear();
   const LocationStore& store = map_.locations();
-  if (features.empty() || store.empty()) {
-    stats_.query_s += watch.seconds();
-    return;
-  }
-  if (config_.hypothesis_source == HypothesisSource::kRandomMapFeatures) {
-    random_hypotheses(features);
+  if (store.empty() || config_.hypothesis_source == HypothesisSource::kRandomMapFeatures) {
+    if (!features.empty() && !store.empty()) random_hypotheses(features);
+    map_features_seen_ = store.size();
     stats_.query_s += watch.seconds();
     return;
   }
@@ -153,7 +159,11 @@ void Localizer::retrieve_hypotheses(const std::vector<Feature>& features) {
     for (std::size_t k = 0; k < ids_.size(); ++k) {
       candidates_.push_back({counts_[k], static_cast<std::uint32_t>(f), ids_[k]});
     }
+    const LshKeyView key = query_.last_key();
+    feature_tags_.insert(feature_tags_.end(), key.tags.begin(), key.tags.end());
+    feature_sketches_.insert(feature_sketches_.end(), key.sketch.begin(), key.sketch.end());
   }
+  look_up_newly_mapped(features.size());
   // Most colliding tables first, each feature's own ranking kept on ties: a
   // counting sort, as counts are at most the number of tables.
   std::uint16_t max_count = 0;
@@ -164,7 +174,8 @@ void Localizer::retrieve_hypotheses(const std::vector<Feature>& features) {
   sorted_candidates_.resize(candidates_.size());
   for (const Candidate& c : candidates_) sorted_candidates_[count_start_[max_count - c.count]++] = c;
   candidates_.swap(sorted_candidates_);
-  const std::size_t budget = std::min(candidates_.size(), config_.ransac.new_hypotheses_per_scan);
+  keep_within_budget(features.size());
+  const std::size_t budget = candidates_.size();
   // The candidates' locations lie anywhere in a store of millions: prefetch
   // ahead so that their cache misses overlap.
   constexpr std::size_t kAhead = 16;
@@ -172,11 +183,81 @@ void Localizer::retrieve_hypotheses(const std::vector<Feature>& features) {
   for (std::size_t i = 0; i < budget; ++i) {
     if (i + kAhead < budget) __builtin_prefetch(&store[candidates_[i + kAhead].id]);
     const MapLocation& loc = store[candidates_[i].id];
-    hypotheses_.push_back(
-        hypothesis_from_correspondence(loc.submap, loc.pose(), features[candidates_[i].feature].pose));
+    const std::uint32_t f = candidates_[i].feature;
+    if (f < features.size()) {
+      hypotheses_.push_back(hypothesis_from_correspondence(loc.submap, loc.pose(), features[f].pose));
+    } else {
+      const SeenFeature& seen = newly_mapped_seen_[f - features.size()];
+      newly_mapped_hypotheses_.push_back(
+          {hypothesis_from_correspondence(loc.submap, loc.pose(), seen.pose), seen.scan});
+    }
   }
-  stats_.hypotheses += hypotheses_.size();
+  stats_.hypotheses += hypotheses_.size() + newly_mapped_hypotheses_.size();
   stats_.query_s += watch.seconds();
+}
+
+void Localizer::keep_within_budget(std::size_t current) {
+  // Newly mapped candidates are few and found nowhere else: they get their
+  // share of |V_new| before the current scan's many take the rest.
+  const std::size_t total = config_.ransac.new_hypotheses_per_scan;
+  std::size_t newly = 0;
+  for (const Candidate& c : candidates_) newly += c.feature >= current;
+  const auto share = static_cast<std::size_t>(config_.newly_mapped_share * static_cast<double>(total));
+  std::size_t newly_left = std::min(newly, share);
+  std::size_t current_left = total - newly_left;
+  std::size_t kept = 0;
+  for (const Candidate& c : candidates_) {
+    std::size_t& left = c.feature >= current ? newly_left : current_left;
+    if (left == 0) continue;
+    --left;
+    candidates_[kept++] = c;
+  }
+  candidates_.resize(kept);
+}
+
+void Localizer::look_up_newly_mapped(std::size_t current) {
+  const std::size_t now = map_.locations().size();
+  std::size_t first = map_features_seen_.value_or(now);  // the first scan: the map as found is not new
+  map_features_seen_ = now;
+  if (first >= now || config_.newly_mapped_candidates == 0 || !seen_[0]) return;
+  if (now - first > config_.newly_mapped_per_scan) {
+    stats_.newly_mapped_missed += now - first - config_.newly_mapped_per_scan;
+    first = now - config_.newly_mapped_per_scan;
+  }
+  for (std::size_t id = first; id < now; ++id) {
+    const std::optional<LshKeyView> key = map_.recent_key(static_cast<std::uint32_t>(id));
+    if (!key) {
+      ++stats_.newly_mapped_missed;
+      continue;
+    }
+    ++stats_.newly_mapped_features;
+    for (const auto& seen : seen_) {
+      if (!seen) continue;
+      seen->database.query_counts(*key, config_.newly_mapped_candidates, ids_, counts_, seen_query_);
+      for (std::size_t k = 0; k < ids_.size(); ++k) {
+        const auto index = static_cast<std::uint32_t>(current + newly_mapped_seen_.size());
+        candidates_.push_back({counts_[k], index, static_cast<std::uint32_t>(id)});
+        newly_mapped_seen_.push_back(seen->features[ids_[k]]);
+      }
+      stats_.newly_mapped_pairs += ids_.size();
+    }
+  }
+}
+
+void Localizer::remember_features(const std::vector<Feature>& features) {
+  if (config_.newly_mapped_candidates == 0 || features.empty() || feature_tags_.empty()) return;
+  if (!seen_[0] || seen_[0]->features.size() + features.size() > config_.seen_features_kept / 2) {
+    seen_[1] = std::move(seen_[0]);
+    seen_[0] = std::make_unique<SeenFeatures>(map_.config().database);
+  }
+  SeenFeatures& seen = *seen_[0];
+  const std::size_t L = feature_tags_.size() / features.size(), words = feature_sketches_.size() / features.size();
+  const auto scan = static_cast<std::uint32_t>(stats_.scans - 1);
+  for (std::size_t f = 0; f < features.size(); ++f) {
+    const LshKeyView key{{feature_tags_.data() + f * L, L}, {feature_sketches_.data() + f * words, words}};
+    seen.database.insert(key, static_cast<std::uint32_t>(seen.features.size()));
+    seen.features.push_back({features[f].pose, scan});
+  }
 }
 
 void Localizer::random_hypotheses(const std::vector<Feature>& features) {
@@ -219,9 +300,60 @@ void Localizer::sample_data_points(const LaserScan& scan) {
 void Localizer::verify_hypotheses() {
   CpuStopwatch watch;
   ransac_.add_scan(data_points_, hypotheses_);
+  data_points_end_.push_back(static_cast<std::uint32_t>(ransac_.features().size()));
+  prescore_newly_mapped();
+  // The order rule reaches back to the data-points of the scans that saw
+  // newly mapped places while those hypotheses are young.
+  const std::size_t scan = data_points_end_.size() - 1, points = ransac_.features().size();
+  if (reach_back_from_ && scan <= reach_back_until_ && *reach_back_from_ < points) {
+    ransac_.reach_back(points - *reach_back_from_);
+  } else {
+    reach_back_from_.reset();
+    ransac_.reach_back(0);
+  }
   stats_.data_points += std::min(data_points_.size(), config_.ransac.new_features_per_scan);
   ransac_.run(scorer_);
   stats_.ransac_s += watch.seconds();
+}
+
+void Localizer::prescore_newly_mapped() {
+  // A newly mapped place was seen scans ago: the newest data-points, which
+  // iRANSAC scores first, may all lie elsewhere. Each such hypothesis enters
+  // with its score over data-points of the scans around the one that saw it
+  // (hypotheses whose scans share a block of 10 share those data-points, and
+  // are scored as one batch).
+  if (newly_mapped_hypotheses_.empty()) return;
+  constexpr std::uint32_t kBlock = 10;
+  std::stable_sort(newly_mapped_hypotheses_.begin(), newly_mapped_hypotheses_.end(),
+                   [](const auto& a, const auto& b) { return a.second / kBlock < b.second / kBlock; });
+  const std::span<const LocalPoint> points = ransac_.features();
+  const std::size_t w = config_.newly_mapped_scan_window, scans = data_points_end_.size();
+  scored_newly_mapped_.clear();
+  for (std::size_t g = 0; g < newly_mapped_hypotheses_.size();) {
+    const std::uint32_t block = newly_mapped_hypotheses_[g].second / kBlock;
+    std::size_t e = g;
+    group_.clear();
+    for (; e < newly_mapped_hypotheses_.size() && newly_mapped_hypotheses_[e].second / kBlock == block; ++e)
+      group_.push_back(newly_mapped_hypotheses_[e].first);
+    const std::size_t first_scan = block * kBlock > w ? block * kBlock - w : 0;
+    const std::size_t last_scan = std::min(scans - 1, std::size_t{block} * kBlock + kBlock - 1 + w);
+    const std::size_t begin = first_scan > 0 ? data_points_end_[first_scan - 1] : 0, end = data_points_end_[last_scan];
+    const std::size_t n = end > begin ? std::min(end - begin, config_.newly_mapped_points) : 0;
+    const std::size_t first_scored = scored_newly_mapped_.size();
+    for (const Hypothesis& h : group_) scored_newly_mapped_.push_back({h, 0.0, static_cast<std::uint32_t>(n)});
+    if (n > 0) {
+      const HypothesisBatch batch = batch_.assign(group_);
+      prescore_.resize(group_.size());
+      for (std::size_t k = 0; k < n; ++k) {  // evenly spread over the scans
+        scorer_(points[begin + k * (end - begin) / n], batch, prescore_.data());
+        for (std::size_t j = 0; j < group_.size(); ++j) scored_newly_mapped_[first_scored + j].score += prescore_[j];
+      }
+      reach_back_from_ = std::min(reach_back_from_.value_or(begin), begin);
+      reach_back_until_ = scans - 1 + config_.newly_mapped_reach_scans;
+    }
+    g = e;
+  }
+  ransac_.add_scored_hypotheses(scored_newly_mapped_);
 }
 
 double Localizer::mean_score_of(const Hypothesis& h, std::size_t window) const {

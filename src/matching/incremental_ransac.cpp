@@ -80,7 +80,19 @@ HypothesisBatch HypothesisBatchBuffer::assign(std::span<const Hypothesis> hypoth
 }
 
 void IncrementalRansac::add_hypotheses(std::span<const Hypothesis> hypotheses) {
-  for (const Hypothesis& h : hypotheses) {
+  for (const Hypothesis& h : hypotheses) insert_hypothesis(h, 0.0f, 0);
+  stats_.hypotheses_added += hypotheses.size();
+  stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
+}
+
+void IncrementalRansac::add_scored_hypotheses(std::span<const ScoredHypothesis> hypotheses) {
+  for (const ScoredHypothesis& h : hypotheses) insert_hypothesis(h.hypothesis, static_cast<float>(h.score), h.scored);
+  stats_.hypotheses_added += hypotheses.size();
+  stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
+}
+
+void IncrementalRansac::insert_hypothesis(const Hypothesis& h, float score, std::uint32_t scored) {
+  {
     const Pose2& T = h.T_submap_local;
     if (!std::isfinite(T.x) || !std::isfinite(T.y) || !std::isfinite(T.theta))
       throw Error("iRANSAC: a hypothesis of submap " + std::to_string(h.submap) + " has a non-finite pose");
@@ -95,17 +107,15 @@ void IncrementalRansac::add_hypotheses(std::span<const Hypothesis> hypotheses) {
     tx_[j] = static_cast<float>(T.x), ty_[j] = static_cast<float>(T.y);
     cos_[j] = static_cast<float>(std::cos(T.theta)), sin_[j] = static_cast<float>(std::sin(T.theta));
     theta_[j] = static_cast<float>(wrap_angle(T.theta));
-    score_[j] = 0.0f, scored_[j] = 0;
+    score_[j] = score, scored_[j] = scored;
     serial_[j] = next_serial_++;
     pose_[j] = T;
   }
-  stats_.hypotheses_added += hypotheses.size();
-  stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
 }
 
 std::size_t IncrementalRansac::next_feature() {
   const std::size_t n = features_.size();
-  const std::size_t window = std::min(n, config_.recent_window);
+  const std::size_t window = std::min(n, std::max(config_.recent_window, reach_back_));
   switch (config_.order_rule) {
     case FeatureOrderRule::kUniform: {
       if (cursor_ >= n) cursor_ = 0;

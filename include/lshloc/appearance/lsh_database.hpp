@@ -6,6 +6,7 @@
 // LshQuery (see LshDatabase).
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include <Eigen/Core>
@@ -48,6 +49,20 @@ struct LshConfig {
   void validate() const;
 };
 
+/// True when databases with these settings hash every descriptor alike (K,
+/// L, w, seed and sketch_bits equal): a key one of them computed can query
+/// the other.
+bool same_hashing(const LshConfig& a, const LshConfig& b);
+
+/// A descriptor as the database hashes it: its L table tags and its sign
+/// sketch (sketch_bits / 64 words). Lets a caller that kept the key of an
+/// inserted descriptor (LshDatabase::last_insert_tags, sketch_of) query a
+/// database of the same hashing without the descriptor.
+struct LshKeyView {
+  std::span<const std::uint32_t> tags;
+  std::span<const std::uint64_t> sketch;
+};
+
 /// Sizes and work counters of the database.
 struct LshStats {
   std::size_t entries = 0;  ///< inserted descriptors
@@ -71,6 +86,8 @@ class LshDatabase;
 class LshQuery {
  public:
   explicit LshQuery(const LshDatabase& db);
+  /// The key of the descriptor last queried by descriptor with this scratch.
+  LshKeyView last_key() const { return {tags_, sketch_}; }
   std::size_t queries = 0;
   std::size_t candidates_touched = 0;
   std::size_t distinct_candidates = 0;
@@ -138,6 +155,9 @@ class LshDatabase {
 
   /// Adds `descriptor` under location id `id`.
   void insert(const Descriptor& descriptor, std::uint32_t id);
+  /// The same for a descriptor given by its key (from a database of the same
+  /// hashing). Throws lshloc::Error on a key of other sizes.
+  void insert(LshKeyView key, std::uint32_t id);
 
   /// Up to k ids, most colliding tables first (ties: the first seen, which is
   /// the newest entry of the first tables), into `out` (cleared first).
@@ -147,6 +167,16 @@ class LshDatabase {
   /// Like query(), with the collision count of each id returned (same order).
   void query_counts(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
                     std::vector<std::uint16_t>& counts, LshQuery& scratch) const;
+  /// The same for a descriptor given by its key (from a database of the same
+  /// hashing): equal results. Throws lshloc::Error on a key of other sizes.
+  void query_counts(LshKeyView key, std::size_t k, std::vector<std::uint32_t>& out, std::vector<std::uint16_t>& counts,
+                    LshQuery& scratch) const;
+  /// The table tags of the descriptor the last insert() hashed (valid until
+  /// the next insert()).
+  std::span<const std::uint32_t> last_insert_tags() const { return insert_tags_; }
+  /// The sign sketch kept for `id` (empty without sketches or for an id
+  /// never inserted).
+  std::span<const std::uint64_t> sketch_of(std::uint32_t id) const;
 
   std::size_t size() const { return entries_; }
   LshStats stats() const;
@@ -188,7 +218,16 @@ class LshDatabase {
   std::uint32_t allocate(Table& t, std::uint32_t size_class) const;
   void push(Table& t, Slot& slot, std::uint32_t id);
   void sketch(const Descriptor& descriptor, std::uint64_t* words) const;
-  void rerank_by_sketch(const Descriptor& descriptor, LshQuery& q) const;
+  /// Puts `id` into the buckets of insert_tags_.
+  void place(std::uint32_t id);
+  /// Where `id`'s sketch goes (grown to hold it).
+  std::uint64_t* sketch_slot(std::uint32_t id);
+  /// Throws unless `q` was made for this database's settings.
+  void check_scratch(const LshQuery& q) const;
+  /// query_counts() once the query's tags (and sketch) are known.
+  void query_tags(std::span<const std::uint32_t> tags, std::span<const std::uint64_t> sketch, std::size_t k,
+                  std::vector<std::uint32_t>& out, std::vector<std::uint16_t>& counts, LshQuery& q) const;
+  void rerank_by_sketch(std::span<const std::uint64_t> query_sketch, LshQuery& q) const;
 
   LshConfig config_;
   /// (K L x 120) Gaussian projections, already divided by w.

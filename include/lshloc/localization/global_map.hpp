@@ -47,6 +47,11 @@ struct GlobalMapConfig {
   double free_ray_no_return_range = 0.0;
   std::size_t context_scans = 8;  ///< recent scans of a submap whose surface enters descriptors
   double context_spacing = 0.3;   ///< [m] a scan joins the context after this much travel
+  /// The LSH keys (table tags) of this many of the newest map features are
+  /// kept, so that a localizer can look what was mapped since its last scan
+  /// up among the features it has already seen (recent_key(); Localizer's
+  /// newly mapped features). 0: none. Costs 4 L bytes each.
+  std::size_t recent_keys = 16384;
 
   void validate() const;
 };
@@ -64,6 +69,7 @@ struct GlobalMapStats {
   PoseGridStats occupancy;
   PoseGridStats free_space;
   std::size_t location_bytes = 0;
+  std::size_t recent_key_bytes = 0;  ///< the newest features' LSH keys (GlobalMapConfig::recent_keys)
   /// [bytes] everything the global map holds per map feature.
   double bytes_per_feature() const;
   double us_insert_per_feature() const {
@@ -144,6 +150,10 @@ class GlobalMap {
                                                   std::span<const MapSectionView> sections, const std::string& source);
 
   const LshDatabase& database() const { return database_; }
+  /// The LSH key of map feature `id` (a location id) while it is one of the
+  /// newest `recent_keys` features add_scan() added; none for older ones and
+  /// for those a snapshot brought.
+  std::optional<LshKeyView> recent_key(std::uint32_t id) const;
   const LocationStore& locations() const { return locations_; }
   const PoseGridHashMap& occupancy() const { return occupancy_; }
   const PoseGridHashMap& free_space() const { return free_space_; }
@@ -159,6 +169,7 @@ class GlobalMap {
 
   void check_submap(std::uint32_t submap, const char* caller) const;
   void mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
+  void keep_recent_key(std::uint32_t id);  ///< of the feature database_ inserted last
 
   GlobalMapConfig config_;
   FeatureExtractor extractor_;
@@ -169,6 +180,9 @@ class GlobalMap {
   std::vector<SubmapState> submaps_;
   GlobalMapStats stats_;
   std::vector<Point2> beam_endpoints_;  // scratch of mark_grids
+  // A ring of the newest features' table tags: L per feature, slot id % recent_keys.
+  std::vector<std::uint32_t> recent_tags_;
+  std::uint32_t recent_first_ = 0;  ///< the first location id add_scan() added (a snapshot's come before)
 };
 
 /// The direction [rad] of the normal of a surface with direction `tangent`

@@ -4,6 +4,7 @@
 // Poses [m, rad]; times [s] of CPU.
 // Thread safety: not thread-safe; one localizer per target robot, reading a
 // GlobalMap that does not change during add_scan().
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -72,6 +73,29 @@ struct LocalizerConfig {
   double free_point_fraction = 0.5;
   double free_point_margin = 0.6;  ///< [m]
   HypothesisSource hypothesis_source = HypothesisSource::kDatabase;
+  /// Newly mapped features (hypotheses from the map's side too): at each
+  /// scan, the map features added since the last scan are looked up among
+  /// the target's own recent features, so that a place the mappers reach
+  /// after the target saw it still proposes hypotheses. k of each lookup
+  /// (0: off). A map complete before the first scan never adds any.
+  std::size_t newly_mapped_candidates = 10;
+  std::size_t newly_mapped_per_scan = 4096;  ///< at most this many (the newest) are looked up per scan
+  /// Of iRANSAC's |V_new| per scan, at most this share goes to newly mapped
+  /// candidates, and at least the rest to the current scan's (the current
+  /// scan's many candidates would otherwise crowd them out).
+  double newly_mapped_share = 0.05;
+  /// Each newly mapped hypothesis enters iRANSAC scored on up to
+  /// `newly_mapped_points` data-points of the scans within this many of the
+  /// one whose feature proposed it (the newest data-points may lie elsewhere).
+  std::size_t newly_mapped_scan_window = 100;
+  std::size_t newly_mapped_points = 400;
+  /// For this many scans after newly mapped hypotheses arrive, iRANSAC's
+  /// order rule reaches back to the data-points they were scored on (which
+  /// the recent window may have left behind).
+  std::size_t newly_mapped_reach_scans = 200;
+  /// The target's newest features kept for those lookups, in two halves (the
+  /// older half is dropped whole when the newer one is full).
+  std::size_t seen_features_kept = 20000;
   /// What is reported: the confidence test, the hysteresis and duels, and
   /// how the reported place follows the local map's drift.
   ReportPolicyConfig report;
@@ -84,13 +108,16 @@ struct LocalizerConfig {
 /// seconds (cpu_time.hpp).
 struct LocalizerStats {
   std::size_t scans = 0;
-  std::size_t features = 0;      ///< local features extracted
-  std::size_t hypotheses = 0;    ///< hypotheses generated
-  std::size_t data_points = 0;   ///< data-points added to iRANSAC
-  double scan_matching_s = 0.0;  ///< [s]
-  double extract_s = 0.0;        ///< [s]
-  double query_s = 0.0;          ///< [s] database retrieval
-  double ransac_s = 0.0;         ///< [s] iRANSAC iterations (scoring)
+  std::size_t features = 0;               ///< local features extracted
+  std::size_t hypotheses = 0;             ///< hypotheses generated
+  std::size_t data_points = 0;            ///< data-points added to iRANSAC
+  double scan_matching_s = 0.0;           ///< [s]
+  double extract_s = 0.0;                 ///< [s]
+  double query_s = 0.0;                   ///< [s] database retrieval
+  double ransac_s = 0.0;                  ///< [s] iRANSAC iterations (scoring)
+  std::size_t newly_mapped_features = 0;  ///< map features added during the run, looked up among the target's
+  std::size_t newly_mapped_missed = 0;    ///< ... not looked up (over the per-scan cap, or gone from the map's ring)
+  std::size_t newly_mapped_pairs = 0;     ///< (map feature, target feature) candidates they gave
   ReportPolicyStats report;
   IncrementalRansacStats ransac;
   ScanMatcherStats scan_matcher;
@@ -132,6 +159,15 @@ class Localizer {
   std::vector<Feature> extract_features(const LaserScan& scan, const Pose2& local_pose);
   void retrieve_hypotheses(const std::vector<Feature>& features);
   void random_hypotheses(const std::vector<Feature>& features);
+  /// Candidates from the map features added since the last scan (their
+  /// target-side poses go to newly_mapped_poses_, after `current` features).
+  void look_up_newly_mapped(std::size_t current);
+  /// Adds the scan's newly mapped hypotheses to iRANSAC, scored near their scans.
+  void prescore_newly_mapped();
+  /// Keeps the first |V_new| sorted candidates, newly mapped ones up to their share.
+  void keep_within_budget(std::size_t current);
+  /// The scan's features join the target's seen features (after the lookups).
+  void remember_features(const std::vector<Feature>& features);
   void sample_data_points(const LaserScan& scan);
   void verify_hypotheses();
 
@@ -161,6 +197,31 @@ class Localizer {
   std::vector<Hypothesis> hypotheses_;
   ScanSurface surface_;  ///< the current scan's surface in the local frame
   std::vector<LocalPoint> data_points_;
+  // The target's own features (local-frame poses), keyed with the map
+  // database's hashing: [0] the newer half, [1] the older.
+  struct SeenFeature {
+    Pose2 pose;          ///< in the local frame
+    std::uint32_t scan;  ///< the target scan (0, 1, ...) that saw it
+  };
+  struct SeenFeatures {
+    explicit SeenFeatures(const LshConfig& config) : database(config) {}
+    LshDatabase database;
+    std::vector<SeenFeature> features;  ///< by id
+  };
+  std::array<std::unique_ptr<SeenFeatures>, 2> seen_;
+  LshQuery seen_query_;
+  std::optional<std::size_t> map_features_seen_;  ///< the map's feature count at the last scan
+  std::vector<SeenFeature> newly_mapped_seen_;    ///< target side of this scan's newly mapped candidates
+  std::vector<std::pair<Hypothesis, std::uint32_t>> newly_mapped_hypotheses_;  ///< with the scan that saw it
+  std::vector<ScoredHypothesis> scored_newly_mapped_;
+  std::vector<Hypothesis> group_;  ///< prescore_newly_mapped() scratch
+  std::vector<float> prescore_;
+  std::vector<std::uint32_t> data_points_end_;  ///< iRANSAC's |U| after each scan
+  std::optional<std::size_t> reach_back_from_;  ///< the oldest data-point newly mapped hypotheses need
+  std::size_t reach_back_until_ = 0;            ///< ... until this scan
+  HypothesisBatchBuffer batch_;
+  std::vector<std::uint32_t> feature_tags_;  ///< this scan's features' keys (from the forward queries)
+  std::vector<std::uint64_t> feature_sketches_;
 };
 
 }  // namespace lshloc

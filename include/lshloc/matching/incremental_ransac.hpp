@@ -144,6 +144,14 @@ class IncrementalRansac {
   /// Adds every hypothesis, each at a random position of V (O(1) each), with
   /// C = N = 0. Throws lshloc::Error on a non-finite pose.
   void add_hypotheses(std::span<const Hypothesis> hypotheses);
+  /// The same with the C and N each was already scored to by the caller
+  /// (e.g. on the data-points of the scans that proposed it).
+  void add_scored_hypotheses(std::span<const ScoredHypothesis> hypotheses);
+
+  /// Widens the order rule's window (kRecentWindow, kFreshFirst) to at least
+  /// the newest `points` data-points, until called again (0: the configured
+  /// recent_window): for old data-points a caller knows newer hypotheses need.
+  void reach_back(std::size_t points) { reach_back_ = points; }
 
   /// Runs config().iterations_per_scan iterations.
   template <class Scorer>
@@ -199,6 +207,7 @@ class IncrementalRansac {
   std::size_t next_feature();
   std::size_t random_below(std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
   void move_hypothesis(std::size_t from, std::size_t to);
+  void insert_hypothesis(const Hypothesis& h, float score, std::uint32_t scored);
 
   IncrementalRansacConfig config_;
   std::mt19937_64 rng_;
@@ -207,6 +216,7 @@ class IncrementalRansac {
   std::vector<std::uint32_t> permutation_;
   std::size_t cursor_ = 0;      ///< kUniform: next position in permutation_
   std::size_t fresh_next_ = 0;  ///< kFreshFirst: first feature not yet scored on arrival
+  std::size_t reach_back_ = 0;  ///< reach_back()
   // V: the active hypotheses, structure-of-arrays, randomly permuted.
   std::vector<std::uint32_t> submap_;
   std::vector<float> tx_, ty_, cos_, sin_, theta_;
