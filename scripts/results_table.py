@@ -97,6 +97,26 @@ def live():
           f"ground-truth scans, {before} before the place was mapped.\n")
 
 
+def live_starts():
+    """The 80 starts live; runs whose final true pose was never mapped are reported apart."""
+    rows = load("live_starts")
+    if not rows:
+        return
+    print("| building (R = 15, live) | starts | final place mapped | succeeding among those | "
+          "succeeding, the others | median mapped to localized | confident but wrong: before mapped / all |")
+    print("|---|---|---|---|---|---|---|")
+    groups = sorted(by(rows, lambda r: r["building"]).items()) + [("all", rows)]
+    for b, rs in groups:
+        mapped = [r for r in rs if r.get("final_place_mapped")]
+        other = [r for r in rs if not r.get("final_place_mapped")]
+        m2l = [r["mapped_to_localized"] for r in rs if r.get("mapped_to_localized") is not None]
+        print(f"| {b} | {len(rs)} | {len(mapped)} | {sum(r['success'] for r in mapped)}/{len(mapped)} | "
+              f"{sum(r['success'] for r in other)}/{len(other)} | "
+              f"{fmt(statistics.median(m2l) if m2l else None, 1)} | "
+              f"{sum(r['confident_wrong_before_mapped'] for r in rs)} / {sum(r['confident_wrong'] for r in rs)} |")
+    print()
+
+
 def by(rows, key):
     groups = defaultdict(list)
     for r in rows:

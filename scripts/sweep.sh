@@ -10,7 +10,9 @@
 #                                five buildings), starts_seeded (the same with
 #                                the other buildings in seeded orders 1 and 2),
 #                                live (the grid with eval --live: every submap
-#                                starts empty and its mapper replays at 4x)
+#                                starts empty and its mapper replays at 4x),
+#                                live_starts (20 evenly spaced starts of fr079,
+#                                fr101, intel and aces at R = 15, --live)
 # Environment: LSHLOC (the executable, default build/bin/lshloc), JOBS
 # (parallel runs, default 2), LSHLOC_DATA (the data directory), MAP_CACHE (a
 # directory: each scenario's map is built once, saved there with
@@ -56,6 +58,18 @@ jobs_for() {  # jobs_for PART: one line per eval to run
     live)
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
         echo "results/live.jsonl --building $b --submaps $r --live"; done; done ;;
+    live_starts)
+      while read -r b total; do
+        for i in $(seq 0 19); do
+          echo "results/live_starts.jsonl --building $b --submaps 15 --start $(( i * (total - 1000) / 19 )) --length 1000 --live"
+        done
+      done <<'LIST'
+fr079 4934
+fr101 4758
+intel 13631
+aces 7374
+LIST
+      ;;
     grid_maps)
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
         echo "results/grid_maps.jsonl --building $b --submaps $r --grid-maps"; done; done ;;
