@@ -1,73 +1,115 @@
 #!/usr/bin/env python3
-"""How much of a target window the map side of its own building can explain.
+"""How much of a target window the map's robots drove: for each ground-truth
+pose of the window (raw scans START .. START+LENGTH-1 of BUILDING), the
+distance to the nearest corrected pose that the protocol keeps in the map
+(outside the window and GUARD seconds around it), as docs/design.md section 6
+splits a log. Reads the raw log's scan time stamps and the poses file.
 
-For each start of the 100-start sweep (20 evenly spaced windows of 1000 raw
-scans per building, as `scripts/sweep.sh starts` and
-`../shared/acceptance/confidence --full` run them), this reads the raw log's
-scan stamps and the poses file (the corrected pose of each corrected scan,
-keyed by its raw stamp), splits the poses as the scenario does (a corrected
-scan is a map scan when its stamp lies more than the 60 s guard outside the
-window, docs/design.md section 6) and prints, per window: the map scans, the
-share of the window's ground-truth poses within 2 m of a map scan pose (the
-live protocol's "mapped"), the nearest any window pose comes to a map pose,
-and how far the window's last ground-truth pose lies from the map.
+    scripts/window_coverage.py aces 3000 [--length 1000] [--guard 60] [--data ../shared/data]
+    scripts/window_coverage.py mit-csail --sweep
 
-  scripts/window_coverage.py [BUILDING ...]   (default mit-csail; LSHLOC_DATA
-                                               or ../shared/data)
-Reads files only; pure Python."""
+Prints how many window poses lie within 1 m and 2 m of a map pose, and the
+distance of the last one. --sweep: a Markdown table over the 20 evenly spaced
+starts of the start sweep (scripts/sweep.sh starts), with the share within
+2 m (the live protocol's "mapped") and the nearest any window pose comes.
+"""
+import argparse
 import gzip
 import math
 import os
 import sys
 
-FILES = {  # raw log, poses file, scans in the raw log (the sweep's list)
-    "fr079": ("fr079/fr079.recon-from-bag.log.gz", "fr079/fr079.gfs-poses-at-bag-stamps.txt", 4934),
-    "fr101": ("fr101/fr101.carmen.log.gz", "fr101/fr101.gfs-poses-at-raw-stamps.txt", 4758),
-    "intel": ("intel/intel.recon-from-bag.log.gz", "intel/intel.gfs-poses-at-bag-stamps.txt", 13631),
-    "aces": ("aces/aces.recon-from-bag.log.gz", "aces/aces.gfs-poses-at-bag-stamps.txt", 7374),
-    "mit-csail": ("mit-csail/mit-csail.clf.gz", "mit-csail/csail.gfs-poses-at-clf-stamps.txt", 1988),
-}
-GUARD_S, MAPPED_M, LENGTH = 60.0, 2.0, 1000
+RAW = {"fr079": "fr079/fr079.recon-from-bag.log.gz", "fr101": "fr101/fr101.carmen.log.gz",
+       "intel": "intel/intel.recon-from-bag.log.gz", "aces": "aces/aces.recon-from-bag.log.gz",
+       "mit-csail": "mit-csail/mit-csail.clf.gz"}
+POSES = {"fr079": "fr079/fr079.gfs-poses-at-bag-stamps.txt", "fr101": "fr101/fr101.gfs-poses-at-raw-stamps.txt",
+         "intel": "intel/intel.gfs-poses-at-bag-stamps.txt", "aces": "aces/aces.gfs-poses-at-bag-stamps.txt",
+         "mit-csail": "mit-csail/csail.gfs-poses-at-clf-stamps.txt"}
 
 
 def raw_stamps(path):
-    """The stamp of every laser line, in log order (CARMEN lines end with
-    ipc_timestamp ipc_hostname logger_timestamp)."""
-    out = []
-    with gzip.open(path, "rt", errors="replace") as f:
-        for line in f:
-            t = line.split()
-            if t and t[0] in ("FLASER", "RLASER", "ROBOTLASER1", "RAWLASER1"):
-                out.append(float(t[-3]))
-    return out
+    stamps = []
+    with gzip.open(path, "rt") as f:
+        for n, line in enumerate(f, 1):
+            a = line.split()
+            if not a or a[0] != "FLASER":
+                continue
+            beams = int(a[1])
+            if len(a) < beams + 9:
+                sys.exit(f"{path}:{n}: FLASER line too short for {beams} beams")
+            stamps.append(float(a[beams + 8]))
+    return stamps
 
 
-def poses(path):
+def data_lines(path):
+    """(line number, fields) of each line of a text file that is neither blank nor a # comment."""
     with open(path) as f:
-        return [tuple(map(float, l.split()[:3])) for l in f if l.strip() and not l.startswith("#")]
+        for n, line in enumerate(f, 1):
+            if line.strip() and not line.startswith("#"):
+                yield n, line.split()
+
+
+def truth_poses(path):
+    """[(raw stamp, x, y, theta)] of a ground-truth poses file, in file order."""
+    poses = []
+    for n, a in data_lines(path):
+        try:
+            t, x, y, theta = map(float, a[:4])
+        except ValueError:
+            sys.exit(f"{path}:{n}: expected 'timestamp x y theta'")
+        poses.append((t, x, y, theta))
+    return poses
+
+
+SWEEP_TOTAL = {"fr079": 4934, "fr101": 4758, "intel": 13631, "aces": 7374, "mit-csail": 1988}
+
+
+def coverage(stamps, poses, start, length, guard):
+    """(window poses, map poses, each window pose's distance to the nearest map pose), or None."""
+    t0, t1 = stamps[start], stamps[min(start + length, len(stamps)) - 1]
+    window = [q for q in poses if t0 <= q[0] <= t1]
+    kept = [q for q in poses if q[0] < t0 - guard or q[0] > t1 + guard]
+    if not window or not kept:
+        return None
+    return window, kept, [min(math.hypot(w[1] - m[1], w[2] - m[2]) for m in kept) for w in window]
 
 
 def main():
-    data = os.environ.get("LSHLOC_DATA", os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data"))
-    buildings = sys.argv[1:] or ["mit-csail"]
-    print("| building | start | map scans | window truth poses | mapped (within 2 m) | nearest [m] | last pose from the map [m] |")
-    print("|---|---|---|---|---|---|---|")
-    for b in buildings:
-        raw_rel, poses_rel, total = FILES[b]
-        stamps = raw_stamps(os.path.join(data, raw_rel))
-        truth = poses(os.path.join(data, poses_rel))
-        length = min(LENGTH, len(stamps))
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("building", choices=sorted(RAW))
+    p.add_argument("start", type=int, nargs="?")
+    p.add_argument("--sweep", action="store_true", help="the 20 starts of the start sweep instead of one")
+    p.add_argument("--length", type=int, default=1000)
+    p.add_argument("--guard", type=float, default=60.0, help="[s] map scans this close to the window are left out")
+    p.add_argument("--data", default=os.environ.get("LSHLOC_DATA", "../shared/data"))
+    a = p.parse_args()
+    if (a.start is None) == (not a.sweep):
+        sys.exit("give a START or --sweep")
+    stamps = raw_stamps(os.path.join(a.data, RAW[a.building]))
+    poses = truth_poses(os.path.join(a.data, POSES[a.building]))
+    length = min(a.length, len(stamps))
+    if a.sweep:
+        print("| start | map poses | window poses | within 2 m | nearest [m] | last pose from the map [m] |")
+        print("|---|---|---|---|---|---|")
         for i in range(20):
-            s0 = i * (total - length) // 19
-            t0, t1 = stamps[s0], stamps[min(s0 + length, len(stamps)) - 1]
-            inside = [p for p in truth if t0 <= p[0] <= t1]
-            mapped = [p for p in truth if p[0] < t0 - GUARD_S or p[0] > t1 + GUARD_S]
-            if not inside or not mapped:
-                print(f"| {b} | {s0} | {len(mapped)} | {len(inside)} | - | - | - |")
+            start = i * (SWEEP_TOTAL[a.building] - length) // 19
+            c = coverage(stamps, poses, start, length, a.guard)
+            if c is None:
+                print(f"| {start} | - | - | - | - | - |")
                 continue
-            dist = [min(math.hypot(p[1] - q[1], p[2] - q[2]) for q in mapped) for p in inside]
-            share = sum(d < MAPPED_M for d in dist) / len(dist)
-            print(f"| {b} | {s0} | {len(mapped)} | {len(inside)} | {share:.2f} | {min(dist):.1f} | {dist[-1]:.1f} |")
+            window, kept, d = c
+            print(f"| {start} | {len(kept)} | {len(window)} | {sum(x < 2 for x in d) / len(d):.2f} | "
+                  f"{min(d):.1f} | {d[-1]:.1f} |")
+        return
+    if not 0 <= a.start < len(stamps):
+        sys.exit(f"start {a.start} outside the log's {len(stamps)} scans")
+    c = coverage(stamps, poses, a.start, a.length, a.guard)
+    if c is None:
+        sys.exit("no ground-truth pose in the window, or none left for the map")
+    window, kept, d = c
+    print(f"{a.building} start {a.start}: {len(window)} ground-truth poses in the window, {len(kept)} map poses; "
+          f"within 1 m of a map pose: {sum(x < 1 for x in d)}, within 2 m: {sum(x < 2 for x in d)}; "
+          f"last pose {d[-1]:.1f} m from the nearest")
 
 
 if __name__ == "__main__":
