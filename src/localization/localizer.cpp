@@ -245,17 +245,24 @@ void Localizer::look_up_newly_mapped(std::size_t current) {
 }
 
 void Localizer::remember_features(const std::vector<Feature>& features) {
-  if (config_.newly_mapped_candidates == 0 || features.empty() || feature_tags_.empty()) return;
+  if (config_.newly_mapped_candidates == 0 || features.empty()) return;
   if (!seen_[0] || seen_[0]->features.size() + features.size() > config_.seen_features_kept / 2) {
     seen_[1] = std::move(seen_[0]);
     seen_[0] = std::make_unique<SeenFeatures>(map_.config().database);
   }
   SeenFeatures& seen = *seen_[0];
+  // The forward queries' keys when there were any (an empty map has none).
+  const bool keyed = !feature_tags_.empty();
   const std::size_t L = feature_tags_.size() / features.size(), words = feature_sketches_.size() / features.size();
   const auto scan = static_cast<std::uint32_t>(stats_.scans - 1);
   for (std::size_t f = 0; f < features.size(); ++f) {
-    const LshKeyView key{{feature_tags_.data() + f * L, L}, {feature_sketches_.data() + f * words, words}};
-    seen.database.insert(key, static_cast<std::uint32_t>(seen.features.size()));
+    const auto id = static_cast<std::uint32_t>(seen.features.size());
+    if (keyed) {
+      seen.database.insert(LshKeyView{{feature_tags_.data() + f * L, L}, {feature_sketches_.data() + f * words, words}},
+                           id);
+    } else {
+      seen.database.insert(features[f].descriptor, id);
+    }
     seen.features.push_back({features[f].pose, scan});
   }
 }
