@@ -52,6 +52,7 @@ struct EvalOptions {
   GridMapOptions grid;
   bool live = false;     ///< every submap starts empty and its mapper replays while the target localizes
   bool threads = false;  ///< mappers on their own threads (with live), the target on this one
+  std::size_t mapper_threads = 16;  ///< with threads: at most this many writer threads, submaps spread over them
   LiveReplayConfig live_replay;
   std::string map_redis;  ///< a fleet's map on Redis instead of building the scenario's
   std::string map_prefix = "lshloc";
@@ -250,7 +251,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   std::optional<LiveRun> live;
   ScenarioRun batch;
   if (opt.threads) {
-    live = run_live_threaded(sc, run_config, opt.live_replay, opt.live, progress);
+    live = run_live_threaded(sc, run_config, opt.live_replay, opt.live, progress, opt.mapper_threads);
   } else if (opt.live) {
     live = run_live_scenario(sc, run_config, opt.live_replay, progress, observer);
   } else if (!opt.map_redis.empty()) {
@@ -367,6 +368,11 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
       ->excludes("--load-map")
       ->excludes("--grid-maps")
       ->excludes("--trace");
+  cmd->add_option("--mapper-threads", opt->mapper_threads,
+                  "with --threads: at most this many threads write the map, the submaps spread over them "
+                  "(submap k to thread k mod N)")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{256}))
+      ->capture_default_str();
   cmd->add_option("--map-redis", opt->map_redis,
                   "localize on a fleet's map on Redis, redis://HOST[:PORT], that `lshloc mapper --building B "
                   "--submaps R` processes publish (docs/fleet.md), following it while the target localizes")
