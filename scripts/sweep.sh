@@ -51,6 +51,19 @@ export LSHLOC MAP_CACHE=${MAP_CACHE:-} TRACE_DIR=${TRACE_DIR:-}
 [ -n "$MAP_CACHE" ] && mkdir -p "$MAP_CACHE"
 [ -n "$TRACE_DIR" ] && mkdir -p "$TRACE_DIR"
 
+start_windows() {  # "BUILDING START LENGTH": 20 evenly spaced windows of (up to) 1000 scans per building
+  while read -r b total; do
+    local len=$(( total < 1000 ? total : 1000 ))
+    for i in $(seq 0 19); do echo "$b $(( i * (total - len) / 19 )) $len"; done
+  done <<'LIST'
+fr079 4934
+fr101 4758
+intel 13631
+aces 7374
+mit-csail 1988
+LIST
+}
+
 jobs_for() {  # jobs_for PART: one line per eval to run
   case $1 in
     grid)
@@ -59,17 +72,9 @@ jobs_for() {  # jobs_for PART: one line per eval to run
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
         echo "results/live.jsonl --building $b --submaps $r --live"; done; done ;;
     live_starts)
-      while read -r b total; do
-        for i in $(seq 0 19); do
-          echo "results/live_starts.jsonl --building $b --submaps 15 --start $(( i * (total - 1000) / 19 )) --length 1000 --live"
-        done
-      done <<'LIST'
-fr079 4934
-fr101 4758
-intel 13631
-aces 7374
-LIST
-      ;;
+      start_windows | grep -v mit-csail | while read -r b start len; do
+        echo "results/live_starts.jsonl --building $b --submaps 15 --start $start --length $len --live"
+      done ;;
     grid_maps)
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
         echo "results/grid_maps.jsonl --building $b --submaps $r --grid-maps"; done; done ;;
@@ -82,18 +87,9 @@ LIST
     starts|starts_seeded)
       local seeds=(0); [ "$1" = starts_seeded ] && seeds=(1 2)
       for seed in "${seeds[@]}"; do
-        while read -r b total; do
-          local len=$(( total < 1000 ? total : 1000 ))
-          for i in $(seq 0 19); do
-            echo "results/$1.jsonl --building $b --submaps 15 --start $(( i * (total - len) / 19 )) --length $len --seed $seed"
-          done
-        done <<'LIST'
-fr079 4934
-fr101 4758
-intel 13631
-aces 7374
-mit-csail 1988
-LIST
+        start_windows | while read -r b start len; do
+          echo "results/$1.jsonl --building $b --submaps 15 --start $start --length $len --seed $seed"
+        done
       done ;;
     *) echo "unknown part $1" >&2; exit 2 ;;
   esac
