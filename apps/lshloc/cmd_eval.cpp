@@ -50,8 +50,8 @@ struct EvalOptions {
   std::vector<std::size_t> submaps{1};
   bool grid_maps = false;
   GridMapOptions grid;
-  bool live = false;     ///< every submap starts empty and its mapper replays while the target localizes
-  bool threads = false;  ///< mappers on their own threads (with live), the target on this one
+  bool live = false;                ///< every submap starts empty and its mapper replays while the target localizes
+  bool threads = false;             ///< mappers on their own threads (with live), the target on this one
   std::size_t mapper_threads = 16;  ///< with threads: at most this many writer threads, submaps spread over them
   LiveReplayConfig live_replay;
   std::string map_redis;  ///< a fleet's map on Redis instead of building the scenario's

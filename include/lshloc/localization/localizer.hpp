@@ -160,7 +160,7 @@ class Localizer {
   void retrieve_hypotheses(const std::vector<Feature>& features);
   void random_hypotheses(const std::vector<Feature>& features);
   /// Candidates from the map features added since the last scan (their
-  /// target-side poses go to newly_mapped_poses_, after `current` features).
+  /// target-side features go to newly_mapped_seen_, indexed after `current`).
   void look_up_newly_mapped(std::size_t current);
   /// Adds the scan's newly mapped hypotheses to iRANSAC, scored near their scans.
   void prescore_newly_mapped();
