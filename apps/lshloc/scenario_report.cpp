@@ -1,7 +1,6 @@
 #include "scenario_report.hpp"
 
 #include <algorithm>
-
 #include <cmath>
 #include <cstdio>
 #include <filesystem>

@@ -81,36 +81,32 @@ HypothesisBatch HypothesisBatchBuffer::assign(std::span<const Hypothesis> hypoth
 
 void IncrementalRansac::add_hypotheses(std::span<const Hypothesis> hypotheses) {
   for (const Hypothesis& h : hypotheses) insert_hypothesis(h, 0.0f, 0);
-  stats_.hypotheses_added += hypotheses.size();
-  stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
 }
 
 void IncrementalRansac::add_scored_hypotheses(std::span<const ScoredHypothesis> hypotheses) {
   for (const ScoredHypothesis& h : hypotheses) insert_hypothesis(h.hypothesis, static_cast<float>(h.score), h.scored);
-  stats_.hypotheses_added += hypotheses.size();
-  stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
 }
 
 void IncrementalRansac::insert_hypothesis(const Hypothesis& h, float score, std::uint32_t scored) {
-  {
-    const Pose2& T = h.T_submap_local;
-    if (!std::isfinite(T.x) || !std::isfinite(T.y) || !std::isfinite(T.theta))
-      throw Error("iRANSAC: a hypothesis of submap " + std::to_string(h.submap) + " has a non-finite pose");
-    const std::size_t m = tx_.size();
-    const std::size_t j = random_below(m + 1);
-    // Grow every column by one, move the element at j to the end (inside-out
-    // Fisher-Yates, as for U), then write the new hypothesis at j.
-    submap_.emplace_back(), tx_.emplace_back(), ty_.emplace_back(), cos_.emplace_back(), sin_.emplace_back();
-    theta_.emplace_back(), score_.emplace_back(), scored_.emplace_back(), serial_.emplace_back(), pose_.emplace_back();
-    if (j != m) move_hypothesis(j, m);
-    submap_[j] = h.submap;
-    tx_[j] = static_cast<float>(T.x), ty_[j] = static_cast<float>(T.y);
-    cos_[j] = static_cast<float>(std::cos(T.theta)), sin_[j] = static_cast<float>(std::sin(T.theta));
-    theta_[j] = static_cast<float>(wrap_angle(T.theta));
-    score_[j] = score, scored_[j] = scored;
-    serial_[j] = next_serial_++;
-    pose_[j] = T;
-  }
+  const Pose2& T = h.T_submap_local;
+  if (!std::isfinite(T.x) || !std::isfinite(T.y) || !std::isfinite(T.theta))
+    throw Error("iRANSAC: a hypothesis of submap " + std::to_string(h.submap) + " has a non-finite pose");
+  const std::size_t m = tx_.size();
+  const std::size_t j = random_below(m + 1);
+  // Grow every column by one, move the element at j to the end (inside-out
+  // Fisher-Yates, as for U), then write the new hypothesis at j.
+  submap_.emplace_back(), tx_.emplace_back(), ty_.emplace_back(), cos_.emplace_back(), sin_.emplace_back();
+  theta_.emplace_back(), score_.emplace_back(), scored_.emplace_back(), serial_.emplace_back(), pose_.emplace_back();
+  if (j != m) move_hypothesis(j, m);
+  submap_[j] = h.submap;
+  tx_[j] = static_cast<float>(T.x), ty_[j] = static_cast<float>(T.y);
+  cos_[j] = static_cast<float>(std::cos(T.theta)), sin_[j] = static_cast<float>(std::sin(T.theta));
+  theta_[j] = static_cast<float>(wrap_angle(T.theta));
+  score_[j] = score, scored_[j] = scored;
+  serial_[j] = next_serial_++;
+  pose_[j] = T;
+  ++stats_.hypotheses_added;
+  stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
 }
 
 std::size_t IncrementalRansac::next_feature() {
