@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <string>
 
@@ -20,6 +21,10 @@ constexpr double kPi = std::numbers::pi;
 std::size_t segment_end(const ScanSurface& s, std::size_t seg) {
   return seg + 1 < s.segment_begin.size() ? s.segment_begin[seg + 1] : s.points.size();
 }
+
+/// Points per run in PointRuns: consecutive points lie close along the scan,
+/// so a run's box is small and most runs lie wholly outside a descriptor disc.
+constexpr std::size_t kRunPoints = 16;
 
 }  // namespace
 
@@ -121,8 +126,34 @@ ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const 
   return out;
 }
 
+FeatureExtractor::PointRuns FeatureExtractor::point_runs(const ScanSurface& surface) {
+  PointRuns out;
+  out.reserve((surface.points.size() + kRunPoints - 1) / kRunPoints);
+  for (std::size_t b = 0; b < surface.points.size(); b += kRunPoints) {
+    RunBox box{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+               std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+    for (std::size_t i = b; i < std::min(b + kRunPoints, surface.points.size()); ++i) {
+      const Point2& p = surface.points[i].position;
+      box.x0 = std::min(box.x0, p.x()), box.x1 = std::max(box.x1, p.x());
+      box.y0 = std::min(box.y0, p.y()), box.y1 = std::max(box.y1, p.y());
+    }
+    out.push_back(box);
+  }
+  return out;
+}
+
 FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan,
                                                      std::span<const ScanSurface> context, Descriptor& out) const {
+  std::vector<PointRuns> runs;
+  runs.reserve(1 + context.size());
+  runs.push_back(point_runs(scan));
+  for (const ScanSurface& ctx : context) runs.push_back(point_runs(ctx));
+  return describe(keypoint, scan, context, runs, out);
+}
+
+FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan,
+                                                     std::span<const ScanSurface> context,
+                                                     std::span<const PointRuns> runs, Descriptor& out) const {
   const double radius = config_.descriptor_radius, radius2 = radius * radius;
   const double inner = config_.descriptor_inner_radius;
   const double log_span = std::log(radius / inner);
@@ -135,47 +166,62 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
   std::array<double, kDescriptorSize> hist{};
   Support support;
 
-  auto accumulate = [&](const ScanSurface& surf) {
-    for (const SurfacePoint& sp : surf.points) {
-      const double dx = sp.position.x() - keypoint.x, dy = sp.position.y() - keypoint.y;
-      const double d2 = dx * dx + dy * dy;
-      if (d2 >= radius2) continue;
-      const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
-      const double r = std::sqrt(d2);
-      // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
-      const double u = r < inner ? r / inner : 1.0 + (kRings - 1) * std::log(r / inner) / log_span;
-      const double taper = std::min(1.0, (radius - r) / taper_width);
-      const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
-      // Soft binning between the two nearest bin centres in each dimension, so
-      // a point near a bin edge does not flip the descriptor.
-      const double uc = std::clamp(u - 0.5, 0.0, kRings - 1.0);
-      const int r0 = std::min(static_cast<int>(uc), kRings - 2);
-      const double fr = uc - r0;
-      const double vc = v - 0.5;
-      const double vf = std::floor(vc);
-      const double fa = vc - vf;
-      const int a0 = ((static_cast<int>(vf) % kSectors) + kSectors) % kSectors, a1 = (a0 + 1) % kSectors;
-      // Tangent relative to the keypoint normal, doubled: cos/sin(2(t - theta)).
-      const double ct = sp.cos2t, st = sp.sin2t;
-      const double weight = sp.weight * taper;
-      const double comp_c = (ct * c2 + st * s2) * weight, comp_s = (st * c2 - ct * s2) * weight;
-      const std::array<std::pair<int, double>, 4> bins{{{r0 * kSectors + a0, (1 - fr) * (1 - fa)},
-                                                        {r0 * kSectors + a1, (1 - fr) * fa},
-                                                        {(r0 + 1) * kSectors + a0, fr * (1 - fa)},
-                                                        {(r0 + 1) * kSectors + a1, fr * fa}}};
-      for (const auto& [bin, w] : bins) {
-        double* h = &hist[comps * static_cast<std::size_t>(bin)];
-        if (occupancy) *h++ += w * weight;
-        h[0] += w * comp_c;
-        h[1] += w * comp_s;
-      }
-      support.surface += weight;
-      // comp_c / weight = cos 2(t - theta): -1 along the keypoint's wall, +1 across it.
-      support.across += 0.5 * (weight + comp_c);
+  auto accumulate_point = [&](const SurfacePoint& sp) {
+    const double dx = sp.position.x() - keypoint.x, dy = sp.position.y() - keypoint.y;
+    const double d2 = dx * dx + dy * dy;
+    if (d2 >= radius2) return;
+    const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
+    const double r = std::sqrt(d2);
+    // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
+    const double u = r < inner ? r / inner : 1.0 + (kRings - 1) * std::log(r / inner) / log_span;
+    const double taper = std::min(1.0, (radius - r) / taper_width);
+    const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
+    // Soft binning between the two nearest bin centres in each dimension, so
+    // a point near a bin edge does not flip the descriptor.
+    const double uc = std::clamp(u - 0.5, 0.0, kRings - 1.0);
+    const int r0 = std::min(static_cast<int>(uc), kRings - 2);
+    const double fr = uc - r0;
+    const double vc = v - 0.5;
+    const double vf = std::floor(vc);
+    const double fa = vc - vf;
+    // vf lies in [-1, kSectors - 1]: wrap without integer division (the hot loop's costliest step).
+    int a0 = static_cast<int>(vf);
+    if (a0 < 0) a0 += kSectors;
+    if (a0 >= kSectors) a0 -= kSectors;
+    const int a1 = a0 + 1 == kSectors ? 0 : a0 + 1;
+    // Tangent relative to the keypoint normal, doubled: cos/sin(2(t - theta)).
+    const double ct = sp.cos2t, st = sp.sin2t;
+    const double weight = sp.weight * taper;
+    const double comp_c = (ct * c2 + st * s2) * weight, comp_s = (st * c2 - ct * s2) * weight;
+    const std::array<std::pair<int, double>, 4> bins{{{r0 * kSectors + a0, (1 - fr) * (1 - fa)},
+                                                      {r0 * kSectors + a1, (1 - fr) * fa},
+                                                      {(r0 + 1) * kSectors + a0, fr * (1 - fa)},
+                                                      {(r0 + 1) * kSectors + a1, fr * fa}}};
+    for (const auto& [bin, w] : bins) {
+      double* h = &hist[comps * static_cast<std::size_t>(bin)];
+      if (occupancy) *h++ += w * weight;
+      h[0] += w * comp_c;
+      h[1] += w * comp_s;
+    }
+    support.surface += weight;
+    // comp_c / weight = cos 2(t - theta): -1 along the keypoint's wall, +1 across it.
+    support.across += 0.5 * (weight + comp_c);
+  };
+  // A run is skipped only when its box lies beyond the disc by a margin far
+  // above rounding: every point it holds would fail accumulate_point's d2 test.
+  const double skip2 = (radius + 1e-6) * (radius + 1e-6);
+  auto accumulate = [&](const ScanSurface& surf, const PointRuns& boxes) {
+    for (std::size_t run = 0; run < boxes.size(); ++run) {
+      const RunBox& box = boxes[run];
+      const double bx = std::max({box.x0 - keypoint.x, 0.0, keypoint.x - box.x1});
+      const double by = std::max({box.y0 - keypoint.y, 0.0, keypoint.y - box.y1});
+      if (bx * bx + by * by > skip2) continue;
+      const std::size_t end = std::min((run + 1) * kRunPoints, surf.points.size());
+      for (std::size_t i = run * kRunPoints; i < end; ++i) accumulate_point(surf.points[i]);
     }
   };
-  accumulate(scan);
-  for (const ScanSurface& ctx : context) accumulate(ctx);
+  accumulate(scan, runs[0]);
+  for (std::size_t k = 0; k < context.size(); ++k) accumulate(context[k], runs[1 + k]);
 
   if (config_.bin_power != 1.0)
     for (std::size_t i = 0; i < kDescriptorSize; i += comps) {
@@ -199,6 +245,10 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
   std::vector<Feature> candidates;
   std::vector<double> structure;  // Support::across per candidate
   std::vector<double> arc;
+  std::vector<PointRuns> runs;
+  runs.reserve(1 + context.size());
+  runs.push_back(point_runs(scan));
+  for (const ScanSurface& ctx : context) runs.push_back(point_runs(ctx));
   for (std::size_t seg = 0; seg < scan.segment_begin.size(); ++seg) {
     const std::size_t b = scan.segment_begin[seg], e = segment_end(scan, seg), n = e - b;
     arc.assign(n, 0.0);
@@ -249,7 +299,7 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
       if (normal.dot(sensor - position) < 0.0) normal = -normal;  // the side the sensor saw
       Feature f;
       f.pose = Pose2(position.x(), position.y(), std::atan2(normal.y(), normal.x()));
-      const Support support = describe(f.pose, scan, context, f.descriptor);
+      const Support support = describe(f.pose, scan, context, runs, f.descriptor);
       if (support.surface < config_.min_descriptor_support) {
         ++stats_.rejected_support;
         continue;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
@@ -103,9 +104,44 @@ std::optional<LshKeyView> GlobalMap::recent_key(std::uint32_t id) const {
   return LshKeyView{{recent_tags_.data() + (id % ring) * L, L}, database_.sketch_of(id)};
 }
 
+void GlobalMap::ScanMarks::start(std::int32_t cx, std::int32_t cy, std::int32_t half_width) {
+  width_ = 2 * half_width + 1;
+  x0_ = cx - half_width, y0_ = cy - half_width;
+  const auto cells = static_cast<std::size_t>(width_) * static_cast<std::size_t>(width_);
+  if (cells_.size() < cells || ++generation_ == (1u << 24)) {
+    cells_.assign(std::max(cells, cells_.size()), 0);
+    generation_ = 1;
+  }
+}
+
+bool GlobalMap::ScanMarks::seen(std::int32_t ix, std::int32_t iy, CellFlags flags) {
+  const auto dx = static_cast<std::uint32_t>(ix - x0_), dy = static_cast<std::uint32_t>(iy - y0_);
+  const auto w = static_cast<std::uint32_t>(width_);
+  if (dx >= w || dy >= w) return false;  // outside the window (or no scan started): mark it
+  std::uint32_t& cell = cells_[static_cast<std::size_t>(dy) * w + dx];
+  const std::uint32_t marked = (cell >> 8) == generation_ ? cell & 0xff : 0;
+  if ((marked & flags) == flags) return true;
+  cell = (generation_ << 8) | marked | flags;
+  return false;
+}
+
+void GlobalMap::mark_free_space(std::uint32_t submap, const Point2& p, CellFlags flags) {
+  const PoseCell c = free_space_.cell_of(submap, p.x(), p.y(), 0.0);
+  if (scan_marks_.seen(c.ix, c.iy, flags)) return;
+  free_space_.mark(submap, p.x(), p.y(), 0.0, flags);
+}
+
 void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
                            const ScanSurface& surface) {
   const Point2 sensor = laser_pose.translation();
+  // Every mark lies within the longest range (returns and their neighbours) of
+  // the sensor; a window wider than 1025 cells is not worth clearing per scan.
+  const PoseCell centre = free_space_.cell_of(submap, sensor.x(), sensor.y(), 0.0);
+  const double longest = std::max(config_.features.max_range, config_.free_ray_max_range);
+  scan_marks_.start(centre.ix, centre.iy,
+                    static_cast<std::int32_t>(std::min(512.0, std::ceil(longest * free_space_.inv_cell_size()) + 2.0)));
+  // Ends the scan's memo even when a mark throws, so no later mark is skipped on its account.
+  const std::unique_ptr<ScanMarks, void (*)(ScanMarks*)> stop_marks(&scan_marks_, [](ScanMarks* m) { m->stop(); });
   // Occupancy: endpoints with their normal direction, thinned along the scan;
   // the free-space grid notes where the map has a normal (kNormal).
   for_each_spaced(surface.points, config_.endpoint_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
@@ -165,7 +201,7 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
 void GlobalMap::mark_surface_point(std::uint32_t submap, const Point2& p, double normal) {
   check_submap(submap, "GlobalMap::mark_surface_point");
   occupancy_.mark(submap, p.x(), p.y(), normal, cell_flags::kOccupied);
-  free_space_.mark(submap, p.x(), p.y(), 0.0, cell_flags::kNormal);
+  mark_free_space(submap, p, cell_flags::kNormal);
 }
 
 void GlobalMap::mark_return(std::uint32_t submap, const Point2& p) {
@@ -174,15 +210,15 @@ void GlobalMap::mark_return(std::uint32_t submap, const Point2& p) {
   for (int ix = -1; ix <= 1; ++ix) {
     for (int iy = -1; iy <= 1; ++iy) {
       const bool own = ix == 0 && iy == 0;
-      free_space_.mark(submap, p.x() + ix * step, p.y() + iy * step, 0.0,
-                       own ? cell_flags::kOccupied | cell_flags::kReturn : cell_flags::kOccupied);
+      mark_free_space(submap, {p.x() + ix * step, p.y() + iy * step},
+                      own ? cell_flags::kOccupied | cell_flags::kReturn : cell_flags::kOccupied);
     }
   }
 }
 
 void GlobalMap::mark_free(std::uint32_t submap, const Point2& p) {
   check_submap(submap, "GlobalMap::mark_free");
-  free_space_.mark(submap, p.x(), p.y(), 0.0, cell_flags::kFree);
+  mark_free_space(submap, p, cell_flags::kFree);
 }
 
 std::optional<std::uint32_t> GlobalMap::find_submap(std::string_view name) const {

@@ -53,6 +53,7 @@ PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, doub
   };
   c.ix = to_index(x * inv_cell_);
   c.iy = to_index(y * inv_cell_);
+  if (config_.theta_bins == 1) return c.itheta = 0, c;  // a 2-D grid: what the arithmetic below gives
   double t = std::fmod(theta, kTwoPi);
   if (!(t == t)) t = 0.0;
   if (t < 0.0) t += kTwoPi;

@@ -159,6 +159,19 @@ class FeatureExtractor {
                    Descriptor& out) const;
 
  private:
+  /// Bounding box of a run of consecutive surface points.
+  struct RunBox {
+    double x0, x1, y0, y1;
+  };
+  /// Boxes of a surface's points in runs of a fixed count, in point order.
+  using PointRuns = std::vector<RunBox>;
+  static PointRuns point_runs(const ScanSurface& surface);
+  /// describe() with the boxes of `scan` (first) and of each context surface
+  /// made once per extract() call; the sums run in the same order, so the
+  /// descriptor is bit for bit the one without them.
+  Support describe(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
+                   std::span<const PointRuns> runs, Descriptor& out) const;
+
   FeatureExtractorConfig config_;
   FeatureExtractorStats stats_;
 };

@@ -167,7 +167,28 @@ class GlobalMap {
     std::size_t scans = 0;
   };
 
+  /// The free-space flags already marked during the scan mark_grids() is
+  /// marking, in a dense window of cells around its sensor: each cell is
+  /// marked once per scan and flag set (rays near the sensor and the
+  /// neighbours of adjacent returns cross the same cells many times). A
+  /// skipped mark would have changed nothing, so the grid is the same.
+  class ScanMarks {
+   public:
+    /// Starts a scan whose marks lie within `half_width` cells of (cx, cy).
+    void start(std::int32_t cx, std::int32_t cy, std::int32_t half_width);
+    void stop() { width_ = 0; }
+    /// Whether `flags` were all marked at (ix, iy) this scan; records them if not.
+    bool seen(std::int32_t ix, std::int32_t iy, CellFlags flags);
+
+   private:
+    std::vector<std::uint32_t> cells_;  ///< (generation << 8) | flags
+    std::uint32_t generation_ = 0;
+    std::int32_t x0_ = 0, y0_ = 0, width_ = 0;
+  };
+
   void check_submap(std::uint32_t submap, const char* caller) const;
+  /// ORs `flags` into the free-space cell of `p`, unless scan_marks_ holds them.
+  void mark_free_space(std::uint32_t submap, const Point2& p, CellFlags flags);
   void mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
   void keep_recent_key(std::uint32_t id);  ///< of the feature database_ inserted last
 
@@ -180,6 +201,7 @@ class GlobalMap {
   std::vector<SubmapState> submaps_;
   GlobalMapStats stats_;
   std::vector<Point2> beam_endpoints_;  // scratch of mark_grids
+  ScanMarks scan_marks_;                // scratch of mark_grids
   // A ring of the newest features' table tags: L per feature, slot id % recent_keys.
   std::vector<std::uint32_t> recent_tags_;
   std::uint32_t recent_first_ = 0;  ///< the first location id add_scan() added (a snapshot's come before)
