@@ -200,6 +200,22 @@ def starts():
         starts_table(rows, "building (R = 15)")
 
 
+def ingest():
+    rows = load("ingest")
+    if not rows:
+        return
+    print("| R | map features (whole map) | how the map is fed | mapper scans fed | mapper scans per CPU second (runs) | median | localizer ms per scan (p99) |")
+    print("|---|---|---|---|---|---|---|")
+    mode = lambda r: ("beside the localizer, mapper threads" if r["threads"] else "beside the localizer, one thread") \
+        if r["live"] else "alone, before the localizer"
+    for (submaps, m), rs in sorted(by(rows, lambda r: (r["submaps"], mode(r))).items()):
+        rates = [r["map_scans_per_s"] for r in rs]
+        features = max(r["map_features"] for r in rs) if not rs[0]["live"] else "—"
+        print(f"| {submaps} | {features} | {m} | {rs[0]['mapper_scans']} | {', '.join(f'{v:,.0f}' for v in rates)} | "
+              f"{statistics.median(rates):,.0f} | {statistics.median(r['ms_per_scan'] for r in rs):.2f} "
+              f"({statistics.median(r['ms_per_scan_p99'] for r in rs):.2f}) |")
+
+
 def starts_seeded():
     rows = load("starts_seeded")
     for seed, rs in sorted(by(rows, lambda r: r.get("seed")).items(), key=str):

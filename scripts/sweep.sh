@@ -12,7 +12,13 @@
 #                                live (the grid with eval --live: every submap
 #                                starts empty and its mapper replays at 4x),
 #                                live_starts (20 evenly spaced starts of fr079,
-#                                fr101, intel and aces at R = 15, --live)
+#                                fr101, intel and aces at R = 15, --live),
+#                                ingest (map ingest, mapper scans per CPU second,
+#                                fr079 at R = 15 and 100: the map built with no
+#                                localizer beside it, fed live beside the
+#                                localizer on one thread, and fed by mapper
+#                                threads beside the localizer's; ROUNDS rounds,
+#                                default 2; run it with JOBS=1)
 # Environment: LSHLOC (the executable, default build/bin/lshloc), JOBS
 # (parallel runs, default 2), LSHLOC_DATA (the data directory), MAP_CACHE (a
 # directory: each scenario's map is built once, saved there with
@@ -91,6 +97,10 @@ jobs_for() {  # jobs_for PART: one line per eval to run
           echo "results/$1.jsonl --building $b --submaps 15 --start $start --length $len --seed $seed"
         done
       done ;;
+    ingest)
+      for round in $(seq 1 "${ROUNDS:-2}"); do for r in 15 100; do
+        for mode in "--threads" "--live" "--live --threads"; do echo "results/ingest.jsonl --building fr079 --submaps $r $mode"; done
+      done; done ;;
     *) echo "unknown part $1" >&2; exit 2 ;;
   esac
 }

@@ -26,6 +26,7 @@ class FakeSample final : public SampleScorer {
     return n;
   }
   std::size_t take_newest(std::size_t n) override { return draw(0, n); }
+  std::size_t take_spread(std::size_t n) override { return draw(0, n); }
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
     sums.assign(hypotheses.size(), 0.0);
     for (std::size_t j = 0; j < hypotheses.size(); ++j) sums[j] = score_of(hypotheses[j]) * static_cast<double>(n_);
@@ -154,6 +155,27 @@ TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnCo
   EXPECT_TRUE(e.localized);
   EXPECT_FALSE(step(lost, {}, sample).localized);
   EXPECT_FALSE(step(lost, {scored(place, 0.6, 1000)}, sample).localized);
+}
+
+TEST(ReportPolicy, TheWholeMapLeadComparesTheReportedPlaceAndItsRivalOnTheSamePoints) {
+  const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
+  FakeSample sample;
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.5 : 0.2; };
+  ReportPolicyConfig config = plain();
+  config.confidence.whole_map_points = 500;
+  ReportPolicy policy(config, kPreference);
+  LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.4, 1000)}, sample);
+  EXPECT_NEAR(e.whole_map_fit, 0.5, 1e-12);
+  EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12);
+  EXPECT_NEAR(e.margin, 0.2, 1e-12);  // iRANSAC's C/N lead, on whatever points each was scored
+  // Without a rival the lead is the reported place's own fit.
+  e = step(policy, {scored(place, 0.6, 1000)}, sample);
+  EXPECT_NEAR(e.whole_map_lead, 0.5, 1e-12);
+  // Off by default: nothing is scored for it.
+  ReportPolicy off(plain(), kPreference);
+  e = step(off, {scored(place, 0.6, 1000), scored(rival, 0.4, 1000)}, sample);
+  EXPECT_EQ(e.whole_map_fit, 0.0);
+  EXPECT_EQ(e.whole_map_lead, 0.0);
 }
 
 TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {

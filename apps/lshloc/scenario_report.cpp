@@ -134,14 +134,16 @@ void write_scenario_trace(const std::string& path, const Scenario& sc, const Sce
   io::append_format(
       f,
       "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
-      "place_supported,kept_scans,newest_fit,newest_evidence,truth_x,truth_y,truth_theta,error_m,heading_error_deg\n");
+      "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,truth_x,truth_y,truth_theta,"
+      "error_m,heading_error_deg\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = sc.target.truth[i];
-    io::append_format(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,", i,
+    io::append_format(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%.4f,%.4f,", i,
                       sc.target.scans[i].timestamp, e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta,
                       e.localized ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin, e.stable ? 1 : 0,
-                      e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence);
+                      e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence,
+                      e.whole_map_fit, e.whole_map_lead);
     if (t)
       io::append_format(f, "%.4f,%.4f,%.5f,%.4f,%.3f\n", t->x, t->y, t->theta, m.error_per_scan_m[i],
                         angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);

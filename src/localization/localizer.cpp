@@ -34,6 +34,14 @@ class Localizer::DataPointSample final : public SampleScorer {
     return sample_.size();
   }
 
+  std::size_t take_spread(std::size_t n) override {
+    const std::size_t size = ransac_.features().size();
+    sample_.clear();
+    const std::size_t m = std::min(n, size);
+    for (std::size_t k = 0; k < m; ++k) sample_.push_back(static_cast<std::uint32_t>(k * size / m));
+    return sample_.size();
+  }
+
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
     const HypothesisBatch batch = batch_.assign(hypotheses);
     const std::size_t m = hypotheses.size();

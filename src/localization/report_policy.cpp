@@ -147,12 +147,22 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
 
   // The best competitor elsewhere: another submap, or more than 2 m away.
   double rival = 0.0;
+  const ScoredHypothesis* rival_hypothesis = nullptr;
   for (const ScoredHypothesis& h : active) {
     if (h.score < ransac_.min_score || h.scored == 0) continue;
     if (same_place(h.hypothesis, best->hypothesis, local_pose, 2.0, std::numbers::pi)) continue;
-    rival = std::max(rival, h.mean_score());
+    if (h.mean_score() > rival) rival = h.mean_score(), rival_hypothesis = &h;
   }
   e.margin = e.mean_score - rival;
+  if (cc.whole_map_points > 0) {
+    const std::size_t taken = sample.take_spread(cc.whole_map_points);
+    if (taken > 0) {
+      const std::array<Hypothesis, 2> pair{*reported_, rival_hypothesis ? rival_hypothesis->hypothesis : *reported_};
+      sample.score(pair, sums_);
+      e.whole_map_fit = sums_[0] / static_cast<double>(taken);
+      e.whole_map_lead = rival_hypothesis ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
+    }
+  }
 
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) {

@@ -93,6 +93,10 @@ struct ConfidenceConfig {
   /// newest_evidence) of the estimate. Fitted by logistic regression on fr079
   /// and intel only (scripts/confidence_fit.py, docs/results/confidence.md);
   /// not yet calibrated on buildings the fit never saw.
+  /// Data-points of the whole-map comparison (LocalizationEstimate::
+  /// whole_map_lead), a diagnostic the flag does not read; 0: off (it costs
+  /// about 0.2 ms per scan; `eval --trace` turns it on with 1000).
+  std::size_t whole_map_points = 0;
   std::array<double, 10> value_weights = {-5.6673, -8.2664, 18.1162, 1.1722,  -0.2372,
                                           0.4994,  -1.1894, 0.8522,  18.9906, -12.217};
 };
@@ -144,6 +148,13 @@ struct LocalizationEstimate {
   double newest_fit = 0.0;       ///< mean score of the reported place on the newest_points newest data-points
   double newest_evidence = 0.0;  ///< ... the share of them its map says anything about (|score| > 0)
   Pose2 local_pose;              ///< the scan's laser pose in the local frame
+  /// The reported place and its best rival elsewhere (the hypothesis behind
+  /// `margin`) scored on the same whole_map_points data-points spread over
+  /// the whole local map: the reported place's mean, and its lead over the
+  /// rival (its mean when there is no rival). iRANSAC's margin compares
+  /// means over different points; this one does not.
+  double whole_map_fit = 0.0;
+  double whole_map_lead = 0.0;
 };
 
 /// What the report policy needs of the localizer's data-points: the scores
@@ -165,6 +176,10 @@ class SampleScorer {
   /// Takes the newest `n` data-points (all of them when fewer), in order, as
   /// the sample; draws nothing at random. Returns how many were taken.
   virtual std::size_t take_newest(std::size_t n) = 0;
+  /// Takes `n` data-points spread evenly over all of them (every size/n-th,
+  /// all when fewer) as the sample; draws nothing at random, so scoring it
+  /// leaves the draws of the duels and the refinement as they were.
+  virtual std::size_t take_spread(std::size_t n) = 0;
   /// sums[j] = the sum over the sample of hypothesis j's score; with `pair`,
   /// also the PairSums of hypotheses 0 and 1 (at least two then).
   virtual void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair = nullptr) = 0;
