@@ -163,6 +163,7 @@ TEST(ReportPolicy, TheWholeMapLeadComparesTheReportedPlaceAndItsRivalOnTheSamePo
   sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.5 : 0.2; };
   ReportPolicyConfig config = plain();
   config.confidence.whole_map_points = 500;
+  config.confidence.always_score_whole_map = true;
   ReportPolicy policy(config, kPreference);
   LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.4, 1000)}, sample);
   EXPECT_NEAR(e.whole_map_fit, 0.5, 1e-12);
@@ -171,11 +172,44 @@ TEST(ReportPolicy, TheWholeMapLeadComparesTheReportedPlaceAndItsRivalOnTheSamePo
   // Without a rival the lead is the reported place's own fit.
   e = step(policy, {scored(place, 0.6, 1000)}, sample);
   EXPECT_NEAR(e.whole_map_lead, 0.5, 1e-12);
-  // Off by default: nothing is scored for it.
+  // By default it is scored only when the rise hinges on it: not for a
+  // place whose C/N already supports it.
   ReportPolicy off(plain(), kPreference);
   e = step(off, {scored(place, 0.6, 1000), scored(rival, 0.4, 1000)}, sample);
   EXPECT_EQ(e.whole_map_fit, 0.0);
   EXPECT_EQ(e.whole_map_lead, 0.0);
+}
+
+TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresEveryPlaceWeakly) {
+  // C/N 0.3 is under min_mean_score (0.35): only a clear lead over the rival
+  // on the same whole-map points lets the flag rise.
+  const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
+  const std::vector<ScoredHypothesis> active{scored(place, 0.3, 1000), scored(rival, 0.1, 1000)};
+  const auto flag_after = [&](ReportPolicyConfig config, double rival_score) {
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.3 : rival_score; };
+    LocalizationEstimate e;
+    for (std::size_t i = 0; i < config.confidence.stable_scans + 2; ++i) e = step(policy, active, sample);
+    EXPECT_FALSE(e.supported);
+    EXPECT_FALSE(e.place_supported);
+    return e;
+  };
+  ReportPolicyConfig relative = plain();
+  relative.confidence.rise_on_whole_map_lead = true;
+  LocalizationEstimate e = flag_after(relative, 0.0);
+  EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12);
+  EXPECT_TRUE(e.localized);
+  e = flag_after(relative, 0.1);  // a lead of 0.2 < rise_min_whole_map_lead
+  EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
+  EXPECT_FALSE(e.localized);
+  EXPECT_FALSE(flag_after(plain(), 0.0).localized);  // off by default
+  // Too few data-points scored (N < min_scored): no rise on any lead.
+  ReportPolicy young(relative, kPreference);
+  FakeSample sample;
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.3 : 0.0; };
+  for (int i = 0; i < 8; ++i) e = step(young, {scored(place, 0.3, 400), scored(rival, 0.1, 400)}, sample);
+  EXPECT_FALSE(e.localized);
 }
 
 TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {

@@ -230,10 +230,9 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   Scenario sc = opt.load_map.empty() && opt.map_redis.empty() ? load_eval_scenario(catalog, config)
                                                               : io::load_scenario_target(catalog, config);
   ScenarioRunConfig run_config = make_run_config(opt.localizer);
-  // The trace's whole-map comparison: it scores on a fixed spread of the
-  // data-points (no random draw), so the estimates stay those of a run without it.
-  auto& whole_map_points = run_config.localizer.report.confidence.whole_map_points;
-  if (!opt.trace.empty() && whole_map_points == 0) whole_map_points = 1000;
+  // The trace's whole-map comparison on every scan: it scores a fixed spread
+  // of the data-points (no random draw), so the estimates stay those of a run without it.
+  if (!opt.trace.empty()) run_config.localizer.report.confidence.always_score_whole_map = true;
   const bool tty = isatty(fileno(stderr));
   // With --trace: where the true hypothesis stands among the active ones.
   std::vector<TruthRank> ranks(sc.target.scans.size());

@@ -34,6 +34,8 @@ void ReportPolicyConfig::validate() const {
   require(confidence.stable_scans >= 1, "ReportPolicyConfig.confidence.stable_scans", ">= 1", confidence.stable_scans);
   require(confidence.newest_points <= 1000000, "ReportPolicyConfig.confidence.newest_points", "<= 1e6",
           confidence.newest_points);
+  require(std::isfinite(confidence.rise_min_whole_map_lead), "ReportPolicyConfig.confidence.rise_min_whole_map_lead",
+          "a finite number", confidence.rise_min_whole_map_lead);
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
           "ReportPolicyConfig.confidence.contradiction_smoothing", "in (0, 1]", confidence.contradiction_smoothing);
   for (double w : confidence.value_weights)
@@ -154,15 +156,6 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     if (h.mean_score() > rival) rival = h.mean_score(), rival_hypothesis = &h;
   }
   e.margin = e.mean_score - rival;
-  if (cc.whole_map_points > 0) {
-    const std::size_t taken = sample.take_spread(cc.whole_map_points);
-    if (taken > 0) {
-      const std::array<Hypothesis, 2> pair{*reported_, rival_hypothesis ? rival_hypothesis->hypothesis : *reported_};
-      sample.score(pair, sums_);
-      e.whole_map_fit = sums_[0] / static_cast<double>(taken);
-      e.whole_map_lead = rival_hypothesis ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
-    }
-  }
 
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) {
@@ -198,8 +191,24 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   for (std::size_t i = 0; i < f.size(); ++i) z += cc.value_weights[i] * f[i];
   e.confidence = 1.0 / (1.0 + std::exp(-z));
   const bool newest_known = cc.newest_points > 0 && sample_has_newest;
+  const bool rise_but_support =
+      stable && e.margin >= cc.min_margin && (!newest_known || e.newest_fit >= cc.rise_min_newest_fit);
+  const bool relative_support_decides = rise_but_support && !e.supported && cc.rise_on_whole_map_lead &&
+                                        best->scored >= cc.min_scored && cc.whole_map_points > 0;
+  bool whole_map_known = false;
+  if (cc.whole_map_points > 0 && (cc.always_score_whole_map || relative_support_decides)) {
+    const std::size_t taken = sample.take_spread(cc.whole_map_points);
+    whole_map_known = taken > 0;
+    if (taken > 0) {
+      const std::array<Hypothesis, 2> pair{*reported_, rival_hypothesis ? rival_hypothesis->hypothesis : *reported_};
+      sample.score(pair, sums_);
+      e.whole_map_fit = sums_[0] / static_cast<double>(taken);
+      e.whole_map_lead = rival_hypothesis ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
+    }
+  }
   const bool rises =
-      stable && e.supported && e.margin >= cc.min_margin && (!newest_known || e.newest_fit >= cc.rise_min_newest_fit);
+      rise_but_support &&
+      (e.supported || (relative_support_decides && whole_map_known && e.whole_map_lead >= cc.rise_min_whole_map_lead));
   // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
   const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;
   mean_contradiction_ =

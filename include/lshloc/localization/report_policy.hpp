@@ -93,10 +93,21 @@ struct ConfidenceConfig {
   /// newest_evidence) of the estimate. Fitted by logistic regression on fr079
   /// and intel only (scripts/confidence_fit.py, docs/results/confidence.md);
   /// not yet calibrated on buildings the fit never saw.
-  /// Data-points of the whole-map comparison (LocalizationEstimate::
-  /// whole_map_lead), a diagnostic the flag does not read; 0: off (it costs
-  /// about 0.2 ms per scan; `eval --trace` turns it on with 1000).
-  std::size_t whole_map_points = 0;
+  /// The rise's support test also passes on relative support: N at least
+  /// min_scored and the reported place leading its best rival by
+  /// `rise_min_whole_map_lead` on the same whole_map_points data-points
+  /// spread over the whole local map (LocalizationEstimate::whole_map_lead),
+  /// where C/N stays under min_mean_score because the map scores every
+  /// place of this building weakly. It counts only for the rise: the hold
+  /// and the duels still ask for the absolute support. Off: replayed on the
+  /// 80 starts it raised the share flagged but also the flag changes
+  /// (docs/results/confidence.md).
+  bool rise_on_whole_map_lead = false;
+  double rise_min_whole_map_lead = 0.25;
+  std::size_t whole_map_points = 1000;
+  /// Score the whole-map comparison on every scan (traces), not only when
+  /// the rise hinges on it (it costs about 0.2 ms per scan).
+  bool always_score_whole_map = false;
   std::array<double, 10> value_weights = {-5.6673, -8.2664, 18.1162, 1.1722,  -0.2372,
                                           0.4994,  -1.1894, 0.8522,  18.9906, -12.217};
 };
