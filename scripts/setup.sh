@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Installs lshloc's build and test dependencies from Debian 12 packages.
-# Idempotent and quiet when everything is already there.
+# Idempotent and quiet when everything is already there. `--peers` adds the
+# optional peer indexes of the database benchmark.
 set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev
           libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev libyaml-dev python3 clang-format
           pybind11-dev python3-dev python3-numpy python3-pytest clang libclang-rt-14-dev ninja-build
           redis-server libhiredis-dev)
+# --peers: also the indexes bench/lsh_peers_bench compares against (BENCHMARKS.md).
+[ "${1:-}" = "--peers" ] && packages+=(libhnswlib-dev libfaiss-dev libflann-dev liblz4-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

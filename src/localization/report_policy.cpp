@@ -148,14 +148,14 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   e.scored = best->scored;
 
   // The best competitor elsewhere: another submap, or more than 2 m away.
-  double rival = 0.0;
-  const ScoredHypothesis* rival_hypothesis = nullptr;
+  // Only a positive mean score counts as a rival.
+  const ScoredHypothesis* rival = nullptr;
   for (const ScoredHypothesis& h : active) {
     if (h.score < ransac_.min_score || h.scored == 0) continue;
     if (same_place(h.hypothesis, best->hypothesis, local_pose, 2.0, std::numbers::pi)) continue;
-    if (h.mean_score() > rival) rival = h.mean_score(), rival_hypothesis = &h;
+    if (h.mean_score() > (rival ? rival->mean_score() : 0.0)) rival = &h;
   }
-  e.margin = e.mean_score - rival;
+  e.margin = e.mean_score - (rival ? rival->mean_score() : 0.0);
 
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) {
@@ -200,10 +200,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
     whole_map_known = taken > 0;
     if (taken > 0) {
-      const std::array<Hypothesis, 2> pair{*reported_, rival_hypothesis ? rival_hypothesis->hypothesis : *reported_};
-      sample.score(pair, sums_);
+      const std::array<Hypothesis, 2> pair{*reported_, rival ? rival->hypothesis : *reported_};
+      sample.score(std::span(pair).first(rival ? 2 : 1), sums_);
       e.whole_map_fit = sums_[0] / static_cast<double>(taken);
-      e.whole_map_lead = rival_hypothesis ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
+      e.whole_map_lead = rival ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   }
   const bool rises =
