@@ -81,6 +81,19 @@ TEST(ConfigJson, MistakesNameTheSourceAndTheKey) {
             std::string::npos);
 }
 
+TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndNothingElse) {
+  ScenarioRunConfig c;
+  const std::string path = std::string(LSHLOC_SOURCE_DIR) + "/examples/config/large-map.json";
+  io::apply_config_patch(io::read_json_file(path), c, path);
+  EXPECT_EQ(c.map.database.K, 20u);
+  EXPECT_EQ(c.map.database.max_candidates, 2000u);
+  EXPECT_NO_THROW(c.map.database.validate());
+  nlohmann::json expected = ScenarioRunConfig{};
+  expected["map"]["database"]["K"] = 20;
+  expected["map"]["database"]["max_candidates"] = 2000;
+  EXPECT_EQ(nlohmann::json(c), expected);
+}
+
 TEST(ConfigJson, ReadingAFileNamesItOnSyntaxErrors) {
   const std::string path = testing::TempDir() + "/lshloc_bad_config.json";
   {
