@@ -80,6 +80,43 @@ TEST(FeatureExtractor, RigidMotionMovesKeypointsAndKeepsDescriptors) {
   }
 }
 
+// extract() ranks its candidates by their support before describing only the
+// kept ones: the kept must be the most structured, described bit for bit as
+// describe() alone does, and a larger budget keeps a superset.
+TEST(FeatureExtractor, KeepsTheMostStructuredCandidatesDescribedAsDescribeDoes) {
+  const auto walls = room();
+  const Pose2 laser(6.0, 2.0, 0.4), before(5.6, 1.8, 0.3);
+  const LaserScan scan = cast(walls, laser);
+  FeatureExtractorConfig all_cfg;
+  all_cfg.max_keypoints = 1000;
+  FeatureExtractor all(all_cfg), fx;
+  const ScanSurface ctx = fx.surface(cast(walls, before), before);
+  const ScanSurface surf = fx.surface(scan, laser);
+  const std::vector<Feature> every = all.extract(surf, {&ctx, 1});
+  const std::vector<Feature> kept = fx.extract(surf, {&ctx, 1});
+  ASSERT_GT(every.size(), kept.size());  // the budget binds
+  ASSERT_EQ(kept.size(), fx.config().max_keypoints);
+  std::vector<double> across(every.size());
+  for (std::size_t i = 0; i < every.size(); ++i) {
+    Descriptor d;
+    across[i] = fx.describe(every[i].pose, surf, {&ctx, 1}, d).across;
+    EXPECT_EQ(d, every[i].descriptor);
+  }
+  double weakest_kept = INFINITY, strongest_dropped = -INFINITY;
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < every.size(); ++i) {
+    if (k < kept.size() && every[i].pose.x == kept[k].pose.x && every[i].pose.y == kept[k].pose.y) {
+      EXPECT_EQ(kept[k].descriptor, every[i].descriptor);  // in scan order, a subsequence
+      weakest_kept = std::min(weakest_kept, across[i]);
+      ++k;
+    } else {
+      strongest_dropped = std::max(strongest_dropped, across[i]);
+    }
+  }
+  EXPECT_EQ(k, kept.size());
+  EXPECT_GE(weakest_kept, strongest_dropped);
+}
+
 TEST(FeatureExtractor, DeterministicUnitDescriptorsWithNormalsFacingTheSensor) {
   const auto walls = room();
   const Pose2 laser(6.0, 3.0, 1.2);

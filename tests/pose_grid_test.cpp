@@ -220,6 +220,56 @@ TEST(PoseGrid, DenseCellsAreTheBoundingBoxesTimesHeadingBins) {
   EXPECT_EQ(s.submaps, 2u);
 }
 
+TEST(PoseGrid, CellOfIsFloorOfTheScaledCoordinatesAndTheWrappedHeading) {
+  PoseGridConfig cfg;
+  cfg.cell_size = 0.25, cfg.theta_bins = 36;
+  const PoseGridHashMap grid(cfg);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> coord(-300.0, 300.0), angle(-40.0, 40.0);
+  std::vector<double> xs = {0.0, -0.0, 0.25, -0.25, -0.5, 0.1, -0.1, -1e-300, 1e-300, 16383.75, -16384.0};
+  for (int i = 0; i < 20000; ++i) xs.push_back(coord(rng));
+  for (int i = 0; i < 200; ++i) xs.push_back(std::round(coord(rng)) * 0.25);  // exact cell borders
+  const double two_pi = 2.0 * kPi;
+  for (const double x : xs) {
+    const double theta = angle(rng);
+    const PoseCell c = grid.cell_of(7, x, -x, theta);
+    EXPECT_EQ(c.ix, static_cast<std::int32_t>(std::floor(x * 4.0))) << x;
+    EXPECT_EQ(c.iy, static_cast<std::int32_t>(std::floor(-x * 4.0))) << x;
+    double t = std::fmod(theta, two_pi);
+    if (t < 0.0) t += two_pi;
+    EXPECT_EQ(c.itheta, std::min(static_cast<std::int32_t>(t * (36.0 / two_pi)), 35)) << theta;
+  }
+}
+
+TEST(PoseGrid, PlannedMarksGiveTheGridOfMarksOneByOne) {
+  for (const auto mode : {ToleranceMode::kDilateAtInsert, ToleranceMode::kProbeNeighbours}) {
+    PoseGridConfig cfg;
+    cfg.cell_size = 0.3, cfg.theta_bins = 12, cfg.xy_tolerance = 1, cfg.theta_tolerance = 1;
+    cfg.tolerance_mode = mode, cfg.initial_capacity = 4;  // the table grows in the middle of a plan
+    PoseGridHashMap one_by_one(cfg), planned(cfg);
+    std::mt19937_64 rng(3);
+    std::uniform_real_distribution<double> coord(-20.0, 20.0), angle(-7.0, 7.0);
+    std::vector<PoseGridHashMap::CellMark> plan;
+    for (int scan = 0; scan < 40; ++scan) {
+      plan.clear();
+      for (int i = 0; i < 150; ++i) {
+        const auto submap = static_cast<std::uint32_t>(rng() % 3);
+        const double x = coord(rng), y = coord(rng), theta = angle(rng);
+        const auto flags = static_cast<CellFlags>(1u << (rng() % 4));
+        one_by_one.mark(submap, x, y, theta, flags);
+        planned.plan_mark(planned.cell_of(submap, x, y, theta), flags, plan);
+      }
+      planned.mark_planned(plan);
+    }
+    ByteWriter a, b;
+    one_by_one.write_snapshot(a);
+    planned.write_snapshot(b);
+    EXPECT_EQ(a.take(), b.take());  // the same cells, flags, counters and table size
+    EXPECT_EQ(one_by_one.stats().rehashes, planned.stats().rehashes);
+    EXPECT_GT(planned.stats().rehashes, 5u);
+  }
+}
+
 TEST(PoseGrid, RejectsBadInput) {
   PoseGridConfig bad;
   bad.cell_size = 0.0;

@@ -52,6 +52,8 @@ nlohmann::json map_json(const std::string& path, const GlobalMap& map, const io:
   j["file_bytes_per_feature"] =
       s.features ? static_cast<double>(info.file_bytes) / static_cast<double>(s.features) : 0.0;
   j["memory_bytes_per_feature"] = s.bytes_per_feature();
+  // CPU seconds of every insert so far, by stage (a saved map carries them): where ingest time goes.
+  j["insert_cpu_s"] = {{"features", s.extract_s}, {"database", s.database_insert_s}, {"grids", s.grid_s}};
   nlohmann::json submaps = nlohmann::json::array();
   for (std::uint32_t i = 0; i < map.submap_count(); ++i)
     submaps.push_back({{"id", i}, {"name", map.submap_name(i)}, {"scans", map.submap_scans(i)}});

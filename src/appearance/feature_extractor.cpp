@@ -151,30 +151,89 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
   return describe(keypoint, scan, context, runs, out);
 }
 
+namespace {
+
+// What describe() and support() share: the disc's constants for one keypoint
+// and the weight of one surface point in it, in one place so that both sum
+// bit for bit the same support.
+struct Disc {
+  double radius, radius2, taper_width, c2, s2;
+  Disc(const FeatureExtractorConfig& config, double theta)
+      : radius(config.descriptor_radius),
+        radius2(radius * radius),
+        taper_width(std::max(config.rim_taper * radius, 1e-9)),
+        c2(std::cos(2.0 * theta)),
+        s2(std::sin(2.0 * theta)) {}
+  /// The point's weight (its arc length, tapered towards the rim) and that
+  /// weight times cos 2(t - theta), from its distance r to the keypoint.
+  std::pair<double, double> weights(const SurfacePoint& sp, double r) const {
+    const double taper = std::min(1.0, (radius - r) / taper_width);
+    const double weight = sp.weight * taper;
+    return {weight, (sp.cos2t * c2 + sp.sin2t * s2) * weight};
+  }
+};
+
+}  // namespace
+
+template <class Visit>
+void FeatureExtractor::for_each_point_near(const Pose2& keypoint, const ScanSurface& scan,
+                                           std::span<const ScanSurface> context, std::span<const PointRuns> runs,
+                                           Visit&& visit) const {
+  const double radius = config_.descriptor_radius;
+  // A run is skipped only when its box lies beyond the disc by a margin far
+  // above rounding: every point it holds would fail the caller's d2 test.
+  const double skip2 = (radius + 1e-6) * (radius + 1e-6);
+  auto visit_surface = [&](const ScanSurface& surf, const PointRuns& boxes) {
+    for (std::size_t run = 0; run < boxes.size(); ++run) {
+      const RunBox& box = boxes[run];
+      const double bx = std::max({box.x0 - keypoint.x, 0.0, keypoint.x - box.x1});
+      const double by = std::max({box.y0 - keypoint.y, 0.0, keypoint.y - box.y1});
+      if (bx * bx + by * by > skip2) continue;
+      const std::size_t end = std::min((run + 1) * kRunPoints, surf.points.size());
+      for (std::size_t i = run * kRunPoints; i < end; ++i) visit(surf.points[i]);
+    }
+  };
+  visit_surface(scan, runs[0]);
+  for (std::size_t k = 0; k < context.size(); ++k) visit_surface(context[k], runs[1 + k]);
+}
+
+FeatureExtractor::Support FeatureExtractor::support(const Pose2& keypoint, const ScanSurface& scan,
+                                                    std::span<const ScanSurface> context,
+                                                    std::span<const PointRuns> runs) const {
+  const Disc disc(config_, keypoint.theta);
+  Support support;
+  for_each_point_near(keypoint, scan, context, runs, [&](const SurfacePoint& sp) {
+    const double dx = sp.position.x() - keypoint.x, dy = sp.position.y() - keypoint.y;
+    const double d2 = dx * dx + dy * dy;
+    if (d2 >= disc.radius2) return;
+    const auto [weight, comp_c] = disc.weights(sp, std::sqrt(d2));
+    support.surface += weight;
+    support.across += 0.5 * (weight + comp_c);
+  });
+  return support;
+}
+
 FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, const ScanSurface& scan,
                                                      std::span<const ScanSurface> context,
                                                      std::span<const PointRuns> runs, Descriptor& out) const {
-  const double radius = config_.descriptor_radius, radius2 = radius * radius;
+  const Disc disc(config_, keypoint.theta);
   const double inner = config_.descriptor_inner_radius;
-  const double log_span = std::log(radius / inner);
-  const double taper_width = std::max(config_.rim_taper * radius, 1e-9);
+  const double log_span = std::log(disc.radius / inner);
   const double c = std::cos(keypoint.theta), s = std::sin(keypoint.theta);
-  const double c2 = std::cos(2.0 * keypoint.theta), s2 = std::sin(2.0 * keypoint.theta);
   const int kRings = static_cast<int>(config_.rings), kSectors = static_cast<int>(config_.sectors);
   const bool occupancy = config_.occupancy_component;
   const std::size_t comps = occupancy ? 3 : 2;
   std::array<double, kDescriptorSize> hist{};
   Support support;
 
-  auto accumulate_point = [&](const SurfacePoint& sp) {
+  for_each_point_near(keypoint, scan, context, runs, [&](const SurfacePoint& sp) {
     const double dx = sp.position.x() - keypoint.x, dy = sp.position.y() - keypoint.y;
     const double d2 = dx * dx + dy * dy;
-    if (d2 >= radius2) return;
+    if (d2 >= disc.radius2) return;
     const double lx = c * dx + s * dy, ly = -s * dx + c * dy;
     const double r = std::sqrt(d2);
     // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
     const double u = r < inner ? r / inner : 1.0 + (kRings - 1) * std::log(r / inner) / log_span;
-    const double taper = std::min(1.0, (radius - r) / taper_width);
     const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
     // Soft binning between the two nearest bin centres in each dimension, so
     // a point near a bin edge does not flip the descriptor.
@@ -190,9 +249,8 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
     if (a0 >= kSectors) a0 -= kSectors;
     const int a1 = a0 + 1 == kSectors ? 0 : a0 + 1;
     // Tangent relative to the keypoint normal, doubled: cos/sin(2(t - theta)).
-    const double ct = sp.cos2t, st = sp.sin2t;
-    const double weight = sp.weight * taper;
-    const double comp_c = (ct * c2 + st * s2) * weight, comp_s = (st * c2 - ct * s2) * weight;
+    const auto [weight, comp_c] = disc.weights(sp, r);
+    const double comp_s = (sp.sin2t * disc.c2 - sp.cos2t * disc.s2) * weight;
     const std::array<std::pair<int, double>, 4> bins{{{r0 * kSectors + a0, (1 - fr) * (1 - fa)},
                                                       {r0 * kSectors + a1, (1 - fr) * fa},
                                                       {(r0 + 1) * kSectors + a0, fr * (1 - fa)},
@@ -206,22 +264,7 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
     support.surface += weight;
     // comp_c / weight = cos 2(t - theta): -1 along the keypoint's wall, +1 across it.
     support.across += 0.5 * (weight + comp_c);
-  };
-  // A run is skipped only when its box lies beyond the disc by a margin far
-  // above rounding: every point it holds would fail accumulate_point's d2 test.
-  const double skip2 = (radius + 1e-6) * (radius + 1e-6);
-  auto accumulate = [&](const ScanSurface& surf, const PointRuns& boxes) {
-    for (std::size_t run = 0; run < boxes.size(); ++run) {
-      const RunBox& box = boxes[run];
-      const double bx = std::max({box.x0 - keypoint.x, 0.0, keypoint.x - box.x1});
-      const double by = std::max({box.y0 - keypoint.y, 0.0, keypoint.y - box.y1});
-      if (bx * bx + by * by > skip2) continue;
-      const std::size_t end = std::min((run + 1) * kRunPoints, surf.points.size());
-      for (std::size_t i = run * kRunPoints; i < end; ++i) accumulate_point(surf.points[i]);
-    }
-  };
-  accumulate(scan, runs[0]);
-  for (std::size_t k = 0; k < context.size(); ++k) accumulate(context[k], runs[1 + k]);
+  });
 
   if (config_.bin_power != 1.0)
     for (std::size_t i = 0; i < kDescriptorSize; i += comps) {
@@ -242,7 +285,7 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
   ++stats_.scans;
   stats_.segments += scan.segment_begin.size();
   const Point2 sensor = scan.sensor_pose.translation();
-  std::vector<Feature> candidates;
+  std::vector<Pose2> candidates;
   std::vector<double> structure;  // Support::across per candidate
   std::vector<double> arc;
   std::vector<PointRuns> runs;
@@ -297,31 +340,32 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
       const Point2 position = mean + tangent * tangent.dot(on_scan - mean);
       if ((position - sensor).norm() > config_.keypoint_max_range) continue;
       if (normal.dot(sensor - position) < 0.0) normal = -normal;  // the side the sensor saw
-      Feature f;
-      f.pose = Pose2(position.x(), position.y(), std::atan2(normal.y(), normal.x()));
-      const Support support = describe(f.pose, scan, context, runs, f.descriptor);
-      if (support.surface < config_.min_descriptor_support) {
+      const Pose2 keypoint(position.x(), position.y(), std::atan2(normal.y(), normal.x()));
+      const Support s = support(keypoint, scan, context, runs);
+      if (s.surface < config_.min_descriptor_support) {
         ++stats_.rejected_support;
         continue;
       }
-      candidates.push_back(f);
-      structure.push_back(support.across);
+      candidates.push_back(keypoint);
+      structure.push_back(s.across);
     }
   }
   // Too many: keep the most structured ones (most surface across the
   // keypoint's own wall inside the disc: corners, doors, openings), in scan
-  // order (deterministic and independent of the frame).
-  std::vector<Feature> out;
-  if (candidates.size() <= config_.max_keypoints) {
-    out = std::move(candidates);
-  } else {
-    std::vector<std::size_t> order(candidates.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  // order (deterministic and independent of the frame). Only those kept are
+  // described: the histogram's atan2 and log per point cost the most.
+  std::vector<std::size_t> order(candidates.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  if (candidates.size() > config_.max_keypoints) {
     std::stable_sort(order.begin(), order.end(),
                      [&](std::size_t a, std::size_t b) { return structure[a] > structure[b]; });
     order.resize(config_.max_keypoints);
     std::sort(order.begin(), order.end());
-    for (std::size_t i : order) out.push_back(candidates[i]);
+  }
+  std::vector<Feature> out(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    out[k].pose = candidates[order[k]];
+    describe(out[k].pose, scan, context, runs, out[k].descriptor);
   }
   stats_.features += out.size();
   return out;

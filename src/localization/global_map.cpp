@@ -126,9 +126,18 @@ bool GlobalMap::ScanMarks::seen(std::int32_t ix, std::int32_t iy, CellFlags flag
 }
 
 void GlobalMap::mark_free_space(std::uint32_t submap, const Point2& p, CellFlags flags) {
+  if (!std::isfinite(p.x()) || !std::isfinite(p.y()))
+    throw Error("GlobalMap: a non-finite point to mark in submap " + std::to_string(submap));
   const PoseCell c = free_space_.cell_of(submap, p.x(), p.y(), 0.0);
   if (scan_marks_.seen(c.ix, c.iy, flags)) return;
-  free_space_.mark(submap, p.x(), p.y(), 0.0, flags);
+  free_space_.plan_mark(c, flags, free_space_plan_);
+}
+
+void GlobalMap::make_planned_marks() {
+  occupancy_.mark_planned(occupancy_plan_);
+  free_space_.mark_planned(free_space_plan_);
+  occupancy_plan_.clear();
+  free_space_plan_.clear();
 }
 
 void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
@@ -140,8 +149,15 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   const double longest = std::max(config_.features.max_range, config_.free_ray_max_range);
   scan_marks_.start(centre.ix, centre.iy,
                     static_cast<std::int32_t>(std::min(512.0, std::ceil(longest * free_space_.inv_cell_size()) + 2.0)));
-  // Ends the scan's memo even when a mark throws, so no later mark is skipped on its account.
-  const std::unique_ptr<ScanMarks, void (*)(ScanMarks*)> stop_marks(&scan_marks_, [](ScanMarks* m) { m->stop(); });
+  // Ends the scan's memo and its planned marks even when a mark throws, so
+  // no later mark is skipped or made on its account.
+  marking_scan_ = true;
+  const std::unique_ptr<GlobalMap, void (*)(GlobalMap*)> end_scan(this, [](GlobalMap* m) {
+    m->scan_marks_.stop();
+    m->marking_scan_ = false;
+    m->occupancy_plan_.clear();
+    m->free_space_plan_.clear();
+  });
   // Occupancy: endpoints with their normal direction, thinned along the scan;
   // the free-space grid notes where the map has a normal (kNormal).
   for_each_spaced(surface.points, config_.endpoint_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
@@ -184,7 +200,8 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
     reach = std::min(reach, config_.free_ray_max_range);
     const double a = scan.bearing(i);
     const double dx = c * std::cos(a) - s * std::sin(a), dy = s * std::cos(a) + c * std::sin(a);
-    for (double d = 0.0; d < reach; d += step) mark_free(submap, {sensor.x() + d * dx, sensor.y() + d * dy});
+    for (double d = 0.0; d < reach; d += step)
+      mark_free_space(submap, {sensor.x() + d * dx, sensor.y() + d * dy}, cell_flags::kFree);
   }
   // Every return (not only the smooth segments' points: sparse returns from
   // far walls are no segments) marks its cell and neighbours occupied, and
@@ -194,18 +211,27 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   for (std::size_t i = 0; i < scan.size(); ++i) {
     if (!valid(i) || scan.ranges[i] < config_.features.min_range || scan.ranges[i] >= config_.features.max_range)
       continue;
-    mark_return(submap, laser_pose.transform(beam_endpoints_[i]));
+    plan_return(submap, laser_pose.transform(beam_endpoints_[i]));
   }
+  make_planned_marks();
 }
 
 void GlobalMap::mark_surface_point(std::uint32_t submap, const Point2& p, double normal) {
   check_submap(submap, "GlobalMap::mark_surface_point");
-  occupancy_.mark(submap, p.x(), p.y(), normal, cell_flags::kOccupied);
+  if (!std::isfinite(p.x()) || !std::isfinite(p.y()) || !std::isfinite(normal))
+    throw Error("GlobalMap::mark_surface_point: a non-finite point or normal in submap " + std::to_string(submap));
+  occupancy_.plan_mark(occupancy_.cell_of(submap, p.x(), p.y(), normal), cell_flags::kOccupied, occupancy_plan_);
   mark_free_space(submap, p, cell_flags::kNormal);
+  if (!marking_scan_) make_planned_marks();
 }
 
 void GlobalMap::mark_return(std::uint32_t submap, const Point2& p) {
   check_submap(submap, "GlobalMap::mark_return");
+  plan_return(submap, p);
+  if (!marking_scan_) make_planned_marks();
+}
+
+void GlobalMap::plan_return(std::uint32_t submap, const Point2& p) {
   const double step = config_.free_space.cell_size;
   for (int ix = -1; ix <= 1; ++ix) {
     for (int iy = -1; iy <= 1; ++iy) {
@@ -219,6 +245,7 @@ void GlobalMap::mark_return(std::uint32_t submap, const Point2& p) {
 void GlobalMap::mark_free(std::uint32_t submap, const Point2& p) {
   check_submap(submap, "GlobalMap::mark_free");
   mark_free_space(submap, p, cell_flags::kFree);
+  if (!marking_scan_) make_planned_marks();
 }
 
 std::optional<std::uint32_t> GlobalMap::find_submap(std::string_view name) const {

@@ -38,6 +38,8 @@ PoseGridHashMap::PoseGridHashMap(PoseGridConfig config) : config_(config) {
 
 void PoseGridHashMap::set_capacity(std::size_t capacity) {
   slots_.assign(capacity, 0);
+  // used + 1 > load * capacity (in double, as the bound is documented) <=> used + 1 > floor(load * capacity).
+  grow_at_ = static_cast<std::size_t>(std::floor(config_.max_load_factor * static_cast<double>(capacity)));
   mask_ = capacity - 1;
   shift_ = 64u - static_cast<unsigned>(std::countr_zero(capacity));
 }
@@ -45,16 +47,20 @@ void PoseGridHashMap::set_capacity(std::size_t capacity) {
 PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, double theta) const {
   PoseCell c;
   c.submap = submap;
-  // floor() in double: far-away or NaN coordinates are clamped so the cast is
-  // defined; pack_xy() then rejects them as outside the limits.
+  // floor() in double, as truncation and a step down for negative
+  // non-integers (exactly floor, without the library call of baseline x86-64):
+  // far-away or NaN coordinates are clamped so the cast is defined;
+  // pack_xy() then rejects them as outside the limits.
   auto to_index = [](double v) {
     if (!(v > -1e9 && v < 1e9)) return std::int32_t{-(1 << 30)};
-    return static_cast<std::int32_t>(std::floor(v));
+    const auto truncated = static_cast<std::int32_t>(v);
+    return truncated - static_cast<std::int32_t>(v < static_cast<double>(truncated));
   };
   c.ix = to_index(x * inv_cell_);
   c.iy = to_index(y * inv_cell_);
   if (config_.theta_bins == 1) return c.itheta = 0, c;  // a 2-D grid: what the arithmetic below gives
-  double t = std::fmod(theta, kTwoPi);
+  // fmod(t, 2 pi) is t itself for |t| < 2 pi (exactly): skip its cost for wrapped angles.
+  double t = theta > -kTwoPi && theta < kTwoPi ? theta : std::fmod(theta, kTwoPi);
   if (!(t == t)) t = 0.0;
   if (t < 0.0) t += kTwoPi;
   c.itheta = std::min(static_cast<std::int32_t>(t * bins_per_rad_), config_.theta_bins - 1);
@@ -62,17 +68,23 @@ PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, doub
 }
 
 void PoseGridHashMap::mark(std::uint32_t submap, double x, double y, double theta, CellFlags flags) {
-  if (flags == 0) throw Error("pose grid: mark() needs non-zero flags");
   if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(theta))
     throw Error("pose grid: mark() of a non-finite pose in submap " + std::to_string(submap));
-  const PoseCell c = cell_of(submap, x, y, theta);
+  planned_.clear();
+  plan_mark(cell_of(submap, x, y, theta), flags, planned_);
+  mark_planned(planned_);
+}
+
+void PoseGridHashMap::plan_mark(const PoseCell& c, CellFlags flags, std::vector<CellMark>& out) {
+  if (flags == 0) throw Error("pose grid: mark() needs non-zero flags");
   const int t = config_.xy_tolerance;
-  if (pack_xy(submap, c.ix - t, c.iy - t) == kInvalidXy || pack_xy(submap, c.ix + t, c.iy + t) == kInvalidXy)
-    throw Error("pose grid: pose (" + std::to_string(x) + ", " + std::to_string(y) + ") of submap " +
-                std::to_string(submap) + " is outside the grid (submap < 16383, |x|, |y| < 65536 cells)");
+  if (pack_xy(c.submap, c.ix - t, c.iy - t) == kInvalidXy || pack_xy(c.submap, c.ix + t, c.iy + t) == kInvalidXy)
+    throw Error("pose grid: cell (" + std::to_string(c.ix) + ", " + std::to_string(c.iy) + ") of submap " +
+                std::to_string(c.submap) + " is outside the grid (submap < 16383, |x|, |y| < 65536 cells of " +
+                std::to_string(config_.cell_size) + " m)");
   ++marks_;
-  if (submap >= boxes_.size()) boxes_.resize(submap + 1);
-  Box& b = boxes_[submap];
+  if (c.submap >= boxes_.size()) boxes_.resize(c.submap + 1);
+  Box& b = boxes_[c.submap];
   if (b.x1 < b.x0) {
     b = {c.ix, c.ix, c.iy, c.iy};
   } else {
@@ -80,20 +92,33 @@ void PoseGridHashMap::mark(std::uint32_t submap, double x, double y, double thet
     b.y0 = std::min(b.y0, c.iy), b.y1 = std::max(b.y1, c.iy);
   }
   if (config_.tolerance_mode == ToleranceMode::kProbeNeighbours) {
-    mark_cell(pack_xy(submap, c.ix, c.iy), c.itheta, flags);
+    out.push_back({pack_xy(c.submap, c.ix, c.iy), c.itheta, flags});
     return;
   }
   const ThetaRuns w = theta_runs(c.itheta);
   for (int dx = -t; dx <= t; ++dx)
     for (int dy = -t; dy <= t; ++dy) {
-      const std::uint64_t xy = pack_xy(submap, c.ix + dx, c.iy + dy);
+      const std::uint64_t xy = pack_xy(c.submap, c.ix + dx, c.iy + dy);
       for (int r = 0; r < w.runs; ++r)
-        for (int k = 0; k < w.count[r]; ++k) mark_cell(xy, w.first[r] + k, flags);
+        for (int k = 0; k < w.count[r]; ++k) out.push_back({xy, w.first[r] + k, flags});
     }
 }
 
+void PoseGridHashMap::mark_planned(std::span<const CellMark> marks) {
+  // Far enough ahead that a slot's cache line arrives before its write, near
+  // enough that the table rarely grows in between (a stale prefetch only wastes a load).
+  constexpr std::size_t kAhead = 8;
+  for (std::size_t i = 0; i < marks.size(); ++i) {
+    if (i + kAhead < marks.size()) {
+      const TableView table = table_view();
+      table.prefetch(table.home(marks[i + kAhead].xy, marks[i + kAhead].itheta));
+    }
+    mark_cell(marks[i].xy, marks[i].itheta, marks[i].flags);
+  }
+}
+
 void PoseGridHashMap::mark_cell(std::uint64_t xy, int itheta, CellFlags flags) {
-  if (static_cast<double>(used_ + 1) > config_.max_load_factor * static_cast<double>(slots_.size())) grow();
+  if (used_ + 1 > grow_at_) grow();
   const std::uint64_t tagged = (xy << 16) | (static_cast<std::uint64_t>(itheta) << 8);
   const TableView table = table_view();
   std::size_t i = table.home(xy, itheta);

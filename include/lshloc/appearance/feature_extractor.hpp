@@ -171,6 +171,15 @@ class FeatureExtractor {
   /// descriptor is bit for bit the one without them.
   Support describe(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
                    std::span<const PointRuns> runs, Descriptor& out) const;
+  /// describe()'s Support alone (bit for bit the same sums), without the
+  /// histogram: extract() ranks every candidate by it and describes the kept.
+  Support support(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
+                  std::span<const PointRuns> runs) const;
+  /// Calls visit(point) for the surface points of `scan`, then of each
+  /// context surface, in order, skipping runs whose box lies outside the disc.
+  template <class Visit>
+  void for_each_point_near(const Pose2& keypoint, const ScanSurface& scan, std::span<const ScanSurface> context,
+                           std::span<const PointRuns> runs, Visit&& visit) const;
 
   FeatureExtractorConfig config_;
   FeatureExtractorStats stats_;

@@ -187,8 +187,13 @@ class GlobalMap {
   };
 
   void check_submap(std::uint32_t submap, const char* caller) const;
-  /// ORs `flags` into the free-space cell of `p`, unless scan_marks_ holds them.
+  /// Plans ORing `flags` into the free-space cell of `p`, unless scan_marks_ holds them.
   void mark_free_space(std::uint32_t submap, const Point2& p, CellFlags flags);
+  /// Plans mark_return()'s marks.
+  void plan_return(std::uint32_t submap, const Point2& p);
+  /// Makes the planned marks of both grids (the mark_* calls make theirs at
+  /// once, a scan's are made together at its end: prefetched ahead).
+  void make_planned_marks();
   void mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
   void keep_recent_key(std::uint32_t id);  ///< of the feature database_ inserted last
 
@@ -202,6 +207,8 @@ class GlobalMap {
   GlobalMapStats stats_;
   std::vector<Point2> beam_endpoints_;  // scratch of mark_grids
   ScanMarks scan_marks_;                // scratch of mark_grids
+  bool marking_scan_ = false;           // within mark_grids: marks wait for its end
+  std::vector<PoseGridHashMap::CellMark> occupancy_plan_, free_space_plan_;  // planned, not yet made
   // A ring of the newest features' table tags: L per feature, slot id % recent_keys.
   std::vector<std::uint32_t> recent_tags_;
   std::uint32_t recent_first_ = 0;  ///< the first location id add_scan() added (a snapshot's come before)

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <numbers>
+#include <span>
 #include <vector>
 
 #include "lshloc/common/byte_codec.hpp"
@@ -113,6 +114,21 @@ class PoseGridHashMap {
   void mark(std::uint32_t submap, double x, double y, double theta, CellFlags flags = cell_flags::kOccupied);
   /// mark() with the occupied flag: a map feature / endpoint at this pose.
   void insert(std::uint32_t submap, double x, double y, double theta) { mark(submap, x, y, theta); }
+
+  /// One slot write a mark plans: the packed (submap, ix, iy), heading bin, flags.
+  struct CellMark {
+    std::uint64_t xy = 0;
+    std::int32_t itheta = 0;
+    CellFlags flags = 0;
+  };
+  /// mark() in two halves, for writers that mark many cells at once (a
+  /// mapper scan's rays): plan_mark() checks `cell` (from cell_of()) against
+  /// the limits, counts the mark and grows its submap's box, and appends the
+  /// slot writes to `out`; mark_planned() makes them, prefetching the slots
+  /// of the writes ahead (the table's misses in cache are most of a mark's
+  /// cost). Planned and made in order, the grid is the one mark() gives.
+  void plan_mark(const PoseCell& cell, CellFlags flags, std::vector<CellMark>& out);
+  void mark_planned(std::span<const CellMark> marks);
 
   /// The OR of the flags in the tolerance window around (x, y, theta) of
   /// `submap` (in kDilateAtInsert mode that is the one cell's flags).
@@ -249,6 +265,9 @@ class PoseGridHashMap {
   std::size_t used_ = 0;
   std::size_t rehashes_ = 0;
   std::size_t marks_ = 0;
+  /// The cells below this many grow the table first: max_load_factor * capacity, rounded down.
+  std::size_t grow_at_ = 0;
+  std::vector<CellMark> planned_;  ///< scratch of mark()
   /// Per submap: bounding box of its cells (for the dense-grid comparison).
   struct Box {
     std::int32_t x0 = 0, x1 = -1, y0 = 0, y1 = -1;
