@@ -114,7 +114,7 @@ void GlobalMap::ScanMarks::start(std::int32_t cx, std::int32_t cy, std::int32_t 
   }
 }
 
-bool GlobalMap::ScanMarks::seen(std::int32_t ix, std::int32_t iy, CellFlags flags) {
+inline bool GlobalMap::ScanMarks::seen(std::int32_t ix, std::int32_t iy, CellFlags flags) {
   const auto dx = static_cast<std::uint32_t>(ix - x0_), dy = static_cast<std::uint32_t>(iy - y0_);
   const auto w = static_cast<std::uint32_t>(width_);
   if (dx >= w || dy >= w) return false;  // outside the window (or no scan started): mark it

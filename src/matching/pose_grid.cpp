@@ -44,29 +44,6 @@ void PoseGridHashMap::set_capacity(std::size_t capacity) {
   shift_ = 64u - static_cast<unsigned>(std::countr_zero(capacity));
 }
 
-PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, double theta) const {
-  PoseCell c;
-  c.submap = submap;
-  // floor() in double, as truncation and a step down for negative
-  // non-integers (exactly floor, without the library call of baseline x86-64):
-  // far-away or NaN coordinates are clamped so the cast is defined;
-  // pack_xy() then rejects them as outside the limits.
-  auto to_index = [](double v) {
-    if (!(v > -1e9 && v < 1e9)) return std::int32_t{-(1 << 30)};
-    const auto truncated = static_cast<std::int32_t>(v);
-    return truncated - static_cast<std::int32_t>(v < static_cast<double>(truncated));
-  };
-  c.ix = to_index(x * inv_cell_);
-  c.iy = to_index(y * inv_cell_);
-  if (config_.theta_bins == 1) return c.itheta = 0, c;  // a 2-D grid: what the arithmetic below gives
-  // fmod(t, 2 pi) is t itself for |t| < 2 pi (exactly): skip its cost for wrapped angles.
-  double t = theta > -kTwoPi && theta < kTwoPi ? theta : std::fmod(theta, kTwoPi);
-  if (!(t == t)) t = 0.0;
-  if (t < 0.0) t += kTwoPi;
-  c.itheta = std::min(static_cast<std::int32_t>(t * bins_per_rad_), config_.theta_bins - 1);
-  return c;
-}
-
 void PoseGridHashMap::mark(std::uint32_t submap, double x, double y, double theta, CellFlags flags) {
   if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(theta))
     throw Error("pose grid: mark() of a non-finite pose in submap " + std::to_string(submap));

@@ -4,6 +4,7 @@
 // ONE 1-D open-addressing table, keyed by a universal hash of
 // (submap, ix, iy, itheta). Memory grows with the cells used, not with the
 // bounding box of the map, and the table doubles (rehash) when it gets full.
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -274,5 +275,30 @@ class PoseGridHashMap {
   };
   std::vector<Box> boxes_;
 };
+
+// Inline: a mapper scan asks it for every few centimetres of its rays.
+inline PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, double theta) const {
+  PoseCell c;
+  c.submap = submap;
+  // floor() in double, as truncation and a step down for negative
+  // non-integers (exactly floor, without the library call of baseline x86-64):
+  // far-away or NaN coordinates are clamped so the cast is defined;
+  // pack_xy() then rejects them as outside the limits.
+  auto to_index = [](double v) {
+    if (!(v > -1e9 && v < 1e9)) return std::int32_t{-(1 << 30)};
+    const auto truncated = static_cast<std::int32_t>(v);
+    return truncated - static_cast<std::int32_t>(v < static_cast<double>(truncated));
+  };
+  c.ix = to_index(x * inv_cell_);
+  c.iy = to_index(y * inv_cell_);
+  if (config_.theta_bins == 1) return c.itheta = 0, c;  // a 2-D grid: what the arithmetic below gives
+  constexpr double two_pi = 2.0 * std::numbers::pi;
+  // fmod(t, 2 pi) is t itself for |t| < 2 pi (exactly): skip its cost for wrapped angles.
+  double t = theta > -two_pi && theta < two_pi ? theta : std::fmod(theta, two_pi);
+  if (!(t == t)) t = 0.0;
+  if (t < 0.0) t += two_pi;
+  c.itheta = std::min(static_cast<std::int32_t>(t * bins_per_rad_), config_.theta_bins - 1);
+  return c;
+}
 
 }  // namespace lshloc
