@@ -2,7 +2,7 @@
 # Installs dependencies, builds lshloc (Release, a unity build: CI time) with its Python bindings,
 # runs the whole test suite (the layer check and pytest included), then installs into a temporary prefix and builds
 # and runs examples/embed against it (find_package(lshloc)); last, the sanitizer job
-# (scripts/sanitize.sh: the ctest suite under ASan and UBSan, and a 30 s smoke run of each fuzz target).
+# (scripts/sanitize.sh: the ctest suite under ASan and UBSan, and a 20 s smoke run of each fuzz target).
 # `scripts/sanitize.sh --thread` (the concurrent tests under ThreadSanitizer) stays outside: CI's 15 minutes.
 # Tests that need the real logs skip when ../shared/data is absent.
 set -euo pipefail
