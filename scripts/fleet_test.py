@@ -317,6 +317,9 @@ def main():
         print("fleet_test: redis-server not found (scripts/setup.sh installs it)", file=sys.stderr)
         return 2
     work = tempfile.mkdtemp(prefix="lshloc-fleet-")
+    # Every mapper and localizer process loads the same scenario: SLAM poses
+    # the buildings without a corrected log once, not once per process.
+    os.environ.setdefault("LSHLOC_SLAM_CACHE", os.path.join(work, "slam-cache"))
     redis = Redis(work, "redis")
     result = {"localizers": 0, "localizers_correct": 0, "lost_updates": None, "duplicate_updates": None,
               "restarted_localizer_same_map": False, "cluster_same_estimates": False,

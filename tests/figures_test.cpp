@@ -13,13 +13,6 @@
 namespace lshloc::io {
 namespace {
 
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 TEST(Figures, WritesPngAndSvg) {
   ErrorSeries s{"R = 1", {}, {}};
   for (int i = 0; i < 200; ++i) {
@@ -29,8 +22,8 @@ TEST(Figures, WritesPngAndSvg) {
   const std::string png = test::temp_path(".png"), svg = test::temp_path(".svg");
   plot_error_curves(png, "fr079", {s, s});
   plot_error_curves(svg, "fr079", {s});
-  EXPECT_EQ(slurp(png).substr(1, 3), "PNG");
-  EXPECT_NE(slurp(svg).find("<svg"), std::string::npos);
+  EXPECT_EQ(test::read_file(png).substr(1, 3), "PNG");
+  EXPECT_NE(test::read_file(svg).find("<svg"), std::string::npos);
 
   MapFigure m;
   m.title = "map";
@@ -41,11 +34,11 @@ TEST(Figures, WritesPngAndSvg) {
   m.outlier_points = {{3, 3}};
   const std::string map_png = test::temp_path(".png");
   plot_map_figure(map_png, m);
-  EXPECT_GT(slurp(map_png).size(), 1000u);
+  EXPECT_GT(test::read_file(map_png).size(), 1000u);
 
   const std::string cost_svg = test::temp_path(".svg");
   plot_cost_curves(cost_svg, "costs", "us per feature", {{"update", {1e3, 1e5, 1e6}, {2.0, 2.1, 2.2}}});
-  EXPECT_NE(slurp(cost_svg).find("<svg"), std::string::npos);
+  EXPECT_NE(test::read_file(cost_svg).find("<svg"), std::string::npos);
 }
 
 TEST(Figures, DrawsAReliabilityDiagram) {
@@ -53,8 +46,8 @@ TEST(Figures, DrawsAReliabilityDiagram) {
   const std::string png = test::temp_path(".png"), svg = test::temp_path(".svg");
   plot_reliability_diagram(png, "calibration", c);
   plot_reliability_diagram(svg, "calibration", c);
-  EXPECT_EQ(slurp(png).substr(1, 3), "PNG");
-  EXPECT_NE(slurp(svg).find("<svg"), std::string::npos);
+  EXPECT_EQ(test::read_file(png).substr(1, 3), "PNG");
+  EXPECT_NE(test::read_file(svg).find("<svg"), std::string::npos);
 }
 
 TEST(Figures, RejectsUnknownFormatsAndUnwritablePaths) {

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <set>
 
 #include "lshloc/common/error.hpp"
@@ -90,6 +91,60 @@ TEST(Scenario, BuildingsWithoutCorrectedLogsAreMappedBySlam) {
   }
   EXPECT_LT(slam_worst, 0.3);
   EXPECT_GT(odometry_worst, 2.0 * slam_worst);
+}
+
+// The SLAM pose cache gives the poses SLAM gives, bit for bit; it is used only
+// for the same scans and build, and a damaged entry is recomputed.
+TEST(Scenario, TheSlamPoseCacheGivesSlamsPosesAndIgnoresEntriesThatDoNotMatch) {
+  sim::SimulationConfig simulation;
+  simulation.scans = 80;  // SLAM runs six times here: a short tour (the poses' quality is another test's)
+  const sim::RunBuilding rb = sim::run_building(6, 0, simulation);
+  BuildingRecording rec = sim::simulate_recording(sim::generate_building(rb.building), rb.simulation);
+  rec.corrected_scans.clear();
+  rec.truth.clear();
+  const Submap slam = whole_building_submap(rec);
+  const auto same_poses = [&](const Submap& s) {
+    ASSERT_TRUE(s.poses_from_slam);
+    ASSERT_EQ(s.scans.size(), slam.scans.size());
+    for (std::size_t i = 0; i < s.scans.size(); ++i) {
+      EXPECT_EQ(s.scans[i].pose.x, slam.scans[i].pose.x);
+      EXPECT_EQ(s.scans[i].pose.y, slam.scans[i].pose.y);
+      EXPECT_EQ(s.scans[i].pose.theta, slam.scans[i].pose.theta);
+      EXPECT_EQ(s.scans[i].ranges, slam.scans[i].ranges);
+    }
+  };
+  const std::string dir = test::temp_path("-slam-cache");
+  const io::SlamPoseCache cache{dir, "build A"};
+  same_poses(io::whole_building_submap(rec, cache));  // computed, then stored
+  const auto entries = [&] {
+    std::vector<std::filesystem::path> out;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) out.push_back(e.path());
+    return out;
+  };
+  ASSERT_EQ(entries().size(), 1u);
+  const std::filesystem::path entry = entries().front();
+  // A stored entry is read, not recomputed: make it hold other poses (and a
+  // valid checksum is out of reach), then see that it is refused.
+  same_poses(io::whole_building_submap(rec, cache));
+  std::string bytes = test::read_file(entry.string());
+  bytes[bytes.size() / 2] ^= 0x01;
+  test::write_file(entry.string(), bytes);
+  same_poses(io::whole_building_submap(rec, cache));  // damaged: recomputed and replaced
+  EXPECT_NE(test::read_file(entry.string()), bytes);
+  test::write_file(entry.string(), bytes.substr(0, bytes.size() / 3));
+  same_poses(io::whole_building_submap(rec, cache));  // torn: the same
+  // Another build or another log: another entry.
+  same_poses(io::whole_building_submap(rec, {dir, "build B"}));
+  EXPECT_EQ(entries().size(), 2u);
+  BuildingRecording other = rec;
+  other.raw_scans.pop_back();
+  EXPECT_EQ(io::whole_building_submap(other, cache).scans.size(), other.raw_scans.size());
+  EXPECT_EQ(entries().size(), 3u);
+  // A building with a corrected log needs no SLAM: nothing stored.
+  BuildingRecording corrected = sim::simulate_recording(sim::generate_building(rb.building), rb.simulation);
+  EXPECT_FALSE(io::whole_building_submap(corrected, cache).poses_from_slam);
+  EXPECT_EQ(entries().size(), 3u);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Scenario, RejectsWindowsThatDoNotFit) {

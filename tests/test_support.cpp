@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <stdexcept>
 
 #include <unistd.h>
@@ -35,6 +36,11 @@ std::string temp_path(const std::string& suffix) {
   return (std::filesystem::temp_directory_path() /
           ("lshloc-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++) + suffix))
       .string();
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 void write_file(const std::string& path, const std::string& text) {

@@ -31,6 +31,9 @@ std::string temp_path(const std::string& suffix);
 /// small world the end-to-end tests localize in.
 sim::SyntheticScenarioConfig small_world(std::size_t map_scans = 900, std::size_t target_scans = 300);
 
+/// The bytes of the file at `path` (empty when it cannot be read).
+std::string read_file(const std::string& path);
+
 /// Writes `text` to `path`, gzip-compressed when the path ends in .gz.
 void write_file(const std::string& path, const std::string& text);
 

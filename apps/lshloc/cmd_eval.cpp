@@ -57,6 +57,7 @@ struct EvalOptions {
   std::string map_redis;  ///< a fleet's map on Redis instead of building the scenario's
   std::string map_prefix = "lshloc";
   std::string map_snapshot;  ///< a `map from-redis` file the fleet's map starts from
+  std::string slam_cache;    ///< --slam-cache: a directory of SLAM poses of buildings without a corrected log
   LocalizerOptions localizer;
 };
 
@@ -99,11 +100,12 @@ TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t su
 
 /// The scenario of `config`; beyond the real buildings (R > 15) synthetic
 /// buildings join the map as further submaps, each in its own frame.
-Scenario load_eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config) {
+Scenario load_eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config,
+                            const io::SlamPoseCache& slam_cache) {
   const std::size_t real = canonical_building_order().size();
   ScenarioConfig real_config = config;
   real_config.submaps = std::min(config.submaps, real);
-  Scenario sc = io::load_scenario(catalog, real_config);
+  Scenario sc = io::load_scenario(catalog, real_config, {}, slam_cache);
   for (std::size_t k = real; k < config.submaps; ++k) {
     sc.submaps.push_back(sim::synthetic_submap(kSyntheticSeed + config.seed, k - real, kSyntheticScans));
   }
@@ -227,8 +229,9 @@ ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const 
 io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config, const EvalOptions& opt,
                               bool suffix_trace) {
   // A saved or a fleet's map holds the submaps: only the target's logs are read.
-  Scenario sc = opt.load_map.empty() && opt.map_redis.empty() ? load_eval_scenario(catalog, config)
-                                                              : io::load_scenario_target(catalog, config);
+  Scenario sc = opt.load_map.empty() && opt.map_redis.empty()
+                    ? load_eval_scenario(catalog, config, slam_pose_cache(opt.slam_cache))
+                    : io::load_scenario_target(catalog, config);
   ScenarioRunConfig run_config = make_run_config(opt.localizer);
   // The trace's whole-map comparison on every scan: it scores a fixed spread
   // of the data-points (no random draw), so the estimates stay those of a run without it.
@@ -342,6 +345,7 @@ void add_eval_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--seed", opt->scenario.seed, "0: the fixed order of other buildings; else a seeded shuffle")
       ->capture_default_str();
   cmd->add_flag("--json", opt->json, "print only the JSON line on stdout (progress goes to stderr either way)");
+  add_slam_cache_option(*cmd, opt->slam_cache);
   cmd->add_option("--plot", opt->plot_dir, "write figures (PNG and SVG) into this directory");
   cmd->add_option("--trace", opt->trace,
                   "write a CSV row per target scan (estimate, truth, error, scores; no timings, so that runs compare "

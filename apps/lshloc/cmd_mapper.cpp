@@ -38,6 +38,7 @@ struct MapperOptions {
   std::string part = "0/1";                 ///< K/N: submaps k with k % N == K
   std::size_t together = 0;                 ///< wait until this many mappers are ready, then publish at once
   double retry_s = 60.0;                    ///< [s] how long to keep reconnecting after the server went away
+  std::string slam_cache;  ///< --slam-cache: a directory of SLAM poses of buildings without a corrected log
   LocalizerOptions settings;
 };
 
@@ -58,7 +59,7 @@ std::vector<Submap> submaps_to_publish(const MapperOptions& opt, const std::stri
   if (!(in >> k >> slash >> n) || slash != '/' || n == 0 || k >= n || !in.eof())
     throw Error("--part '" + opt.part + "': expected K/N with 0 <= K < N");
   const io::DatasetCatalog catalog(data_dir);
-  Scenario sc = io::load_scenario(catalog, opt.scenario);
+  Scenario sc = io::load_scenario(catalog, opt.scenario, {}, slam_pose_cache(opt.slam_cache));
   std::vector<Submap> mine;
   for (const Submap& s : sc.submaps) registered.push_back(s.name);
   for (std::size_t i = k; i < sc.submaps.size(); i += n) mine.push_back(std::move(sc.submaps[i]));
@@ -202,6 +203,7 @@ void add_mapper_command(CLI::App& app, GlobalOptions& global) {
                   "with --building: the target window's first scan (default: the "
                   "building's)")
       ->needs(building);
+  add_slam_cache_option(*cmd, opt->slam_cache);
   cmd->add_option("--part", opt->part, "with --building: publish submaps k with k % N == K (K/N), one of N mappers")
       ->capture_default_str()
       ->needs(building);

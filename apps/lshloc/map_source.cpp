@@ -2,6 +2,8 @@
 
 #include "option_checks.hpp"
 
+#include <sys/stat.h>
+
 #include <cstdio>
 #include <filesystem>
 
@@ -11,6 +13,7 @@
 #include "lshloc/common/wall_time.hpp"
 #include "lshloc/eval/run_config_json.hpp"
 #include "lshloc/geometry/time_join.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/ground_truth.hpp"
@@ -54,6 +57,26 @@ std::vector<StampedPose> read_map_poses(const std::string& path, const Pose2& la
 }
 
 }  // namespace
+
+io::SlamPoseCache slam_pose_cache(const std::string& dir) {
+  io::SlamPoseCache cache;
+  if (dir.empty()) return cache;
+  cache.dir = dir;
+  struct stat st {};
+  if (::stat("/proc/self/exe", &st) != 0) {
+    throw Error(io::system_error("/proc/self/exe", "cannot identify this executable for --slam-cache"));
+  }
+  cache.build_id = std::string(LSHLOC_VERSION) + " " + std::to_string(st.st_size) + " " +
+                   std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec);
+  return cache;
+}
+
+void add_slam_cache_option(CLI::App& cmd, std::string& dir) {
+  cmd.add_option("--slam-cache", dir,
+                 "keep the poses lshloc's SLAM gives buildings without a corrected log in this directory, for "
+                 "later runs of this same executable (most of a real scenario's loading time)")
+      ->envname("LSHLOC_SLAM_CACHE");
+}
 
 void print_warnings(const std::vector<std::string>& warnings) {
   for (const std::string& w : warnings) std::fprintf(stderr, "lshloc: warning: %s\n", w.c_str());

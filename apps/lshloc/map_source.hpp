@@ -7,6 +7,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/eval/scenario.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/fleet/map_follower.hpp"
@@ -15,6 +16,14 @@
 #include "lshloc/slam/occupancy_grid.hpp"
 
 namespace lshloc::app {
+
+/// The SLAM pose cache in `dir` (empty: none), keyed by this executable
+/// (its size and modification time): a rebuilt lshloc never reads the poses
+/// an older build made.
+io::SlamPoseCache slam_pose_cache(const std::string& dir);
+
+/// Adds `--slam-cache DIR` (default: $LSHLOC_SLAM_CACHE) to a command that loads real scenarios.
+void add_slam_cache_option(CLI::App& cmd, std::string& dir);
 
 /// Prints each warning (a file's own message) on stderr as "lshloc: warning: ...".
 void print_warnings(const std::vector<std::string>& warnings);

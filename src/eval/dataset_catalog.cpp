@@ -1,9 +1,15 @@
 #include "lshloc/eval/dataset_catalog.hpp"
 
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
+#include "lshloc/common/byte_codec.hpp"
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/ground_truth.hpp"
 
 namespace fs = std::filesystem;
@@ -125,7 +131,98 @@ BuildingRecording DatasetCatalog::load(const std::string& name, bool with_raw, c
   return load_building(building(name), with_raw, reader);
 }
 
-Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& config, const CarmenReaderConfig& reader) {
+namespace {
+
+/// FNV-1a, 64 bits: the cache's key and checksum (not a defence against
+/// tampering, only against another log, another build and torn files).
+class Fnv1a {
+ public:
+  void add(const void* data, std::size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < n; ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
+  }
+  template <class T>
+  void add(const T& v) {
+    add(&v, sizeof v);
+  }
+  std::uint64_t value() const { return h_; }
+
+ private:
+  std::uint64_t h_ = 14695981039346656037ull;
+};
+
+constexpr char kSlamCacheMagic[] = "lshloc slam poses 1\n";
+
+std::uint64_t slam_cache_key(const BuildingRecording& rec, const std::string& build_id) {
+  Fnv1a h;
+  h.add(build_id.data(), build_id.size());
+  for (const double v : {rec.laser_offset.x, rec.laser_offset.y, rec.laser_offset.theta}) h.add(v);
+  for (const LaserScan& s : rec.raw_scans) {
+    for (const double v : {s.timestamp, s.angle_min, s.angle_increment, s.max_range, s.odometry.x, s.odometry.y,
+                           s.odometry.theta, s.pose.x, s.pose.y, s.pose.theta})
+      h.add(v);
+    h.add(s.ranges.data(), s.ranges.size() * sizeof(float));
+  }
+  return h.value();
+}
+
+/// The cached poses of `rec`, if `path` holds a whole entry for `key` with one pose per raw scan.
+std::optional<std::vector<Pose2>> read_slam_poses(const std::string& path, std::uint64_t key, std::size_t scans) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t magic = sizeof kSlamCacheMagic - 1;
+  if (bytes.size() != magic + 16 + 24 * scans + 8 || std::memcmp(bytes.data(), kSlamCacheMagic, magic) != 0)
+    return std::nullopt;
+  Fnv1a sum;
+  sum.add(bytes.data(), bytes.size() - 8);
+  ByteReader r(std::span<const std::uint8_t>(bytes).subspan(magic), path);
+  if (r.u64() != key || r.u64() != scans) return std::nullopt;
+  std::vector<Pose2> poses(scans);
+  for (Pose2& p : poses) p = {r.f64(), r.f64(), r.f64()};
+  if (r.u64() != sum.value()) return std::nullopt;
+  return poses;
+}
+
+void write_slam_poses(const std::string& path, std::uint64_t key, const std::vector<LaserScan>& posed) {
+  ByteWriter w;
+  w.raw({reinterpret_cast<const std::uint8_t*>(kSlamCacheMagic), sizeof kSlamCacheMagic - 1});
+  w.u64(key);
+  w.u64(posed.size());
+  for (const LaserScan& s : posed) w.f64(s.pose.x), w.f64(s.pose.y), w.f64(s.pose.theta);
+  Fnv1a sum;
+  sum.add(w.bytes().data(), w.bytes().size());
+  w.u64(sum.value());
+  const std::vector<std::uint8_t> bytes = w.take();
+  write_file_atomically(path, {reinterpret_cast<const char*>(bytes.data()), bytes.size()});
+}
+
+}  // namespace
+
+Submap whole_building_submap(const BuildingRecording& rec, const SlamPoseCache& cache) {
+  if (cache.dir.empty() || !rec.corrected_scans.empty()) return lshloc::whole_building_submap(rec);
+  const std::uint64_t key = slam_cache_key(rec, cache.build_id);
+  char name[32];
+  std::snprintf(name, sizeof name, "-%016llx.poses", static_cast<unsigned long long>(key));
+  const std::string path = (fs::path(cache.dir) / (rec.name + name)).string();
+  if (const auto poses = read_slam_poses(path, key, rec.raw_scans.size())) {
+    Submap s;
+    s.name = rec.name;
+    s.poses_from_slam = true;
+    s.scans = rec.raw_scans;
+    for (std::size_t i = 0; i < s.scans.size(); ++i) s.scans[i].pose = (*poses)[i];
+    return s;
+  }
+  Submap s = lshloc::whole_building_submap(rec);
+  std::error_code ec;
+  fs::create_directories(cache.dir, ec);
+  if (ec) throw Error(cache.dir + ": cannot create the SLAM pose cache directory: " + ec.message());
+  write_slam_poses(path, key, s.scans);
+  return s;
+}
+
+Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& config, const CarmenReaderConfig& reader,
+                       const SlamPoseCache& slam_cache) {
   Scenario sc;
   sc.config = config;
   const auto others = other_buildings(config);
@@ -133,7 +230,8 @@ Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& conf
   split_target_building(catalog.load(config.building, /*with_raw=*/true, reader), config, own, sc.target);
   sc.submaps.push_back(std::move(own));
   sc.target_submap = 0;
-  for (const auto& name : others) sc.submaps.push_back(whole_building_submap(catalog.load(name, false, reader)));
+  for (const auto& name : others)
+    sc.submaps.push_back(whole_building_submap(catalog.load(name, false, reader), slam_cache));
   return sc;
 }
 

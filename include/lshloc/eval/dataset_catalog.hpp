@@ -64,10 +64,25 @@ class DatasetCatalog {
 /// for any other building directory (e.g. one io::write_building_recording made).
 BuildingRecording load_building(const BuildingFiles& files, bool with_raw, const CarmenReaderConfig& reader = {});
 
+/// A directory where load_scenario() keeps the poses lshloc's SLAM gave the
+/// other buildings that have no corrected log (their whole raw log: the same
+/// in every scenario, and most of a scenario's loading time). An entry is
+/// keyed by the raw scans, the laser offset and `build_id`, and checksummed;
+/// one that does not match (another build or log, a torn or damaged file) is
+/// recomputed and replaced (atomically: parallel runs may share the directory).
+struct SlamPoseCache {
+  std::string dir;       ///< empty: no cache
+  std::string build_id;  ///< identifies the code that made the poses (e.g. the executable's size and time)
+};
+
 /// Loads the scenario of docs/design.md section 6 from the catalog: the target's
 /// building split around the window, plus config.submaps - 1 other buildings.
 Scenario load_scenario(const DatasetCatalog& catalog, const ScenarioConfig& config,
-                       const CarmenReaderConfig& reader = {});
+                       const CarmenReaderConfig& reader = {}, const SlamPoseCache& slam_cache = {});
+
+/// whole_building_submap() through `cache` (see SlamPoseCache): poses read
+/// from it when it holds this recording's, else made by SLAM and stored.
+Submap whole_building_submap(const BuildingRecording& rec, const SlamPoseCache& cache);
 
 /// The scenario's target run alone (its submaps left empty): for a run on a
 /// map saved earlier, which reads only the target's building.
