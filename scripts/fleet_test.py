@@ -97,15 +97,12 @@ def last_json(text):
     return json.loads(lines[-1]) if lines else None
 
 
-SUBMAPS = 15  # R of the fr079 scenario the mappers publish (--submaps)
-
-
-def publish_scenario(url, prefix, mappers):
-    """`mappers` processes publish fr079's default scenario (R = SUBMAPS) at
+def publish_scenario(url, prefix, mappers, submaps):
+    """`mappers` processes publish fr079's default scenario (R = `submaps`) at
     once, each its part; returns (scans, seconds from the first start to the
     last finish) or None."""
     procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", url, "--prefix", prefix, "--building", "fr079",
-                               "--submaps", str(SUBMAPS), "--part", f"{k}/{mappers}", "--together", str(mappers)],
+                               "--submaps", str(submaps), "--part", f"{k}/{mappers}", "--together", str(mappers)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for k in range(mappers)]
     done = [p.communicate() for p in procs]
     outs = [last_json(o) for o, _ in done]
@@ -115,28 +112,28 @@ def publish_scenario(url, prefix, mappers):
     return sum(o["scans"] for o in outs), max(o["finished_at"] for o in outs) - min(o["started_at"] for o in outs)
 
 
-def localize_scenario(url, prefix, trace=None):
-    args = ["eval", "--building", "fr079", "--submaps", str(SUBMAPS), "--map-redis", url, "--map-prefix", prefix,
+def localize_scenario(url, prefix, submaps, trace=None):
+    args = ["eval", "--building", "fr079", "--submaps", str(submaps), "--map-redis", url, "--map-prefix", prefix,
             "--json"]
     return subprocess.Popen([LSHLOC, *args, *(["--trace", trace] if trace else [])], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
 
-def functional_and_ingest(redis, work, result):
-    log(f"ingest: 1 mapper publishes fr079 R={SUBMAPS} alone")
-    one = publish_scenario(redis.url, "one", 1)
+def functional_and_ingest(redis, work, result, submaps):
+    log(f"ingest: 1 mapper publishes fr079 R={submaps} alone")
+    one = publish_scenario(redis.url, "one", 1, submaps)
     if one:
         result["ingest_scans_per_s_1_mapper"] = round(one[0] / one[1]) if one[1] > 0 else 0
         log(f"ingest: {one[0]} scans in {one[1]:.2f} s = {result['ingest_scans_per_s_1_mapper']} scans/s")
-    log(f"functional: 4 mappers publish fr079 R={SUBMAPS} at once, then 2 localizers")
-    four = publish_scenario(redis.url, "fn", 4)
+    log(f"functional: 4 mappers publish fr079 R={submaps} at once, then 2 localizers")
+    four = publish_scenario(redis.url, "fn", 4, submaps)
     if four is None:
         return False
     scans, window = four
     result["ingest_scans_per_s_4_mappers"] = round(scans / window) if window > 0 else 0
     result["ingest_scans"] = scans
     log(f"ingest: {scans} scans in {window:.2f} s = {result['ingest_scans_per_s_4_mappers']} scans/s")
-    locs = [localize_scenario(redis.url, "fn", os.path.join(work, "single.trace.csv") if k == 0 else None)
+    locs = [localize_scenario(redis.url, "fn", submaps, os.path.join(work, "single.trace.csv") if k == 0 else None)
             for k in range(2)]
     answers = [last_json(p.communicate()[0]) for p in locs]
     result["localizers"] = len(locs)
@@ -146,8 +143,8 @@ def functional_and_ingest(redis, work, result):
     return result["localizers_correct"] == 2
 
 
-def cluster(work, result):
-    log(f"cluster: a 3-master Redis Cluster (scripts/redis_cluster.sh); 4 mappers publish fr079 R={SUBMAPS}, "
+def cluster(work, result, submaps):
+    log(f"cluster: a 3-master Redis Cluster (scripts/redis_cluster.sh); 4 mappers publish fr079 R={submaps}, "
         "a localizer")
     script, where = os.path.join(ROOT, "scripts", "redis_cluster.sh"), os.path.join(work, "cluster")
     started = subprocess.run([script, "start", where], capture_output=True, text=True)
@@ -156,12 +153,12 @@ def cluster(work, result):
         return False
     try:
         url = started.stdout.split()[-1]
-        four = publish_scenario(url, "fn", 4)
+        four = publish_scenario(url, "fn", 4, submaps)
         if four is None:
             return False
         result["ingest_scans_per_s_4_mappers_cluster"] = round(four[0] / four[1]) if four[1] > 0 else 0
         trace = os.path.join(work, "cluster.trace.csv")
-        answer = last_json(localize_scenario(url, "fn", trace).communicate()[0])
+        answer = last_json(localize_scenario(url, "fn", submaps, trace).communicate()[0])
         single = os.path.join(work, "single.trace.csv")
         same = answer is not None and os.path.exists(single) and filecmp.cmp(single, trace, shallow=False)
         result["cluster_final_error_m"] = answer.get("final_error_m") if answer else None
@@ -305,9 +302,7 @@ def main():
                     help="the test suite's run: fr079 at R = 4 instead of 15, and no ingest floor (speed is "
                          "measured by the full run and the benchmarks, not asserted in tests)")
     a = ap.parse_args()
-    global SUBMAPS
-    if a.smoke:
-        SUBMAPS = 4
+    submaps = 4 if a.smoke else 15  # R of the fr079 scenario the mappers publish
     cases = set(a.cases.split(","))
     if not cases <= set(CASES):
         ap.error(f"--cases: expected some of {', '.join(CASES)}, got {a.cases}")
@@ -327,7 +322,7 @@ def main():
     ok = {}
     try:
         if "functional" in cases:
-            ok["functional"] = functional_and_ingest(redis, work, result)
+            ok["functional"] = functional_and_ingest(redis, work, result, submaps)
             if not a.smoke:
                 ok["ingest"] = result["ingest_scans_per_s_4_mappers"] >= 5000
         if "faults" in cases:
@@ -343,7 +338,7 @@ def main():
         if "catch_up" in cases:
             ok["catch_up"] = catch_up(redis, work, result) and result["catch_up_s_1e6_snapshot"] <= 10
         if "cluster" in cases:
-            ok["cluster"] = result["cluster_same_estimates"] = cluster(work, result)
+            ok["cluster"] = result["cluster_same_estimates"] = cluster(work, result, submaps)
     finally:
         redis.stop()
         shutil.rmtree(work, ignore_errors=True)
