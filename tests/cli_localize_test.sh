@@ -4,7 +4,8 @@
 # scan) and the TUM (one row per confident scan), a bad output path fails
 # before the run, a raw log as a map gets its warning, a TUM trajectory is
 # read as robot poses, maps from ROS occupancy grids localize, two targets
-# localized at once on one map equal their lone runs, and --version answers.
+# localized at once on one map equal their lone runs, --print-config needs no
+# inputs, and --version answers.
 # Usage: cli_localize_test.sh LSHLOC
 set -euo pipefail
 LSHLOC=$1
@@ -121,6 +122,19 @@ grep -q "ga.yaml: a ROS map (YAML) is no log" "$d/err.txt" || fail "YAML as a lo
 python3 -c "print('FLASER 5 ' + ' '.join(['81.9'] * 5) + ' 0 0 0 0 0 0 1.0 host 1.0')" >"$d/empty.log"
 if "$LSHLOC" localize --map "$d/empty.log" "${target[@]}" >/dev/null 2>"$d/err.txt"; then fail "an empty map was accepted"; fi
 grep -q "the map has no features" "$d/err.txt" || fail "empty map: $(cat "$d/err.txt")"
+
+# --print-config needs no inputs (it shows the defaults a run would use); a run without them names what is missing.
+echo '{"localizer": {"candidates_per_feature": 321}}' >"$d/patch.json"
+"$LSHLOC" localize --print-config --config "$d/patch.json" >"$d/cfg.json" || fail "localize --print-config alone"
+python3 -c "import json,sys; c=json.load(open(sys.argv[1])); assert c['localizer']['candidates_per_feature'] == 321, c" \
+  "$d/cfg.json" || fail "localize --print-config does not show --config's setting"
+"$LSHLOC" map build --print-config | python3 -c "import json,sys; json.load(sys.stdin)" || fail "map build --print-config"
+"$LSHLOC" slam --print-config | python3 -c "import json,sys; json.load(sys.stdin)" || fail "slam --print-config"
+for args in "localize --map $d/m.map" "localize --target $b/sim-3-001.log.gz" "map build --out $d/x.map" "slam"; do
+  if "$LSHLOC" $args >/dev/null 2>"$d/err.txt"; then fail "$args ran without its required input"; fi
+  grep -q "is required" "$d/err.txt" || fail "$args: $(cat "$d/err.txt")"
+done
+[ ! -e "$d/x.map" ] || fail "map build without logs wrote a map"
 
 "$LSHLOC" --version | grep -q "^lshloc [0-9]" || fail "--version"
 echo "cli_localize_test: all checks passed"

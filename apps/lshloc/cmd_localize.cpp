@@ -382,16 +382,16 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "--json prints the same as one JSON line. --out T.tum writes T.tum.csv (one row per target scan)\n"
       "and T.tum: the confident poses in the final answer's submap (those in other submaps, if any,\n"
       "in T.tum.<submap>.tum).");
-  cmd->add_option("--map", opt->maps,
-                  "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "
-                  "repeat for several submaps; or a fleet's live map on Redis, redis://HOST[:PORT], followed while "
-                  "the targets localize")
-      ->required();
-  cmd->add_option("--target", opt->targets,
-                  "the target robot's raw log (odometry + scans); repeat to localize several robots at once, each on "
-                  "its own thread against the one map; - reads a plain-text log from stdin and prints each scan's "
-                  "estimate as it arrives")
-      ->required();
+  const CLI::Option* map_option =
+      cmd->add_option("--map", opt->maps,
+                      "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "
+                      "repeat for several submaps; or a fleet's live map on Redis, redis://HOST[:PORT], followed while "
+                      "the targets localize (required)");
+  const CLI::Option* target_option = cmd->add_option(
+      "--target", opt->targets,
+      "the target robot's raw log (odometry + scans); repeat to localize several robots at once, each on "
+      "its own thread against the one map; - reads a plain-text log from stdin and prints each scan's "
+      "estimate as it arrives (required)");
   cmd->add_option("--map-prefix", opt->map_prefix, "key prefix of the fleet's map on Redis (--map redis://...)")
       ->capture_default_str();
   cmd->add_option("--map-snapshot", opt->map_snapshot,
@@ -425,9 +425,10 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
                 "and loop closure) instead of taking their FLASER poses");
   add_localizer_options(*cmd, opt->localizer);
   add_grid_map_options(*cmd, opt->grid);
-  cmd->callback([opt, &global] {
+  cmd->callback([opt, map_option, target_option, &global] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
+    require_given({map_option, target_option});
     const auto& paths = opt->targets;
     const bool stream = paths.size() == 1 && paths[0] == "-";
     if (paths.size() > 1 && std::find(paths.begin(), paths.end(), "-") != paths.end())

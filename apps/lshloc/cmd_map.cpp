@@ -96,15 +96,17 @@ GlobalMapConfig map_settings(const std::string& config_path) {
   return c;
 }
 
-/// The options `map build` and `map from-grid` share.
-void add_build_options(CLI::App& cmd, BuildOptions& opt) {
-  cmd.add_option("--out", opt.out, "the map file to write")->required();
+/// The options `map build` and `map from-grid` share; returns --out (needed
+/// unless --print-config: require_given()).
+const CLI::Option* add_build_options(CLI::App& cmd, BuildOptions& opt) {
+  const CLI::Option* out = cmd.add_option("--out", opt.out, "the map file to write (required)");
   cmd.add_option("--name", opt.names, "submap names, one per map argument in order (default: each file's name)");
   cmd.add_option("--config", opt.config,
                  "JSON file of map settings (GlobalMapConfig fields; the shape --print-config writes)");
   cmd.add_flag("--print-config", opt.print_config, "print the effective map settings as JSON and exit");
   cmd.add_flag("--json", opt.json, "print one JSON line (the fields of `map info --json`) instead of text");
   add_grid_map_options(cmd, opt.grid);
+  return out;
 }
 
 void run_build(const BuildOptions& opt, const char* made_by) {
@@ -155,12 +157,15 @@ void add_build(CLI::App& map_cmd) {
       "the old map or the whole new one). LOG takes the log's own FLASER poses (a corrected log; with --slam, a\n"
       "raw log posed by lshloc's SLAM); LOG,slam poses that raw log by SLAM; LOG,POSES takes poses from a\n"
       "`timestamp x y theta` file; MAP.yaml builds a submap from a ROS occupancy grid (see `map from-grid`).");
-  cmd->add_option("logs", opt->logs,
-                  "map logs: LOG, LOG,POSES or LOG,slam (this raw log posed by lshloc's SLAM), or ROS maps MAP.yaml")
-      ->required();
+  const CLI::Option* logs = cmd->add_option(
+      "logs", opt->logs,
+      "map logs: LOG, LOG,POSES or LOG,slam (this raw log posed by lshloc's SLAM), or ROS maps MAP.yaml (required)");
   cmd->add_flag("--slam", opt->slam, "pose raw logs given without a poses file by lshloc's SLAM");
-  add_build_options(*cmd, *opt);
-  cmd->callback([opt] { run_build(*opt, "lshloc map build"); });
+  const CLI::Option* out = add_build_options(*cmd, *opt);
+  cmd->callback([opt, logs, out] {
+    if (!opt->print_config) require_given({logs, out});
+    run_build(*opt, "lshloc map build");
+  });
 }
 
 void add_from_grid(CLI::App& map_cmd) {
@@ -173,9 +178,10 @@ void add_from_grid(CLI::App& map_cmd) {
       "their surface normals, fill the pose grid and the free cells the free-space grid. The virtual laser\n"
       "should match the robot's that will localize (--grid-beams, --grid-fov-deg, --grid-max-range).\n"
       "`localize --map MAP.yaml` builds the same submap on the fly with the target's laser.");
-  cmd->add_option("grids", opt->logs, "ROS map YAML files")->required();
-  add_build_options(*cmd, *opt);
-  cmd->callback([opt] {
+  const CLI::Option* grids = cmd->add_option("grids", opt->logs, "ROS map YAML files (required)");
+  const CLI::Option* out = add_build_options(*cmd, *opt);
+  cmd->callback([opt, grids, out] {
+    if (!opt->print_config) require_given({grids, out});
     for (const std::string& g : opt->logs)
       if (!is_grid_argument(g)) throw Error(g + ": expected a ROS map YAML (.yaml/.yml); logs go to `map build`");
     run_build(*opt, "lshloc map from-grid");

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/slam/relations_metric.hpp"
@@ -242,7 +243,8 @@ void add_slam_command(CLI::App& app, GlobalOptions& global) {
                                  "the Kuemmerle et al. (2009) relations metric, next to the scan matching alone, raw\n"
                                  "odometry and GMapping.");
   auto opt = std::make_shared<SlamOptions>();
-  cmd->add_option("--log", opt->log, "raw CARMEN log (odometry + scans), plain or .gz")->required();
+  const CLI::Option* log =
+      cmd->add_option("--log", opt->log, "raw CARMEN log (odometry + scans), plain or .gz (required)");
   cmd->add_option("--relations", opt->relations, "Kuemmerle benchmark relations (t1 t2 dx dy dz roll pitch yaw)");
   cmd->add_option("--out", opt->out, "write the robot trajectory here (TUM: timestamp x y z qx qy qz qw)");
   cmd->add_option("--per-scan", opt->per_scan,
@@ -260,11 +262,12 @@ void add_slam_command(CLI::App& app, GlobalOptions& global) {
                   "offset (matcher.laser_offset) is the log's PARAM robot_frontlaser_offset where it has one, else the "
                   "dataset catalog's documented value, else this file's");
   cmd->add_flag("--print-config", opt->print_config, "print the effective settings as JSON and exit");
-  cmd->callback([opt, &global] {
+  cmd->callback([opt, log, &global] {
     if (opt->print_config) {
       std::printf("%s\n", nlohmann::json(configured(*opt)).dump(2).c_str());
       return;
     }
+    require_given({log});
     run_slam(*opt, global);
   });
 }

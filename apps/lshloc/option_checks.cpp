@@ -61,4 +61,9 @@ CLI::Validator within(double lo, double hi) {
       "in [" + short_number(lo) + ", " + short_number(hi) + "]");
 }
 
+void require_given(std::initializer_list<const CLI::Option*> options) {
+  for (const CLI::Option* o : options)
+    if (o->count() == 0) throw CLI::RequiredError(o->get_name());
+}
+
 }  // namespace lshloc::app

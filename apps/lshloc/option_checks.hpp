@@ -15,4 +15,9 @@ void check_numeric_options(CLI::App& app);
 /// exhaust memory or time.
 CLI::Validator within(double lo, double hi);
 
+/// Options a run needs but --print-config does not: CLI11's required() would
+/// refuse `--print-config` alone, so the command's callback asks for them
+/// after its --print-config check. Throws CLI11's "NAME is required" error.
+void require_given(std::initializer_list<const CLI::Option*> options);
+
 }  // namespace lshloc::app
