@@ -166,5 +166,32 @@ TEST(GlobalMap, KeepsTheKeysOfItsNewestFeaturesOnly) {
   EXPECT_TRUE(loaded->recent_key(static_cast<std::uint32_t>(n)).has_value());
 }
 
+TEST(GlobalMap, AScanBeyondTheGridsLimitsLeavesTheMapAsItWas) {
+  const GlobalMapConfig config;
+  GlobalMap map(config), reference(config);
+  for (GlobalMap* m : {&map, &reference}) {
+    m->add_submap("room");
+    for (double x = 0.0; x < 3.0; x += 0.5) m->add_scan(0, half_blind_scan(3.0), Pose2(x, 0.0, 0.1 * x));
+  }
+  const auto bytes = [](const GlobalMap& m, bool with_counters = true) {
+    std::vector<std::vector<std::uint8_t>> out;
+    for (const MapSection& s : m.snapshot())
+      if (with_counters || s.name != "counters") out.push_back(s.bytes);  // (counters hold CPU times)
+    return out;
+  };
+  const auto before = bytes(map);
+  // Facing down the x axis 3 m short of the grids' edge, its wall 3 m beyond
+  // it: the near half of its marks fits, the far half does not.
+  const double edge = 65536.0 * std::min(config.occupancy.cell_size, config.free_space.cell_size);
+  EXPECT_THROW(map.add_scan(0, half_blind_scan(6.0), Pose2(edge - 3.0, 0.0, -std::numbers::pi / 2.0)), Error);
+  EXPECT_EQ(bytes(map), before);
+  EXPECT_EQ(map.submap_scans(0), reference.submap_scans(0));
+  // ... and what comes next is what a map that never saw it gets.
+  for (GlobalMap* m : {&map, &reference}) m->add_scan(0, half_blind_scan(4.0), Pose2(3.0, 1.0, 0.2));
+  EXPECT_EQ(bytes(map, false), bytes(reference, false));
+  EXPECT_EQ(map.stats().scans, reference.stats().scans);
+  EXPECT_EQ(map.stats().features, reference.stats().features);
+}
+
 }  // namespace
 }  // namespace lshloc

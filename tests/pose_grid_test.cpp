@@ -249,7 +249,7 @@ TEST(PoseGrid, PlannedMarksGiveTheGridOfMarksOneByOne) {
     PoseGridHashMap one_by_one(cfg), planned(cfg);
     std::mt19937_64 rng(3);
     std::uniform_real_distribution<double> coord(-20.0, 20.0), angle(-7.0, 7.0);
-    std::vector<PoseGridHashMap::CellMark> plan;
+    PoseGridHashMap::MarkPlan plan;
     for (int scan = 0; scan < 40; ++scan) {
       plan.clear();
       for (int i = 0; i < 150; ++i) {
@@ -258,6 +258,17 @@ TEST(PoseGrid, PlannedMarksGiveTheGridOfMarksOneByOne) {
         const auto flags = static_cast<CellFlags>(1u << (rng() % 4));
         one_by_one.mark(submap, x, y, theta, flags);
         planned.plan_mark(planned.cell_of(submap, x, y, theta), flags, plan);
+      }
+      if (scan % 10 == 9) {  // a cell beyond the limits: refused while planned, and nothing of the plan made
+        const ByteWriter before = [&] {
+          ByteWriter w;
+          planned.write_snapshot(w);
+          return w;
+        }();
+        EXPECT_THROW(planned.plan_mark(planned.cell_of(0, 1e5, 0.0, 0.0), 1, plan), Error);
+        ByteWriter after;
+        planned.write_snapshot(after);
+        EXPECT_EQ(before.bytes(), after.bytes());
       }
       planned.mark_planned(plan);
     }

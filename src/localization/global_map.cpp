@@ -61,13 +61,27 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
                                 std::vector<Feature>* added) {
   check_submap(submap, "GlobalMap::add_scan");
   SubmapState& state = submaps_[submap];
-  ++state.scans;
-  ++stats_.scans;
 
   CpuStopwatch watch;
   const ScanSurface surface = extractor_.surface(scan, laser_pose);
   const std::vector<Feature> features = extractor_.extract(surface, state.context.surfaces());
-  stats_.extract_s += watch.seconds();
+  const double extract_s = watch.seconds();
+
+  // The grid marks are planned first: a scan beyond the grids' limits
+  // throws here, before any of it enters the map.
+  marking_scan_ = true;
+  const std::unique_ptr<GlobalMap, void (*)(GlobalMap*)> end_scan(this, [](GlobalMap* m) {
+    m->scan_marks_.stop();
+    m->marking_scan_ = false;
+    m->occupancy_plan_.clear();
+    m->free_space_plan_.clear();
+  });
+  double grid_s = 0.0;
+  if (grids == ScanGrids::kMark) {
+    watch = CpuStopwatch();
+    plan_grids(submap, scan, laser_pose, surface);
+    grid_s = watch.seconds();
+  }
 
   watch = CpuStopwatch();
   for (const Feature& f : features) {
@@ -78,12 +92,13 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   stats_.database_insert_s += watch.seconds();
   stats_.features += features.size();
 
-  if (grids == ScanGrids::kMark) {
-    watch = CpuStopwatch();
-    mark_grids(submap, scan, laser_pose, surface);
-    stats_.grid_s += watch.seconds();
-  }
+  watch = CpuStopwatch();
+  make_planned_marks();
+  stats_.grid_s += grid_s + watch.seconds();
 
+  stats_.extract_s += extract_s;
+  ++state.scans;
+  ++stats_.scans;
   state.context.offer(surface);
   if (added) added->insert(added->end(), features.begin(), features.end());
   return features.size();
@@ -140,7 +155,7 @@ void GlobalMap::make_planned_marks() {
   free_space_plan_.clear();
 }
 
-void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
+void GlobalMap::plan_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
                            const ScanSurface& surface) {
   const Point2 sensor = laser_pose.translation();
   // Every mark lies within the longest range (returns and their neighbours) of
@@ -149,15 +164,6 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
   const double longest = std::max(config_.features.max_range, config_.free_ray_max_range);
   scan_marks_.start(centre.ix, centre.iy,
                     static_cast<std::int32_t>(std::min(512.0, std::ceil(longest * free_space_.inv_cell_size()) + 2.0)));
-  // Ends the scan's memo and its planned marks even when a mark throws, so
-  // no later mark is skipped or made on its account.
-  marking_scan_ = true;
-  const std::unique_ptr<GlobalMap, void (*)(GlobalMap*)> end_scan(this, [](GlobalMap* m) {
-    m->scan_marks_.stop();
-    m->marking_scan_ = false;
-    m->occupancy_plan_.clear();
-    m->free_space_plan_.clear();
-  });
   // Occupancy: endpoints with their normal direction, thinned along the scan;
   // the free-space grid notes where the map has a normal (kNormal).
   for_each_spaced(surface.points, config_.endpoint_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
@@ -213,7 +219,6 @@ void GlobalMap::mark_grids(std::uint32_t submap, const LaserScan& scan, const Po
       continue;
     plan_return(submap, laser_pose.transform(beam_endpoints_[i]));
   }
-  make_planned_marks();
 }
 
 void GlobalMap::mark_surface_point(std::uint32_t submap, const Point2& p, double normal) {

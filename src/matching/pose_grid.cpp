@@ -52,22 +52,15 @@ void PoseGridHashMap::mark(std::uint32_t submap, double x, double y, double thet
   mark_planned(planned_);
 }
 
-void PoseGridHashMap::plan_mark(const PoseCell& c, CellFlags flags, std::vector<CellMark>& out) {
+void PoseGridHashMap::plan_mark(const PoseCell& c, CellFlags flags, MarkPlan& plan) const {
   if (flags == 0) throw Error("pose grid: mark() needs non-zero flags");
   const int t = config_.xy_tolerance;
   if (pack_xy(c.submap, c.ix - t, c.iy - t) == kInvalidXy || pack_xy(c.submap, c.ix + t, c.iy + t) == kInvalidXy)
     throw Error("pose grid: cell (" + std::to_string(c.ix) + ", " + std::to_string(c.iy) + ") of submap " +
                 std::to_string(c.submap) + " is outside the grid (submap < 16383, |x|, |y| < 65536 cells of " +
                 std::to_string(config_.cell_size) + " m)");
-  ++marks_;
-  if (c.submap >= boxes_.size()) boxes_.resize(c.submap + 1);
-  Box& b = boxes_[c.submap];
-  if (b.x1 < b.x0) {
-    b = {c.ix, c.ix, c.iy, c.iy};
-  } else {
-    b.x0 = std::min(b.x0, c.ix), b.x1 = std::max(b.x1, c.ix);
-    b.y0 = std::min(b.y0, c.iy), b.y1 = std::max(b.y1, c.iy);
-  }
+  plan.cells.push_back(c);
+  std::vector<CellMark>& out = plan.writes;
   if (config_.tolerance_mode == ToleranceMode::kProbeNeighbours) {
     out.push_back({pack_xy(c.submap, c.ix, c.iy), c.itheta, flags});
     return;
@@ -81,10 +74,22 @@ void PoseGridHashMap::plan_mark(const PoseCell& c, CellFlags flags, std::vector<
     }
 }
 
-void PoseGridHashMap::mark_planned(std::span<const CellMark> marks) {
+void PoseGridHashMap::mark_planned(const MarkPlan& plan) {
+  for (const PoseCell& c : plan.cells) {
+    ++marks_;
+    if (c.submap >= boxes_.size()) boxes_.resize(c.submap + 1);
+    Box& b = boxes_[c.submap];
+    if (b.x1 < b.x0) {
+      b = {c.ix, c.ix, c.iy, c.iy};
+    } else {
+      b.x0 = std::min(b.x0, c.ix), b.x1 = std::max(b.x1, c.ix);
+      b.y0 = std::min(b.y0, c.iy), b.y1 = std::max(b.y1, c.iy);
+    }
+  }
   // Far enough ahead that a slot's cache line arrives before its write, near
   // enough that the table rarely grows in between (a stale prefetch only wastes a load).
   constexpr std::size_t kAhead = 8;
+  const std::span<const CellMark> marks = plan.writes;
   for (std::size_t i = 0; i < marks.size(); ++i) {
     if (i + kAhead < marks.size()) {
       const TableView table = table_view();

@@ -167,8 +167,8 @@ class GlobalMap {
     std::size_t scans = 0;
   };
 
-  /// The free-space flags already marked during the scan mark_grids() is
-  /// marking, in a dense window of cells around its sensor: each cell is
+  /// The free-space flags already marked during the scan plan_grids() is
+  /// planning, in a dense window of cells around its sensor: each cell is
   /// marked once per scan and flag set (rays near the sensor and the
   /// neighbours of adjacent returns cross the same cells many times). A
   /// skipped mark would have changed nothing, so the grid is the same.
@@ -192,9 +192,11 @@ class GlobalMap {
   /// Plans mark_return()'s marks.
   void plan_return(std::uint32_t submap, const Point2& p);
   /// Makes the planned marks of both grids (the mark_* calls make theirs at
-  /// once, a scan's are made together at its end: prefetched ahead).
+  /// once, a scan's are made together after its features: prefetched ahead).
   void make_planned_marks();
-  void mark_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
+  /// Plans every grid mark of a scan (nothing is marked; throws when one lies
+  /// beyond the grids); the caller makes them or, on an error, clears them.
+  void plan_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
   void keep_recent_key(std::uint32_t id);  ///< of the feature database_ inserted last
 
   GlobalMapConfig config_;
@@ -205,10 +207,10 @@ class GlobalMap {
   PoseGridHashMap free_space_;
   std::vector<SubmapState> submaps_;
   GlobalMapStats stats_;
-  std::vector<Point2> beam_endpoints_;  // scratch of mark_grids
-  ScanMarks scan_marks_;                // scratch of mark_grids
-  bool marking_scan_ = false;           // within mark_grids: marks wait for its end
-  std::vector<PoseGridHashMap::CellMark> occupancy_plan_, free_space_plan_;  // planned, not yet made
+  std::vector<Point2> beam_endpoints_;                          // scratch of plan_grids
+  ScanMarks scan_marks_;                                        // scratch of plan_grids
+  bool marking_scan_ = false;                                   // within add_scan: marks wait for its end
+  PoseGridHashMap::MarkPlan occupancy_plan_, free_space_plan_;  // planned, not yet made
   // A ring of the newest features' table tags: L per feature, slot id % recent_keys.
   std::vector<std::uint32_t> recent_tags_;
   std::uint32_t recent_first_ = 0;  ///< the first location id add_scan() added (a snapshot's come before)

@@ -122,14 +122,23 @@ class PoseGridHashMap {
     std::int32_t itheta = 0;
     CellFlags flags = 0;
   };
+  /// Marks planned, not yet made: their slot writes, and the cell of each
+  /// mark (counted and boxed when made).
+  struct MarkPlan {
+    std::vector<CellMark> writes;
+    std::vector<PoseCell> cells;
+    void clear() { writes.clear(), cells.clear(); }
+  };
   /// mark() in two halves, for writers that mark many cells at once (a
   /// mapper scan's rays): plan_mark() checks `cell` (from cell_of()) against
-  /// the limits, counts the mark and grows its submap's box, and appends the
-  /// slot writes to `out`; mark_planned() makes them, prefetching the slots
-  /// of the writes ahead (the table's misses in cache are most of a mark's
-  /// cost). Planned and made in order, the grid is the one mark() gives.
-  void plan_mark(const PoseCell& cell, CellFlags flags, std::vector<CellMark>& out);
-  void mark_planned(std::span<const CellMark> marks);
+  /// the limits and appends the mark to `plan`, changing nothing in the grid
+  /// (a writer plans all of a scan's marks before it makes any, so a scan
+  /// that cannot be marked leaves the grid as it was); mark_planned() makes
+  /// them, counting each mark and growing its submap's box, prefetching the
+  /// slots of the writes ahead (the table's misses in cache are most of a
+  /// mark's cost). Planned and made in order, the grid is the one mark() gives.
+  void plan_mark(const PoseCell& cell, CellFlags flags, MarkPlan& plan) const;
+  void mark_planned(const MarkPlan& plan);
 
   /// The OR of the flags in the tolerance window around (x, y, theta) of
   /// `submap` (in kDilateAtInsert mode that is the one cell's flags).
@@ -268,7 +277,7 @@ class PoseGridHashMap {
   std::size_t marks_ = 0;
   /// The cells below this many grow the table first: max_load_factor * capacity, rounded down.
   std::size_t grow_at_ = 0;
-  std::vector<CellMark> planned_;  ///< scratch of mark()
+  MarkPlan planned_;  ///< scratch of mark()
   /// Per submap: bounding box of its cells (for the dense-grid comparison).
   struct Box {
     std::int32_t x0 = 0, x1 = -1, y0 = 0, y1 = -1;
