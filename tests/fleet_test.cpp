@@ -199,7 +199,7 @@ TEST(FleetMapLog, AMapFedThroughRedisEqualsTheMapBuiltDirectly) {
   GlobalMap through_redis(reader.settings());
   std::size_t applied = 0, polls = 0;
   for (auto updates = reader.poll(); !updates.empty(); updates = reader.poll())
-    applied += fleet::apply_updates(through_redis, reader.submaps(), updates), ++polls;
+    applied += fleet::apply_updates(through_redis, reader.submaps(), updates).added, ++polls;
   GlobalMap direct(settings);
   MapFeeder(direct, sc.submaps).feed_until(1.0);
   std::size_t scans = 0;
@@ -212,6 +212,41 @@ TEST(FleetMapLog, AMapFedThroughRedisEqualsTheMapBuiltDirectly) {
   }
   EXPECT_EQ(reader.stats().duplicates, 0u);
   EXPECT_EQ(reader.submaps().size(), sc.submaps.size());
+  test::expect_same_map_contents(direct, through_redis);
+}
+
+TEST(FleetMapLog, AScanTheMapRefusesIsSkippedAndTheUpdatesAfterItApply) {
+  LSHLOC_REQUIRE_REDIS(server);
+  const Scenario sc = sim::synthetic_scenario(test::small_world(300, 50));
+  const GlobalMapConfig settings;
+  const Submap& first = sc.submaps.front();
+  // A scan 100 km out (beyond the grids' limits) in the middle of the first submap's stream.
+  std::vector<LaserScan> scans = first.scans;
+  LaserScan far = scans[scans.size() / 2];
+  far.pose = Pose2(1e5, 0.0, 0.0);
+  scans.insert(scans.begin() + static_cast<std::ptrdiff_t>(scans.size() / 2), far);
+  {
+    RedisClient redis(server.address());
+    MapLogWriter(redis, first.name, settings).publish(scans);
+  }
+  RedisClient redis(server.address());
+  MapLogReader reader(redis, MapLogConfig{.batch = 1000});
+  GlobalMap through_redis(reader.settings());
+  fleet::AppliedUpdates total;
+  for (auto updates = reader.poll(); !updates.empty(); updates = reader.poll()) {
+    const fleet::AppliedUpdates a = fleet::apply_updates(through_redis, reader.submaps(), updates);
+    total.added += a.added, total.refused += a.refused;
+    if (a.refused) total.last_refusal = a.last_refusal;
+  }
+  EXPECT_EQ(total.added, first.scans.size());
+  EXPECT_EQ(total.refused, 1u);
+  EXPECT_NE(total.last_refusal.find("submap " + first.name + " scan " + std::to_string(first.scans.size() / 2)),
+            std::string::npos)
+      << total.last_refusal;
+  EXPECT_NE(total.last_refusal.find("outside the grid"), std::string::npos) << total.last_refusal;
+  GlobalMap direct(settings);
+  direct.add_submap(first.name);
+  for (const LaserScan& s : first.scans) direct.add_scan(0, s, s.pose);
   test::expect_same_map_contents(direct, through_redis);
 }
 
@@ -241,7 +276,7 @@ TEST(FleetMapLog, AReaderResumedFromASnapshotsPositionsReachesTheSameMap) {
   resumed.resume(fleet::positions_from_json(saved, "test"));
   std::size_t rest = 0;
   for (auto u = resumed.poll(); !u.empty(); u = resumed.poll())
-    rest += fleet::apply_updates(snapshot, resumed.submaps(), u);
+    rest += fleet::apply_updates(snapshot, resumed.submaps(), u).added;
   MapLogReader whole(redis2, MapLogConfig{});
   GlobalMap full(whole.settings());
   for (auto u = whole.poll(); !u.empty(); u = whole.poll()) fleet::apply_updates(full, whole.submaps(), u);

@@ -500,6 +500,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       if (!followed->last_error.empty())
         std::fprintf(stderr, "lshloc: warning: %s: the map log was interrupted (%zu reconnects); last: %s\n",
                      opt->maps[0].c_str(), followed->reconnects, followed->last_error.c_str());
+      warn_refused_scans(opt->maps[0], *followed);
     }
     const double wall_s = seconds_since(t_localize);
     for (std::size_t k = 0; k < targets.size(); ++k) {

@@ -420,6 +420,7 @@ void add_from_redis(CLI::App& map_cmd) {
     std::fprintf(stderr, "%s: %zu submaps, %zu scans, %zu features (read and applied in %.2f s, saved in %.2f s)\n",
                  opt->out.c_str(), map.submap_count(), map.stats().scans, map.stats().features, read_s,
                  seconds_since(t0) - read_s);
+    warn_refused_scans(opt->url, st);
     const nlohmann::json j = {{"out", opt->out},
                               {"submaps", map.submap_count()},
                               {"scans", map.stats().scans},
@@ -427,6 +428,7 @@ void add_from_redis(CLI::App& map_cmd) {
                               {"updates", updates},
                               {"duplicates", st.duplicates},
                               {"reconnects", st.reconnects},
+                              {"refused_scans", st.refused_scans},
                               {"read_s", read_s}};
     std::printf("%s\n", j.dump().c_str());
   });

@@ -179,9 +179,15 @@ FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const
 
 nlohmann::json fleet_map_json(const FleetMap& fleet, const GlobalMap& map) {
   const fleet::MapFollowerStats st = fleet.follower->stats();
-  return {{"history_updates", st.history_updates}, {"live_updates", st.live_updates}, {"duplicates", st.duplicates},
-          {"reconnects", st.reconnects},           {"catch_up_s", fleet.catch_up_s},  {"submaps", map.submap_count()},
-          {"map_scans", map.stats().scans}};
+  return {{"history_updates", st.history_updates}, {"live_updates", st.live_updates},  {"duplicates", st.duplicates},
+          {"reconnects", st.reconnects},           {"catch_up_s", fleet.catch_up_s},   {"submaps", map.submap_count()},
+          {"map_scans", map.stats().scans},        {"refused_scans", st.refused_scans}};
+}
+
+void warn_refused_scans(const std::string& url, const fleet::MapFollowerStats& stats) {
+  if (stats.refused_scans == 0) return;
+  std::fprintf(stderr, "lshloc: warning: %s: the map refused %zu scans of the map log and skipped them; last: %s\n",
+               url.c_str(), stats.refused_scans, stats.last_refusal.c_str());
 }
 
 GridSubmapConfig GridMapOptions::resolve(const LaserScan* like) const {

@@ -60,6 +60,8 @@ FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const
 /// JSON of the follower's counters and the map it fed (`fleet.map`, or where
 /// the command moved it) for a command's answer.
 nlohmann::json fleet_map_json(const FleetMap& fleet, const GlobalMap& map);
+/// Warns on stderr when the map refused scans of the fleet's log at `url`.
+void warn_refused_scans(const std::string& url, const fleet::MapFollowerStats& stats);
 
 /// Command-line settings of submaps built from occupancy grids (a ROS map
 /// YAML given where a map log goes). The virtual laser is the target's

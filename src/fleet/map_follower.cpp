@@ -22,7 +22,9 @@ std::size_t MapFollower::catch_up(GlobalMap& map) {
     try {
       const std::vector<MapUpdate> updates = reader_.poll();
       if (updates.empty()) break;
-      n += apply_updates(map, reader_.submaps(), updates);
+      const AppliedUpdates applied = apply_updates(map, reader_.submaps(), updates);
+      n += applied.added;
+      note_refusals(applied);
     } catch (const Error& e) {
       // A server restart: positions are kept; reconnect and read on, for a while.
       if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > config_.give_up_s) throw;
@@ -63,6 +65,13 @@ void MapFollower::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
+void MapFollower::note_refusals(const AppliedUpdates& applied) {
+  if (applied.refused == 0) return;
+  std::lock_guard lock(stats_mutex_);
+  stats_.refused_scans += applied.refused;
+  stats_.last_refusal = applied.last_refusal;
+}
+
 MapFollowerStats MapFollower::stats() const {
   std::lock_guard lock(stats_mutex_);
   return stats_;
@@ -81,9 +90,10 @@ void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
       const std::vector<MapUpdate> updates = reader_.poll(config_.block_s);
       if (updates.empty()) continue;
       std::unique_lock map_lock(mutex);
-      apply_updates(map, reader_.submaps(), updates);
+      const AppliedUpdates applied = apply_updates(map, reader_.submaps(), updates);
+      note_refusals(applied);
       std::lock_guard lock(stats_mutex_);
-      stats_.live_updates += updates.size();
+      stats_.live_updates += applied.added;
       stats_.duplicates = reader_.stats().duplicates;
       applied_ = reader_.positions();
     } catch (const Error& e) {

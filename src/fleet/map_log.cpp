@@ -311,15 +311,22 @@ void MapLogReader::resume(const std::vector<StreamPosition>& positions) {
   stats_.submaps = order_.size();
 }
 
-std::size_t apply_updates(GlobalMap& map, std::span<const std::string> submaps, std::span<const MapUpdate> updates) {
+AppliedUpdates apply_updates(GlobalMap& map, std::span<const std::string> submaps, std::span<const MapUpdate> updates) {
   for (const std::string& name : submaps)
     if (!map.find_submap(name)) map.add_submap(name);
+  AppliedUpdates out;
   for (const MapUpdate& u : updates) {
     const std::optional<std::uint32_t> found = map.find_submap(u.submap);
     const std::uint32_t id = found ? *found : map.add_submap(u.submap);
-    map.add_scan(id, u.scan, u.scan.pose);
+    try {
+      map.add_scan(id, u.scan, u.scan.pose);
+      ++out.added;
+    } catch (const Error& e) {
+      ++out.refused;
+      out.last_refusal = "submap " + u.submap + " scan " + std::to_string(u.seq) + ": " + e.what();
+    }
   }
-  return updates.size();
+  return out;
 }
 
 }  // namespace lshloc::fleet

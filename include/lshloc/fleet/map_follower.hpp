@@ -31,7 +31,9 @@ struct MapFollowerStats {
   std::size_t live_updates = 0;     ///< applied by the following thread
   std::size_t duplicates = 0;
   std::size_t reconnects = 0;
-  std::string last_error;  ///< the last failure the thread recovered from (empty: none)
+  std::string last_error;         ///< the last failure the thread recovered from (empty: none)
+  std::size_t refused_scans = 0;  ///< updates the map refused (apply_updates()), skipped
+  std::string last_refusal;       ///< why the last one was refused (empty: none)
 };
 
 class MapFollower {
@@ -66,6 +68,7 @@ class MapFollower {
 
  private:
   void follow(GlobalMap& map, std::shared_mutex& mutex);
+  void note_refusals(const AppliedUpdates& applied);
   MapFollowerConfig config_;
   RedisClient redis_;
   MapLogReader reader_;

@@ -151,10 +151,21 @@ class MapLogReader {
   MapLogReaderStats stats_;
 };
 
+/// What apply_updates() did with its updates.
+struct AppliedUpdates {
+  std::size_t added = 0;
+  /// Scans the map refused (GlobalMap::add_scan threw: e.g. a pose beyond the
+  /// grids' limits). Each left the map as it was, and every follower of the
+  /// log refuses the same ones.
+  std::size_t refused = 0;
+  std::string last_refusal;  ///< the submap, sequence number and reason of the last one
+};
+
 /// Applies updates to `map`: first every submap of `submaps` (registration
 /// order, MapLogReader::submaps()) not in it yet is opened, so that submap ids
 /// follow registration whether or not a submap has scans yet; then each scan
-/// is added at its pose. Returns the scans added.
-std::size_t apply_updates(GlobalMap& map, std::span<const std::string> submaps, std::span<const MapUpdate> updates);
+/// is added at its pose. A scan the map refuses is counted and skipped: the
+/// updates after it still apply.
+AppliedUpdates apply_updates(GlobalMap& map, std::span<const std::string> submaps, std::span<const MapUpdate> updates);
 
 }  // namespace lshloc::fleet
