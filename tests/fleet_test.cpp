@@ -319,6 +319,45 @@ TEST(FleetMapLog, DuplicatesAreSkippedGapsRefusedAndAMapperResumes) {
   }
 }
 
+TEST(FleetMapLog, ADamagedEntryStopsItsStreamWithoutLosingWhatOtherStreamsHold) {
+  LSHLOC_REQUIRE_REDIS(server);
+  RedisClient redis(server.address());
+  std::vector<LaserScan> scans;
+  for (int i = 0; i < 6; ++i) scans.push_back(scan_at(i));
+  fleet::register_map(redis, GlobalMapConfig{}, std::vector<std::string>{"a", "b"});
+  MapLogWriter(redis, "a", GlobalMapConfig{}).publish(scans);
+  MapLogWriter b(redis, "b", GlobalMapConfig{});
+  b.publish(std::span(scans).first(2));
+  // Stream b's third entry is damaged (one byte of its record flipped), then b goes on.
+  std::string damaged = fleet::encode_update(2, scans[2]);
+  damaged[damaged.size() / 2] = static_cast<char>(damaged[damaged.size() / 2] ^ 0x10);
+  const std::string key = MapLogConfig{}.stream_key("b");
+  redis.command({"XADD", key, "*", "seq", "2", "rec", damaged});
+  redis.command({"XADD", key, "*", "seq", "3", "rec", fleet::encode_update(3, scans[3])});
+  MapLogReader reader(redis);
+  // The first poll hands out all of a and b's first two, and says where it stopped ...
+  const std::vector<fleet::MapUpdate> first = reader.poll();
+  EXPECT_EQ(first.size(), 8u);
+  EXPECT_EQ(std::count_if(first.begin(), first.end(), [](const fleet::MapUpdate& u) { return u.submap == "a"; }), 6);
+  EXPECT_NE(reader.stats().stopped.find(key), std::string::npos) << reader.stats().stopped;
+  // ... the next meets the damaged entry again, names it, and loses nothing.
+  const std::vector<fleet::StreamPosition> before = reader.positions();
+  try {
+    reader.poll();
+    ADD_FAILURE() << "a damaged entry was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(key + " entry"), std::string::npos) << e.what();
+  }
+  const std::vector<fleet::StreamPosition> after = reader.positions();
+  ASSERT_EQ(before.size(), after.size());
+  for (std::size_t i = 0; i < before.size(); ++i) {
+    EXPECT_EQ(before[i].last_id, after[i].last_id);
+    EXPECT_EQ(before[i].next_seq, after[i].next_seq);
+  }
+  EXPECT_EQ(after[1].next_seq, 2u);
+  EXPECT_EQ(reader.stats().updates, 8u);
+}
+
 TEST(FleetMapLog, SubmapsAreRegisteredInTheOrderOfTheFirstListAndOnce) {
   LSHLOC_REQUIRE_REDIS(server);
   RedisClient redis(server.address());

@@ -24,7 +24,7 @@ std::size_t MapFollower::catch_up(GlobalMap& map) {
       if (updates.empty()) break;
       const AppliedUpdates applied = apply_updates(map, reader_.submaps(), updates);
       n += applied.added;
-      note_refusals(applied);
+      note_failures(applied);
     } catch (const Error& e) {
       // A server restart: positions are kept; reconnect and read on, for a while.
       if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > config_.give_up_s) throw;
@@ -65,11 +65,13 @@ void MapFollower::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
-void MapFollower::note_refusals(const AppliedUpdates& applied) {
-  if (applied.refused == 0) return;
+void MapFollower::note_failures(const AppliedUpdates& applied) {
+  const std::string stopped = reader_.stats().stopped;  // a poll that stopped early is a failure too
+  if (applied.refused == 0 && stopped.empty()) return;
   std::lock_guard lock(stats_mutex_);
   stats_.refused_scans += applied.refused;
-  stats_.last_refusal = applied.last_refusal;
+  if (applied.refused) stats_.last_refusal = applied.last_refusal;
+  if (!stopped.empty()) stats_.last_error = stopped;
 }
 
 MapFollowerStats MapFollower::stats() const {
@@ -91,7 +93,7 @@ void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
       if (updates.empty()) continue;
       std::unique_lock map_lock(mutex);
       const AppliedUpdates applied = apply_updates(map, reader_.submaps(), updates);
-      note_refusals(applied);
+      note_failures(applied);
       std::lock_guard lock(stats_mutex_);
       stats_.live_updates += applied.added;
       stats_.duplicates = reader_.stats().duplicates;

@@ -216,49 +216,57 @@ std::vector<MapUpdate> MapLogReader::poll(double block_s) {
       }
     }
   }
-  // Each stream's new updates, streams in registration order; a gap stops
-  // the reading there.
+  // Each stream's new updates, streams in registration order. A gap or an
+  // entry that cannot be decoded stops the reading there: what came before
+  // it is handed out, and the next poll meets it again and throws. Positions
+  // and counters move only with what this poll hands out, so a throw loses
+  // nothing that was read.
+  std::map<std::string, Position> positions = positions_;
+  stats_.stopped.clear();
   std::vector<std::vector<MapUpdate>> streams;
-  std::size_t collected = 0;
-  bool gap = false;
+  std::size_t collected = 0, duplicates = 0;
+  bool stop = false;
   for (const Reply& r : replies) {
     for (const Reply& stream : r.elements) {
-      if (gap || stream.elements.size() != 2) continue;
+      if (stop || stream.elements.size() != 2) continue;
       const std::string& key = stream.elements[0].text;
       const auto known = submap_of_key_.find(key);
       if (known == submap_of_key_.end()) continue;
       const std::string& name = known->second;
-      Position& pos = positions_[name];
+      Position& pos = positions[name];
       std::vector<MapUpdate>& mine = streams.emplace_back();
       for (const Reply& entry : stream.elements[1].elements) {
         if (entry.elements.size() != 2) continue;
         const std::string where = redis_.address().url() + " " + key + " entry " + entry.elements[0].text;
-        const std::string* record = field_of(entry.elements[1], "rec");
-        if (!record) throw Error(where + ": expected a rec field");
         MapUpdate u;
         u.submap = name;
-        decode_update(*record, where, u);
-        if (u.seq > pos.next_seq) {
-          // Hand out what came before the gap first; the next poll reads the gap again and fails.
-          if (collected > 0) {
-            gap = true;
-            break;
-          }
-          throw Error(where + ": sequence number " + std::to_string(u.seq) + " after " + std::to_string(pos.next_seq) +
-                      " was expected: updates of submap " + name + " are missing");
+        try {
+          const std::string* record = field_of(entry.elements[1], "rec");
+          if (!record) throw Error(where + ": expected a rec field");
+          decode_update(*record, where, u);
+          if (u.seq > pos.next_seq)
+            throw Error(where + ": sequence number " + std::to_string(u.seq) + " after " +
+                        std::to_string(pos.next_seq) + " was expected: updates of submap " + name + " are missing");
+        } catch (const Error& e) {
+          if (collected == 0) throw;
+          stats_.stopped = e.what();
+          stop = true;
+          break;
         }
         pos.last_id = entry.elements[0].text;
         if (u.seq < pos.next_seq) {
-          ++stats_.duplicates;
+          ++duplicates;
           continue;
         }
         ++pos.next_seq;
-        ++stats_.updates;
         ++collected;
         mine.push_back(std::move(u));
       }
     }
   }
+  positions_ = std::move(positions);
+  stats_.duplicates += duplicates;
+  stats_.updates += collected;
   // Round robin, one update of each submap in turn: the order in which a map
   // built from files is fed (eval/scenario_runner.hpp MapFeeder), so that a
   // localizer that catches up on a finished map gets the same map.

@@ -68,7 +68,7 @@ class MapFollower {
 
  private:
   void follow(GlobalMap& map, std::shared_mutex& mutex);
-  void note_refusals(const AppliedUpdates& applied);
+  void note_failures(const AppliedUpdates& applied);
   MapFollowerConfig config_;
   RedisClient redis_;
   MapLogReader reader_;

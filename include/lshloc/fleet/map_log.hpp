@@ -101,6 +101,9 @@ struct MapLogReaderStats {
   std::size_t updates = 0;     ///< updates returned (each once)
   std::size_t duplicates = 0;  ///< entries skipped because their sequence number was already seen
   std::size_t submaps = 0;     ///< submaps known from the registry
+  /// Why the last poll stopped early, at a gap or an entry it cannot decode
+  /// (empty: it did not); the poll after it meets that entry again.
+  std::string stopped;
 };
 
 /// A localizer's follower of every submap's stream.
