@@ -10,6 +10,7 @@ import concurrent.futures
 import os
 import re
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -50,6 +51,13 @@ def numeric_options(command):
 
 def main():
     work = tempfile.mkdtemp(prefix="lshloc-options-")
+    try:
+        return sweep(work)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def sweep(work):
     sim = os.path.join(work, "sim")
     subprocess.run([LSHLOC, "simulate", "--out", sim, "--buildings", "1", "--seed", "5", "--scans", "300"],
                    check=True, capture_output=True)
