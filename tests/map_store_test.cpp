@@ -4,10 +4,12 @@
 #include "lshloc/io/map_store.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <zlib.h>
 
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -221,7 +223,8 @@ TEST(MapStore, AFailedAppendLeavesTheFileAsItWasAcknowledged) {
   {
     io::MapAppender appender(path);
     appender.add_scan(0, world().submaps[0].scans[50], world().submaps[0].scans[50].pose);
-    // 100 km away: beyond the pose grid, so GlobalMap::add_scan throws half-way.
+    // 100 km away: beyond the pose grid, so GlobalMap::add_scan throws (the
+    // appender then refuses more: other failures could leave part of a scan).
     EXPECT_THROW(appender.add_scan(0, world().submaps[0].scans[51], Pose2(1e5, 0.0, 0.0)), Error);
     EXPECT_THROW(appender.add_scan(0, world().submaps[0].scans[52], world().submaps[0].scans[52].pose), Error);
     EXPECT_THROW(appender.compact({}), Error);  // the half-added scan never becomes a snapshot
@@ -230,6 +233,39 @@ TEST(MapStore, AFailedAppendLeavesTheFileAsItWasAcknowledged) {
   EXPECT_EQ(loaded.info.journal_scans, 1u);
   auto expected = map_of_first(50);
   expected->add_scan(0, world().submaps[0].scans[50], world().submaps[0].scans[50].pose);
+  test::expect_same_map_contents(*expected, *loaded.map);
+}
+
+TEST(MapStore, ASyncThatFailedPartWayIsRetriedWithoutDamagingTheJournal) {
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, *map_of_first(50));
+  const auto scan = [](std::size_t i) -> const LaserScan& { return world().submaps[0].scans[i]; };
+  {
+    io::MapAppender appender(path, {.sync_every = 100});
+    appender.add_scan(0, scan(50), scan(50).pose);
+    appender.sync();
+    for (std::size_t i = 51; i < 54; ++i) appender.add_scan(0, scan(i), scan(i).pose);
+    // A full disk: writes beyond 40 more bytes fail (EFBIG, as ENOSPC would).
+    const auto size = std::filesystem::file_size(path);
+    rlimit old{};
+    ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old), 0);
+    const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit small = old;
+    small.rlim_cur = size + 40;
+    ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+    EXPECT_THROW(appender.sync(), Error);
+    ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &old), 0);
+    std::signal(SIGXFSZ, old_handler);
+    EXPECT_EQ(std::filesystem::file_size(path), size + 40);  // part of a record was written
+    EXPECT_EQ(appender.acknowledged_scans(), map_of_first(50)->stats().scans + 1);
+    appender.sync();  // space again: the part is cut off and the records written whole
+    EXPECT_EQ(appender.acknowledged_scans(), map_of_first(50)->stats().scans + 4);
+  }
+  const io::LoadedMap loaded = io::load_map(path);
+  EXPECT_TRUE(loaded.warnings.empty());
+  EXPECT_EQ(loaded.info.journal_scans, 4u);
+  auto expected = map_of_first(50);
+  for (std::size_t i = 50; i < 54; ++i) expected->add_scan(0, scan(i), scan(i).pose);
   test::expect_same_map_contents(*expected, *loaded.map);
 }
 

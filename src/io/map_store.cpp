@@ -430,6 +430,7 @@ void MapAppender::open_file() {
     }
     if (::lseek(fd_, static_cast<off_t>(parsed.journal_end), SEEK_SET) < 0)
       throw Error(system_error(path_, "cannot seek to the journal's end"));
+    journal_end_ = parsed.journal_end;
     acknowledged_scans_ = map_->stats().scans;
   } catch (...) {
     ::close(fd_);
@@ -484,8 +485,22 @@ std::size_t MapAppender::add_scan(std::uint32_t submap, const LaserScan& scan, c
 
 void MapAppender::sync() {
   if (pending_.empty() || fd_ < 0) return;
+  if (sync_failed_)
+    throw Error(path_ + ": an earlier fsync of the journal failed; reopen the map (what it acknowledged is kept)");
+  if (tail_dirty_) {  // an earlier write failed part-way: its bytes must not precede the records
+    if (::ftruncate(fd_, static_cast<off_t>(journal_end_)) != 0 ||
+        ::lseek(fd_, static_cast<off_t>(journal_end_), SEEK_SET) < 0)
+      throw Error(system_error(path_, "cannot cut off a failed write from the journal"));
+    tail_dirty_ = false;
+  }
+  tail_dirty_ = true;
   write_all(fd_, pending_, path_);
-  if (::fdatasync(fd_) != 0) throw Error(system_error(path_, "cannot sync the journal"));
+  if (::fdatasync(fd_) != 0) {
+    sync_failed_ = true;
+    throw Error(system_error(path_, "cannot sync the journal"));
+  }
+  tail_dirty_ = false;
+  journal_end_ += pending_.size();
   pending_.clear();
   acknowledged_scans_ += pending_scans_;
   pending_scans_ = 0;
@@ -498,6 +513,9 @@ void MapAppender::compact(const nlohmann::json& meta) {
   const int fd = replace_file(path_, encode_snapshot(*map_, meta));
   ::close(fd_);
   fd_ = fd;  // locked, positioned at the end: the new, empty journal
+  const off_t end = ::lseek(fd_, 0, SEEK_CUR);
+  if (end < 0) throw Error(system_error(path_, "cannot find the new journal's start"));
+  journal_end_ = static_cast<std::uint64_t>(end);
 }
 
 }  // namespace lshloc::io

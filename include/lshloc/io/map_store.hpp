@@ -113,7 +113,10 @@ class MapAppender {
   /// returns the features it added. Syncs when the batch is full.
   std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose);
   /// Writes and fsyncs every pending record; afterwards every scan added so
-  /// far is acknowledged.
+  /// far is acknowledged. A failed write (a full disk) may be retried: the
+  /// next sync() first cuts off what it left behind the journal. After a
+  /// failed fsync the appender refuses to sync again (the kernel may have
+  /// dropped the pages): reopen the map, which keeps what was acknowledged.
   void sync();
   /// Scans in the map that are durable (snapshot plus synced journal).
   std::size_t acknowledged_scans() const { return acknowledged_scans_; }
@@ -132,7 +135,10 @@ class MapAppender {
   std::vector<std::uint8_t> pending_;  ///< encoded records not yet written
   std::size_t pending_scans_ = 0;
   std::size_t acknowledged_scans_ = 0;
-  bool broken_ = false;  ///< an add_scan() failed half-way in memory
+  std::uint64_t journal_end_ = 0;  ///< the file's end after the last good sync (or open/compact)
+  bool tail_dirty_ = false;        ///< a write failed part-way: bytes may lie beyond journal_end_
+  bool sync_failed_ = false;       ///< an fdatasync failed
+  bool broken_ = false;            ///< an add_scan() failed half-way in memory
 };
 
 }  // namespace lshloc::io
