@@ -5,7 +5,8 @@
 # as --map files, in the same order: the same trajectory, byte for byte (the
 # reader hands each poll's updates out round robin, as files are fed); and a
 # localizer started while a mapper is still publishing follows the map and
-# localizes. Skips when redis-server is absent.
+# localizes; a mapper on a server that refuses writes gives up, naming why.
+# Skips when redis-server is absent.
 # Usage: cli_fleet_test.sh LSHLOC
 set -euo pipefail
 LSHLOC=$1
@@ -63,6 +64,33 @@ assert j["first_localized_at"] is not None and j["final_submap"] == "sim-3-001-c
 (x, y, t), (u, v, w) = j["final_pose"], g["final_pose"]
 assert math.hypot(x - u, y - v) < 0.5 and abs(math.remainder(t - w, 2 * math.pi)) < math.radians(5), (j, g)
 PY
+
+# A server that lost a stream (restarted without its data) while a restarted mapper publishes:
+# the mapper says so instead of reporting its scans as published.
+"$LSHLOC" mapper --redis "$url" --prefix lost "$a" >/dev/null 2>&1
+"$LSHLOC" mapper --redis "$url" --prefix lost --rate 20 --retry 5 "$a" >"$d/lost.json" 2>"$d/lost.err" &
+mapper=$!
+sleep 1
+# (at once: a scan published between the two would start the stream anew at its own number)
+printf 'MULTI\nDEL lost:{sim-3-000-corrected.log.gz}:log\nCLIENT KILL TYPE normal SKIPME yes\nEXEC\n' |
+  redis-cli -p "$port" >/dev/null
+rc=0
+wait $mapper || rc=$?
+[ "$rc" != 0 ] || fail "a mapper whose stream the server lost exited 0: $(cat "$d/lost.json")"
+grep -q "lost updates it had acknowledged" "$d/lost.err" || fail "lost stream: $(tail -3 "$d/lost.err")"
+
+# A server that answers but takes no writes (out of memory): the mapper gives up after --retry
+# seconds without progress, naming the server's reason, instead of reconnecting forever.
+"$LSHLOC" mapper --redis "$url" --prefix full --rate 50 --retry 2 "$a" >/dev/null 2>"$d/full.err" &
+mapper=$!
+sleep 1
+redis-cli -p "$port" config set maxmemory 1 >/dev/null
+rc=0
+timeout 30 tail --pid=$mapper -f /dev/null || fail "a mapper on a server refusing writes is still running after 30 s"
+wait $mapper || rc=$?
+redis-cli -p "$port" config set maxmemory 0 >/dev/null
+[ "$rc" != 0 ] || fail "a mapper on a server refusing writes exited 0"
+grep -q "OOM" "$d/full.err" && grep -q "gave up" "$d/full.err" || fail "refused writes: $(tail -3 "$d/full.err")"
 
 # A wrong address names it.
 if "$LSHLOC" localize --map redis://127.0.0.1:1 "${target[@]}" >/dev/null 2>"$d/err"; then fail "a dead server was accepted"; fi

@@ -358,6 +358,26 @@ TEST(FleetMapLog, ADamagedEntryStopsItsStreamWithoutLosingWhatOtherStreamsHold) 
   EXPECT_EQ(reader.stats().updates, 8u);
 }
 
+TEST(FleetMapLog, AScanNoFollowerCouldReadIsNeverPublished) {
+  LSHLOC_REQUIRE_REDIS(server);
+  RedisClient redis(server.address());
+  std::vector<LaserScan> scans = {scan_at(0), scan_at(1), scan_at(2)};
+  scans[2].pose.x = std::nan("");
+  MapLogWriter writer(redis, "hall", GlobalMapConfig{});
+  try {
+    writer.publish(scans);
+    ADD_FAILURE() << "a NaN pose was published";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("scan 2 "), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("expected finite pose"), std::string::npos) << e.what();
+  }
+  const std::string key = MapLogConfig{}.stream_key("hall");
+  EXPECT_EQ(redis.command({"XLEN", key}).integer, 0);  // nothing of the call was sent
+  EXPECT_EQ(writer.next_seq(), 0u);
+  writer.publish(std::span(scans).first(2));
+  EXPECT_EQ(redis.command({"XLEN", key}).integer, 2);
+}
+
 TEST(FleetMapLog, SubmapsAreRegisteredInTheOrderOfTheFirstListAndOnce) {
   LSHLOC_REQUIRE_REDIS(server);
   RedisClient redis(server.address());

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "lshloc/io/scan_record.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
@@ -119,6 +120,12 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
     writers.emplace_back(redis, s.name, settings, log_config);
     total += s.scans.size();
   }
+  // A scan no follower could read stops here, before anything is sent (publish() refuses it too).
+  for (const Submap& s : sources)
+    for (const LaserScan& scan : s.scans)
+      if (const char* problem = io::scan_update_problem(scan, scan.pose))
+        throw Error(s.name + ": the scan at t=" + std::to_string(scan.timestamp) + " cannot be published: expected " +
+                    problem);
   std::vector<std::uint64_t> first_seq;
   for (const auto& w : writers) first_seq.push_back(w.next_seq());
   if (opt.together > 0) wait_for_mappers(redis, opt.prefix + ":barrier", opt.together, 3600.0);
@@ -130,6 +137,10 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
   std::vector<std::size_t> done(sources.size(), 0);
   std::size_t published = 0, reconnects = 0;
   const double started_at = unix_seconds();
+  // A server that answers but takes no writes (out of memory, read-only):
+  // reconnecting succeeds every time, so progress, not the connection, bounds the retries.
+  auto failing_since = std::chrono::steady_clock::now();  // with `failing`: the first failure since progress
+  bool failing = false;
   while (published < total) {
     for (std::size_t r = 0; r < sources.size(); ++r) {
       const std::span<const LaserScan> scans(sources[r].scans);
@@ -145,14 +156,29 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
       try {
         writers[r].publish(scans.subspan(done[r], n));
         done[r] += n, published += n;
+        failing = false;
       } catch (const Error& e) {
+        if (!failing) {
+          failing = true, failing_since = std::chrono::steady_clock::now();
+        } else {
+          if (seconds_since(failing_since) > opt.retry_s)
+            throw Error(std::string(e.what()) + " (no scan published for " + std::to_string(opt.retry_s) +
+                        " s: gave up)");
+          std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        }
         // The server went away (a restart): reconnect, and go on from what each stream holds.
         reconnect_within(redis, writers, opt.retry_s, e.what());
         ++reconnects;
         published = 0;
-        for (std::size_t q = 0; q < writers.size(); ++q)
-          done[q] = std::min(sources[q].scans.size(), static_cast<std::size_t>(writers[q].next_seq() - first_seq[q])),
+        for (std::size_t q = 0; q < writers.size(); ++q) {
+          if (writers[q].next_seq() < first_seq[q])
+            throw Error(log_config.stream_key(sources[q].name) + " at " + redis.address().url() +
+                        ": the server holds updates up to sequence number " + std::to_string(writers[q].next_seq()) +
+                        " but this mapper started at " + std::to_string(first_seq[q]) +
+                        ": it lost updates it had acknowledged");
+          done[q] = std::min(sources[q].scans.size(), static_cast<std::size_t>(writers[q].next_seq() - first_seq[q]));
           published += done[q];
+        }
       }
       if (tty && (published % 500 < n || published == total))
         std::fprintf(stderr, "\rpublished %zu/%zu scans of %zu submaps%s", published, total, sources.size(),

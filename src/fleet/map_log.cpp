@@ -135,6 +135,11 @@ void MapLogWriter::resync() {
 }
 
 void MapLogWriter::publish(std::span<const LaserScan> scans) {
+  // Every follower would stop at a record it cannot read: refuse it here, before anything is sent.
+  for (std::size_t k = 0; k < scans.size(); ++k)
+    if (const char* problem = io::scan_update_problem(scans[k], scans[k].pose))
+      throw Error(key_ + ": scan " + std::to_string(next_seq_ + k) + " (t=" + std::to_string(scans[k].timestamp) +
+                  ") cannot be published: expected " + problem);
   std::vector<std::vector<std::string>> batch;
   for (std::size_t i = 0; i < scans.size(); i += config_.batch) {
     batch.clear();

@@ -464,9 +464,8 @@ std::size_t MapAppender::add_scan(std::uint32_t submap, const LaserScan& scan, c
   if (submap >= map_->submap_count())
     throw Error(path_ + ": append to unknown submap " + std::to_string(submap) + " (the map has " +
                 std::to_string(map_->submap_count()) + ")");
-  for (const double v : {laser_pose.x, laser_pose.y, laser_pose.theta, scan.angle_min, scan.angle_increment})
-    if (!std::isfinite(v)) throw Error(path_ + ": a scan with a non-finite pose or beam geometry cannot be appended");
-  if (std::isnan(scan.max_range)) throw Error(path_ + ": a scan whose maximum range is NaN cannot be appended");
+  if (const char* problem = scan_update_problem(scan, laser_pose))
+    throw Error(path_ + ": a scan at t=" + std::to_string(scan.timestamp) + " cannot be appended: expected " + problem);
   const std::vector<std::uint8_t> payload = encode_scan(submap, scan, laser_pose);
   if (broken_) throw Error(path_ + ": an earlier append failed half-way; reopen the map to append again");
   LaserScan replayed = scan;  // exactly what a reload replays

@@ -14,6 +14,11 @@ namespace lshloc::io {
 /// maximum range (4 x f64), beam count (varint) and ranges (f32 each).
 void write_scan_update(ByteWriter& out, const LaserScan& scan, const Pose2& laser_pose);
 
+/// What read_scan_update() would refuse in this scan: "finite pose and beam
+/// geometry" or "a maximum range that is a number" (what was expected), or
+/// nullptr. Writers check it first, so that no reader meets such a record.
+const char* scan_update_problem(const LaserScan& scan, const Pose2& laser_pose);
+
 /// Reads what write_scan_update() wrote into `scan` (whose `pose` becomes the
 /// laser pose); fails through `in` (naming its source) on a non-finite pose
 /// or beam geometry, a maximum range that is NaN, or too few bytes.
