@@ -378,6 +378,24 @@ TEST(FleetMapLog, AScanNoFollowerCouldReadIsNeverPublished) {
   EXPECT_EQ(redis.command({"XLEN", key}).integer, 2);
 }
 
+TEST(FleetMapLog, AReadOfDuplicatesOnlyReadsOn) {
+  LSHLOC_REQUIRE_REDIS(server);
+  RedisClient redis(server.address());
+  std::vector<LaserScan> scans;
+  for (int i = 0; i < 301; ++i) scans.push_back(scan_at(0.01 * i));
+  MapLogWriter(redis, "hall", GlobalMapConfig{}).publish(scans);
+  // A reader resumed at sequence 300 but at the stream's start (a snapshot
+  // whose stream was republished): its first read of 256 entries holds only
+  // numbers it has seen, which must not read as "nothing new".
+  MapLogReader reader(redis, MapLogConfig{.batch = 256});
+  reader.resume({{"hall", "0-0", 300}});
+  const std::vector<fleet::MapUpdate> got = reader.poll();
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].seq, 300u);
+  EXPECT_EQ(reader.stats().duplicates, 300u);
+  EXPECT_TRUE(reader.poll().empty());
+}
+
 TEST(FleetMapLog, SubmapsAreRegisteredInTheOrderOfTheFirstListAndOnce) {
   LSHLOC_REQUIRE_REDIS(server);
   RedisClient redis(server.address());

@@ -188,6 +188,14 @@ void MapLogReader::refresh_registry() {
 }
 
 std::vector<MapUpdate> MapLogReader::poll(double block_s) {
+  for (;;) {  // each read moves past its duplicates: this ends
+    bool duplicates_only = false;
+    std::vector<MapUpdate> out = read_once(block_s, duplicates_only);
+    if (!duplicates_only) return out;
+  }
+}
+
+std::vector<MapUpdate> MapLogReader::read_once(double block_s, bool& duplicates_only) {
   refresh_registry();
   std::vector<MapUpdate> out;
   if (order_.empty()) return out;
@@ -272,6 +280,7 @@ std::vector<MapUpdate> MapLogReader::poll(double block_s) {
   positions_ = std::move(positions);
   stats_.duplicates += duplicates;
   stats_.updates += collected;
+  duplicates_only = collected == 0 && duplicates > 0;
   // Round robin, one update of each submap in turn: the order in which a map
   // built from files is fed (eval/scenario_runner.hpp MapFeeder), so that a
   // localizer that catches up on a finished map gets the same map.

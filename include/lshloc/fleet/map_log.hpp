@@ -124,7 +124,8 @@ class MapLogReader {
   /// per node, repeated every `cluster_poll_s`. A gap in a stream's sequence
   /// numbers throws lshloc::Error naming the submap and the numbers (an
   /// update was lost); an entry whose number was seen is skipped as a
-  /// duplicate.
+  /// duplicate (a read of duplicates only reads on: an empty result means
+  /// nothing new arrived).
   std::vector<MapUpdate> poll(double block_s = 0.0);
 
   /// Reads again from the server after a reconnect: positions are kept, so
@@ -142,6 +143,8 @@ class MapLogReader {
 
  private:
   void refresh_registry();
+  /// One read of poll(); `duplicates_only` when it read entries but all were duplicates.
+  std::vector<MapUpdate> read_once(double block_s, bool& duplicates_only);
   struct Position {
     std::string last_id = "0-0";  ///< the last stream entry read
     std::uint64_t next_seq = 0;
