@@ -123,6 +123,28 @@ python3 -c "print('FLASER 5 ' + ' '.join(['81.9'] * 5) + ' 0 0 0 0 0 0 1.0 host 
 if "$LSHLOC" localize --map "$d/empty.log" "${target[@]}" >/dev/null 2>"$d/err.txt"; then fail "an empty map was accepted"; fi
 grep -q "the map has no features" "$d/err.txt" || fail "empty map: $(cat "$d/err.txt")"
 
+# A log line whose pose lies beyond the map's grids: map build and map append name the file and line.
+python3 - "$a/sim-3-000-corrected.log.gz" "$d/far.log" <<'PY'
+import gzip, sys
+out, n = [], 0
+for line in gzip.open(sys.argv[1], "rt"):
+    f = line.split()
+    if f and f[0] == "FLASER":
+        n += 1
+        if n == 40:
+            f[2 + int(f[1])] = "1000000"  # the laser pose's x
+            line = " ".join(f) + "\n"
+            print(len(out) + 1, file=open(sys.argv[2] + ".line", "w"))
+    out.append(line)
+open(sys.argv[2], "w").writelines(out)
+PY
+far_line=$(cat "$d/far.log.line")
+if "$LSHLOC" map build "$d/far.log" --out "$d/far.map" >/dev/null 2>"$d/err.txt"; then fail "a pose 1000 km out was mapped"; fi
+grep -q "far.log:$far_line: scan 39 cannot enter the map: pose grid: cell" "$d/err.txt" || fail "far pose: $(cat "$d/err.txt")"
+cp "$d/m.map" "$d/far.map"
+if "$LSHLOC" map append "$d/far.map" "$d/far.log" >/dev/null 2>"$d/err.txt"; then fail "a pose 1000 km out was appended"; fi
+grep -q "far.log:$far_line: .*outside the grid" "$d/err.txt" || fail "far pose, append: $(cat "$d/err.txt")"
+
 # --print-config needs no inputs (it shows the defaults a run would use); a run without them names what is missing.
 echo '{"localizer": {"candidates_per_feature": 321}}' >"$d/patch.json"
 "$LSHLOC" localize --print-config --config "$d/patch.json" >"$d/cfg.json" || fail "localize --print-config alone"

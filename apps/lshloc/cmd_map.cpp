@@ -233,7 +233,13 @@ void add_append(CLI::App& map_cmd) {
     };
     std::size_t features = 0;
     for (std::size_t i = opt->from; i < end; ++i) {
-      features += appender.add_scan(submap, log.scans[i], log.scans[i].pose);
+      try {
+        features += appender.add_scan(submap, log.scans[i], log.scans[i].pose);
+      } catch (const Error& e) {
+        const std::string file = opt->log.substr(0, opt->log.find(','));  // LOG of LOG,POSES
+        throw Error(file + (log.scans[i].source_line ? ":" + std::to_string(log.scans[i].source_line) : "") + ": " +
+                    e.what());
+      }
       report();
       if (tty && ((i - opt->from) % 100 == 0 || i + 1 == end))
         std::fprintf(stderr, "\rmap append: scan %zu/%zu", i + 1 - opt->from, end - opt->from);

@@ -40,7 +40,13 @@ void MapFeeder::feed_until(double share) {
       const auto limit =
           std::min(scans.size(), static_cast<std::size_t>(share * static_cast<double>(scans.size()) + 0.5));
       if (fed_[r] < limit) {
-        map_.add_scan(ids_[r], scans[fed_[r]], scans[fed_[r]].pose);
+        const LaserScan& scan = scans[fed_[r]];
+        try {
+          map_.add_scan(ids_[r], scan, scan.pose);
+        } catch (const Error& e) {
+          throw Error(submaps_[r].name + (scan.source_line ? ":" + std::to_string(scan.source_line) : "") + ": scan " +
+                      std::to_string(fed_[r]) + " cannot enter the map: " + e.what());
+        }
         ++fed_[r];
         any = true;
       }
