@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -81,6 +82,29 @@ TEST(OccupancyGrid, RosMapFilesHoldTheGridRowsTopDown) {
       ASSERT_EQ(p, v == occupancy::kOccupied ? 0 : v == occupancy::kFree ? 254 : 205) << c << ", " << r;
     }
   }
+}
+
+TEST(OccupancyGrid, ARosMapsImageAndYamlAreReplacedTogetherOrNotAtAll) {
+  const OccupancyGrid a = build_occupancy_grid(scans_of_test_room());
+  const OccupancyGrid b = build_occupancy_grid(scans_of_test_room(), {.resolution = 0.1});
+  const std::string stem = test::temp_path("");
+  io::write_ros_map(stem, a);
+  const std::string image_a = test::read_file(stem + ".pgm");
+  // The YAML cannot be replaced (a directory took its name): the image stays a's.
+  std::filesystem::remove(stem + ".yaml");
+  std::filesystem::create_directories(stem + ".yaml/x");
+  EXPECT_THROW(io::write_ros_map(stem, b), Error);
+  EXPECT_EQ(test::read_file(stem + ".pgm"), image_a);
+  std::filesystem::remove_all(stem + ".yaml");
+  // No temporary files are left beside them.
+  const auto dir = std::filesystem::path(stem).parent_path();
+  const std::string name = std::filesystem::path(stem).filename().string();
+  for (const auto& entry : std::filesystem::directory_iterator(dir))
+    EXPECT_EQ(entry.path().filename().string().find(name + ".pgm.tmp"), std::string::npos) << entry.path();
+  // And when both can be written, both are b's.
+  io::write_ros_map(stem, b);
+  EXPECT_NE(test::read_file(stem + ".pgm"), image_a);
+  EXPECT_NE(test::read_file(stem + ".yaml").find("resolution: 0.1"), std::string::npos);
 }
 
 TEST(OccupancyGrid, RefusesScansWithoutReturnsAndBadSettings) {

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <vector>
 
 #include "lshloc/common/error.hpp"
 
@@ -82,6 +83,53 @@ void append_format(std::string& out, const char* format, ...) {
 
 void write_file_atomically(const std::string& path, std::string_view bytes) {
   ::close(replace_file(path, {reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()}));
+}
+
+void write_files_atomically(std::span<const FileOutput> files) {
+  std::vector<std::string> temporaries, backups;  // backups[i] empty: files[i] did not exist (or cannot be linked)
+  std::size_t renamed = 0;
+  const auto remove_leftovers = [&] {
+    for (std::size_t i = renamed; i < temporaries.size(); ++i) ::unlink(temporaries[i].c_str());
+    for (const std::string& b : backups)
+      if (!b.empty()) ::unlink(b.c_str());
+  };
+  try {
+    for (const FileOutput& f : files) {
+      temporaries.push_back(temporary_path_for(f.path));
+      const std::string& tmp = temporaries.back();
+      const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+      if (fd < 0) throw Error(system_error(tmp, "cannot create"));
+      try {
+        write_all(fd, {reinterpret_cast<const std::uint8_t*>(f.bytes.data()), f.bytes.size()}, tmp);
+        if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync"));
+      } catch (...) {
+        ::close(fd);
+        throw;
+      }
+      ::close(fd);
+    }
+    for (const FileOutput& f : files) {
+      const std::string backup = temporary_path_for(f.path);
+      backups.push_back(::link(f.path.c_str(), backup.c_str()) == 0 ? backup : std::string());
+    }
+    for (; renamed < files.size(); ++renamed) {
+      if (::rename(temporaries[renamed].c_str(), files[renamed].path.c_str()) == 0) continue;
+      const std::string why = system_error(files[renamed].path, "cannot replace it with " + temporaries[renamed]);
+      for (std::size_t i = 0; i < renamed; ++i) {  // put the old files back
+        if (backups[i].empty()) {
+          ::unlink(files[i].path.c_str());
+        } else if (::rename(backups[i].c_str(), files[i].path.c_str()) == 0) {
+          backups[i].clear();
+        }
+      }
+      throw Error(why);
+    }
+  } catch (...) {
+    remove_leftovers();
+    throw;
+  }
+  remove_leftovers();
+  for (const FileOutput& f : files) sync_directory_of(f.path);
 }
 
 void require_writable(const std::string& path) {

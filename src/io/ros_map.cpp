@@ -40,14 +40,17 @@ void write_ros_map(const std::string& stem, const OccupancyGrid& grid) {
     }
     image << row;
   }
-  write_file_atomically(pgm, image.str());
+  const std::string image_bytes = image.str();
   char origin[96];
   std::snprintf(origin, sizeof origin, "[%.9g, %.9g, %.9g]", grid.origin.x(), grid.origin.y(), grid.origin_yaw);
   std::ostringstream text;
   text << "image: " << std::filesystem::path(pgm).filename().string()
        << "\nmode: trinary\nresolution: " << std::setprecision(9) << grid.resolution << "\norigin: " << origin
        << "\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
-  write_file_atomically(yaml, text.str());
+  const std::string yaml_bytes = text.str();
+  // Together: an image beside the YAML of another map would be a silently wrong map.
+  const FileOutput files[] = {{pgm, image_bytes}, {yaml, yaml_bytes}};
+  write_files_atomically(files);
 }
 
 namespace {

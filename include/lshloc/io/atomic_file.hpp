@@ -39,6 +39,20 @@ int replace_file(const std::string& path, std::span<const std::uint8_t> bytes);
 /// replace_file() for a whole text or binary output, closing the file.
 void write_file_atomically(const std::string& path, std::string_view bytes);
 
+/// One file of write_files_atomically().
+struct FileOutput {
+  std::string path;
+  std::string_view bytes;
+};
+
+/// write_file_atomically() for files that belong together (a ROS map's YAML
+/// and its image): every file is written and fsync'ed beside its path first,
+/// then all are renamed into place. A failure before the renames (a full
+/// disk) leaves every old file; a failed rename puts back the files renamed
+/// before it (from hard links of the old ones). Only a crash between the
+/// renames, microseconds apart, can leave new and old files together.
+void write_files_atomically(std::span<const FileOutput> files);
+
 /// Throws lshloc::Error naming `path` unless a file can be written there
 /// (its directory exists and is writable, and it is no directory itself):
 /// the check a long run makes before it starts.
