@@ -100,6 +100,27 @@ TEST(LshDatabase, RanksByCollisionCountAndReturnsTheQueryItselfFirst) {
   EXPECT_EQ(q.queries, 50u);
 }
 
+TEST(LshDatabase, AnIdInsertedTwiceCountsAtMostLTimes) {
+  // Ids need not be unique (a caller may give every feature of a place one
+  // id): the ranking's counting sort must stay within its L + 1 counts.
+  const auto data = clustered(20, 20, 0.0, 5);
+  for (const std::size_t L : {std::size_t{1}, std::size_t{4}}) {
+    LshConfig cfg;
+    cfg.L = L, cfg.sketch_bits = 0;
+    LshDatabase db(cfg);
+    for (int k = 0; k < 3; ++k) db.insert(data[0], 7);
+    db.insert(data[1], 8);
+    LshQuery q(db);
+    std::vector<std::uint32_t> ids;
+    std::vector<std::uint16_t> counts;
+    db.query_counts(data[0], 10, ids, counts, q);
+    ASSERT_FALSE(ids.empty());
+    EXPECT_EQ(ids[0], 7u);
+    EXPECT_EQ(counts[0], L);
+    EXPECT_EQ(std::count(ids.begin(), ids.end(), 7u), 1);
+  }
+}
+
 TEST(LshDatabase, SketchRankingPutsTheTrueMatchAboveLookAlikes) {
   // Per place: one true copy near the query (~0.2 away) among 30 look-alikes
   // (~0.45 away) that collide almost as often. Collision counts barely tell

@@ -323,7 +323,10 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
   q.candidates_touched += touched;
   q.distinct_candidates += q.found_.size();
   // Rank by collision count with a counting sort (counts <= L): O(found + L)
-  // and stable, so ties keep first-seen order.
+  // and stable, so ties keep first-seen order. An id inserted twice into one
+  // bucket would count twice: counts are capped at L.
+  const auto L = static_cast<std::uint16_t>(config_.L);
+  for (std::uint32_t s : q.found_) q.slot_count_[s] = std::min(q.slot_count_[s], L);
   std::fill(q.histogram_.begin(), q.histogram_.end(), 0u);
   for (std::uint32_t s : q.found_) ++q.histogram_[q.slot_count_[s]];
   std::uint32_t start = 0;  // highest count first
