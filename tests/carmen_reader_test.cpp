@@ -95,7 +95,7 @@ TEST(CarmenReader, InvalidReadingsAreFlaggedNotFatal) {
 TEST(CarmenReader, RobotLaser1TakesItsOwnGeometry) {
   // type start fov res maxrange acc rem n r.. m rem.. lx ly lth rx ry rth tv rv fs ss ta ts host lts
   std::string line =
-      "ROBOTLASER1 0 -1.5708 3.1416 0.0174533 30.0 0.01 0 3 1.0 30.0 2.0 0 "
+      "ROBOTLASER1 0 -1.5708 3.1416 1.5708 30.0 0.01 0 3 1.0 30.0 2.0 0 "
       "0.5 0.6 0.7 0.1 0.2 0.3 0 0 0 0 0 55.5 host 55.5\n";
   const std::string path = test::temp_path(".log");
   test::write_file(path, line);
@@ -103,12 +103,74 @@ TEST(CarmenReader, RobotLaser1TakesItsOwnGeometry) {
   ASSERT_EQ(log.scans.size(), 1u);
   const auto& s = log.scans[0];
   EXPECT_NEAR(s.angle_min, -1.5708, 1e-12);
-  EXPECT_NEAR(s.angle_increment, 3.1416 / 2, 1e-12);
+  EXPECT_NEAR(s.angle_increment, 1.5708, 1e-12);  // the resolution field
   EXPECT_DOUBLE_EQ(s.max_range, 30.0);
   EXPECT_EQ(s.status(1), BeamStatus::kNoReturn);
   EXPECT_DOUBLE_EQ(s.pose.x, 0.5);
   EXPECT_DOUBLE_EQ(s.odometry.theta, 0.3);
   EXPECT_DOUBLE_EQ(s.timestamp, 55.5);
+}
+
+/// A ROBOTLASER1 line of n beams at 2 m: start, fov and resolution as given,
+/// the laser at `laser` and the robot at `robot`.
+std::string robotlaser_line(int n, const std::string& start, const std::string& fov, const std::string& res,
+                            const Pose2& laser, const Pose2& robot, double t) {
+  std::string s = "ROBOTLASER1 0 " + start + " " + fov + " " + res + " 30.0 0.01 0 " + std::to_string(n);
+  for (int i = 0; i < n; ++i) s += " 2.0";
+  s += " 0";
+  for (const Pose2& p : {laser, robot})
+    for (const double v : {p.x, p.y, p.theta}) s.append(" ").append(std::to_string(v));
+  return s + " 0 0 0 0 0 " + std::to_string(t) + " host " + std::to_string(t) + "\n";
+}
+
+TEST(CarmenReader, RobotLaser1BeamsFollowTheResolutionAndItsSign) {
+  const Pose2 at(1.0, 2.0, 0.5);
+  const std::string path = test::temp_path(".log");
+  // Clockwise from +90 degrees (a negative resolution), and a 360-degree
+  // laser whose field of view spans n steps.
+  test::write_file(path, robotlaser_line(181, "1.570796", "3.141593", "-0.017453", at, at, 1.0) +
+                             robotlaser_line(360, "-3.141593", "6.283185", "0.017453", at, at, 2.0));
+  const auto log = read_carmen_log(path);
+  ASSERT_EQ(log.scans.size(), 2u);
+  EXPECT_NEAR(log.scans[0].bearing(180), 1.570796 - 180 * 0.017453, 1e-9);
+  EXPECT_NEAR(log.scans[1].bearing(359), -3.141593 + 359 * 0.017453, 1e-9);
+  // Degrees, and a resolution the field of view does not span, are refused.
+  std::string e = expect_error(robotlaser_line(181, "-90", "180", "1", at, at, 1.0));
+  EXPECT_NE(e.find(":1: ROBOTLASER1 start angle -90 and field of view 180: expected radians"), std::string::npos) << e;
+  e = expect_error(robotlaser_line(2, "0", "0", "0", at, at, 0.0) +
+                   robotlaser_line(181, "-1.570796", "3.141593", "0.008727", at, at, 1.0));
+  EXPECT_NE(e.find(":1: ROBOTLASER1 start angle"), std::string::npos) << e;  // fov 0
+  e = expect_error(robotlaser_line(181, "-1.570796", "3.141593", "0.008727", at, at, 1.0));
+  EXPECT_NE(e.find(":1: ROBOTLASER1 resolution 0.008727 rad and field of view 3.141593 rad disagree"),
+            std::string::npos)
+      << e;
+}
+
+TEST(CarmenReader, RobotLaser1GivesTheLasersMountingPose) {
+  // A laser 0.3 m behind the robot's centre, facing backwards.
+  const Pose2 mount(-0.3, 0.05, 3.0);
+  std::string text;
+  for (int i = 0; i < 5; ++i) {
+    const Pose2 robot(0.4 * i, 0.1 * i * i, 0.2 * i);
+    text += robotlaser_line(181, "-1.570796", "3.141593", "0.017453", robot * mount, robot, i);
+  }
+  const std::string path = test::temp_path(".log");
+  test::write_file(path, "PARAM robot_frontlaser_offset 0.1\n" + text);
+  const auto log = read_carmen_log(path);
+  ASSERT_TRUE(log.robotlaser_offset.has_value());
+  EXPECT_NEAR(log.robotlaser_offset->x, mount.x, 1e-5);
+  EXPECT_NEAR(log.robotlaser_offset->y, mount.y, 1e-5);
+  EXPECT_NEAR(log.robotlaser_offset->theta, mount.theta, 1e-5);
+  EXPECT_NEAR(log.front_laser_offset().theta, mount.theta, 1e-5);  // the lines' pose beats the PARAM's x
+  // Laser poses from a map beside robot poses from odometry (a corrected log): no one offset.
+  text += robotlaser_line(181, "-1.570796", "3.141593", "0.017453", Pose2(5.0, 5.0, 1.0), Pose2(0.0, 0.0, 0.0), 6.0);
+  test::write_file(path, "PARAM robot_frontlaser_offset 0.1\n" + text);
+  const auto corrected = read_carmen_log(path);
+  EXPECT_FALSE(corrected.robotlaser_offset.has_value());
+  EXPECT_DOUBLE_EQ(corrected.front_laser_offset().x, 0.1);
+  // The PARAM itself must be a whole number of metres, named by its line.
+  const std::string e = expect_error(flaser_line(3, 1.0, 1.0) + "PARAM robot_frontlaser_offset 25cm\n");
+  EXPECT_NE(e.find(":2: field 3 is '25cm'"), std::string::npos) << e;
 }
 
 TEST(CarmenReader, MalformedLinesNameFileLineAndExpectation) {

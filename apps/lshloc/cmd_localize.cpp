@@ -192,8 +192,11 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   while ((opt.length == 0 || done < opt.length) && reader.next(rec)) {
     if (rec.type == io::CarmenRecord::Type::kParam) params.params[rec.param_name] = rec.param_value;
     if (rec.type != io::CarmenRecord::Type::kLaser || index++ < opt.start) continue;
-    if (!localizer)
+    if (!localizer) {
+      params.path = "stdin";
+      params.robotlaser_offset = reader.robotlaser_offset();  // the first ROBOTLASER1 line's, if any
       localizer = std::make_unique<Localizer>(map, with_target_laser_offset(config, params.front_laser_offset()));
+    }
     LocalizationEstimate e;
     {
       std::shared_lock<std::shared_mutex> lock;

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include "lshloc/common/error.hpp"
 
@@ -106,10 +107,27 @@ void CarmenReader::parse_robotlaser1(const std::string& where, CarmenRecord& rec
   LaserScan& s = record.scan;
   const double start = parse_double(f[2], where, 2, "the start angle [rad]");
   const double fov = parse_double(f[3], where, 3, "the field of view [rad]");
+  const double resolution = parse_double(f[4], where, 4, "the angular resolution [rad]");
   const double max_range = parse_double(f[5], where, 5, "the maximum range [m]");
-  if (!std::isfinite(start) || !std::isfinite(fov) || !(fov > 0.0) || !(max_range > 0.0)) {
-    throw Error(where + ": ROBOTLASER1 start angle, field of view and maximum range must be finite, fov and range > 0");
+  if (!std::isfinite(start) || !std::isfinite(fov) || !std::isfinite(resolution) || !(fov > 0.0) ||
+      !(max_range > 0.0)) {
+    throw Error(where +
+                ": ROBOTLASER1 start angle, field of view, resolution and maximum range must be finite, fov and range "
+                "> 0");
   }
+  // Angles in degrees (start -90, fov 180) would read as beams over many turns.
+  constexpr double kTurn = 2.0 * std::numbers::pi + 1e-6;
+  if (std::abs(start) > kTurn || fov > kTurn)
+    throw Error(where + ": ROBOTLASER1 start angle " + std::string(f[2]) + " and field of view " + std::string(f[3]) +
+                ": expected radians (at most 2 pi)");
+  // The beam step is the resolution (its sign the sweep's direction); the
+  // field of view spans n - 1 or n steps of it (360-degree lasers), within
+  // 1% (the fields are printed rounded).
+  const auto spans = [&](double steps) { return std::abs(std::abs(resolution) * steps - fov) <= 0.01 * fov; };
+  if (n > 1 && !spans(static_cast<double>(n - 1)) && !spans(static_cast<double>(n)))
+    throw Error(where + ": ROBOTLASER1 resolution " + std::string(f[4]) + " rad and field of view " +
+                std::string(f[3]) + " rad disagree for " + std::to_string(n) +
+                " beams: expected the field of view to span n - 1 (or n) steps of the resolution");
   s.ranges.resize(n);
   for (std::size_t i = 0; i < n; ++i) s.ranges[i] = parse_range(f[9 + i], where, 9 + i);
   const std::size_t after = 10 + n + m;
@@ -118,8 +136,18 @@ void CarmenReader::parse_robotlaser1(const std::string& where, CarmenRecord& rec
   s.timestamp = parse_double(f[after + 11], where, after + 11, "the timestamp");
   if (!std::isfinite(s.timestamp)) throw Error(where + ": the timestamp is not finite");
   s.angle_min = start;
-  s.angle_increment = n > 1 ? fov / static_cast<double>(n - 1) : 0.0;
+  s.angle_increment = n > 1 ? resolution : 0.0;
   s.max_range = max_range;
+  // The laser's mounting pose on the robot, from the line's laser and robot
+  // poses: one value over a raw log (both from odometry); a corrected log's
+  // laser poses are map poses, its robot poses odometry, so theirs varies.
+  const Pose2 offset = s.odometry.inverse() * s.pose;
+  if (!robotlaser_offset_) {
+    robotlaser_offset_ = offset;
+  } else if (!robotlaser_offset_varies_) {
+    const Pose2 d = robotlaser_offset_->inverse() * offset;
+    if (std::hypot(d.x, d.y) > 1e-3 || std::abs(wrap_angle(d.theta)) > 1e-3) robotlaser_offset_varies_ = true;
+  }
 }
 
 void CarmenReader::parse_odom(const std::string& where, CarmenRecord& record) {
@@ -158,6 +186,10 @@ bool CarmenReader::next(CarmenRecord& record) {
       record.type = CarmenRecord::Type::kParam;
       record.param_name = fields_[1];
       record.param_value = fields_[2];
+      if (record.param_name == "robot_frontlaser_offset" &&
+          !std::isfinite(parse_double(fields_[2], where, 2, "the front laser's offset [m]")))
+        throw Error(where + ": PARAM robot_frontlaser_offset is '" + std::string(fields_[2]) +
+                    "', expected a number of metres");
       if (record.param_name == "robot_front_laser_max") {
         const double v = parse_double(fields_[2], where, 2, "the laser's maximum range [m]");
         if (v > 0.0 && std::isfinite(v)) flaser_max_range_ = v;
@@ -216,11 +248,13 @@ void CarmenReader::require_messages() const {
 }
 
 Pose2 CarmenLog::front_laser_offset() const {
+  if (robotlaser_offset) return *robotlaser_offset;
   const auto it = params.find("robot_frontlaser_offset");
   if (it == params.end()) return {};
   double v = 0.0;
-  const auto [p, ec] = std::from_chars(it->second.data(), it->second.data() + it->second.size(), v);
-  if (ec != std::errc() || !std::isfinite(v)) {
+  const char* end = it->second.data() + it->second.size();
+  const auto [p, ec] = std::from_chars(it->second.data(), end, v);
+  if (ec != std::errc() || p != end || !std::isfinite(v)) {
     throw Error(path + ": PARAM robot_frontlaser_offset is '" + it->second + "', expected a number of metres");
   }
   return {v, 0.0, 0.0};
@@ -246,6 +280,7 @@ CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& con
     }
   }
   log.skipped_messages = reader.skipped();
+  log.robotlaser_offset = reader.robotlaser_offset();
   reader.require_messages();
   log.warnings = reader.warnings();
   return log;

@@ -6,6 +6,7 @@
 // state and is safe from any thread.
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -65,6 +66,13 @@ class CarmenReader {
   /// Throws lshloc::Error unless some CARMEN message (read or skipped) was
   /// seen: a file with none is no log (README.md, random bytes).
   void require_messages() const;
+  /// The laser's mounting pose on the robot that the ROBOTLASER1 lines read
+  /// so far give (robot pose^-1 * laser pose), when they all agree (within
+  /// 1 mm and 1 mrad): nullopt without ROBOTLASER1 lines, or when it varies
+  /// (a corrected log: map laser poses beside odometry robot poses).
+  std::optional<Pose2> robotlaser_offset() const {
+    return robotlaser_offset_varies_ ? std::nullopt : robotlaser_offset_;
+  }
 
  private:
   void parse_flaser(const std::string& where, CarmenRecord& record);
@@ -82,6 +90,8 @@ class CarmenReader {
   // Laser time order: scans stamped before / at the previous scan's time.
   double last_scan_time_ = -std::numeric_limits<double>::infinity();
   std::size_t backwards_ = 0, repeated_ = 0, first_backwards_line_ = 0, first_repeated_line_ = 0;
+  std::optional<Pose2> robotlaser_offset_;
+  bool robotlaser_offset_varies_ = false;
 };
 
 /// A whole log in memory (the scans, odometry and parameters).
@@ -92,13 +102,14 @@ struct CarmenLog {
   std::vector<OdometryReading> odometry;
   std::map<std::string, std::string> params;
   std::map<std::string, std::size_t> skipped_messages;  ///< other message types, counted by type
+  std::optional<Pose2> robotlaser_offset;               ///< CarmenReader::robotlaser_offset() of the whole file
 
   /// Whether GMapping corrected the log (it writes NEFF messages): its scan
   /// poses are then map poses, not odometry.
   bool gmapping_corrected() const { return skipped_messages.count("NEFF") != 0; }
 
-  /// The front laser's mounting pose on the robot (PARAM
-  /// robot_frontlaser_offset, metres forward), identity when absent.
+  /// The laser's mounting pose on the robot: robotlaser_offset when the log
+  /// has one, else PARAM robot_frontlaser_offset (metres forward), else identity.
   Pose2 front_laser_offset() const;
 };
 
