@@ -145,6 +145,24 @@ cp "$d/m.map" "$d/far.map"
 if "$LSHLOC" map append "$d/far.map" "$d/far.log" >/dev/null 2>"$d/err.txt"; then fail "a pose 1000 km out was appended"; fi
 grep -q "far.log:$far_line: .*outside the grid" "$d/err.txt" || fail "far pose, append: $(cat "$d/err.txt")"
 
+# A target without odometry (its FLASER odometry fields all zero) is said to be one and still localized.
+python3 - "$b/sim-3-001.log.gz" "$d/noodom.log" <<'PY'
+import gzip, sys
+with open(sys.argv[2], "w") as out:
+    for line in gzip.open(sys.argv[1], "rt"):
+        f = line.split()
+        if f and f[0] == "FLASER":
+            n = int(f[1])
+            f[5 + n:8 + n] = ["0", "0", "0"]
+            line = " ".join(f) + "\n"
+        out.write(line)
+PY
+"$LSHLOC" localize "${maps[@]}" --target "$d/noodom.log" --start 300 --length 150 --json >"$d/noodom.json" 2>"$d/err.txt"
+grep -q "its odometry never changes over 150 scans: localizing without odometry" "$d/err.txt" ||
+  fail "no odometry: $(cat "$d/err.txt")"
+python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['localized'] and j['final_submap'] == 'sim-3-001-corrected.log.gz', j" \
+  "$d/noodom.json" || fail "a target without odometry was not localized in its building"
+
 # --print-config needs no inputs (it shows the defaults a run would use); a run without them names what is missing.
 echo '{"localizer": {"candidates_per_feature": 321}}' >"$d/patch.json"
 "$LSHLOC" localize --print-config --config "$d/patch.json" >"$d/cfg.json" || fail "localize --print-config alone"

@@ -91,6 +91,29 @@ TEST(ScanMatcher, RecoversKnownMotionInARoom) {
   EXPECT_LE(matcher.keyframe_poses().size(), matcher.config().window_keyframes);
 }
 
+TEST(ScanMatcher, WithoutOdometryEveryScanIsMatchedFromTheMotionSoFar) {
+  // A laser alone: its odometry fields never change. With the odometry the
+  // matcher would take every scan as standing still.
+  const auto truth = room_path();
+  test::LaserSim sim(test::test_room());
+  ScanMatcherConfig config;
+  config.odometry = false;
+  ScanMatcher matcher(config);
+  ScanMatchResult r;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    r = matcher.add_scan(sim.scan(truth[i], Pose2::identity(), static_cast<double>(i) * 0.1));
+    if (i > 0) {
+      EXPECT_EQ(r.source, ScanMatchSource::kMatched) << "scan " << i;
+    }
+    expect_pose_near(r.laser_pose, truth[0].between(truth[i]), 0.02, 0.5 * kDeg, "pose " + std::to_string(i));
+  }
+  EXPECT_EQ(matcher.stats().stationary, 0u);
+  ScanMatcher with_odometry;  // the same scans with the constant odometry taken at its word
+  for (std::size_t i = 0; i < truth.size(); ++i)
+    r = with_odometry.add_scan(sim.scan(truth[i], Pose2::identity(), static_cast<double>(i) * 0.1));
+  EXPECT_GT(translation_distance(r.laser_pose, truth[0].between(truth.back())), 1.0);
+}
+
 TEST(ScanMatcher, AnAbsurdOdometryJumpIsRefusedNotAllocated) {
   // Odometry that jumps 1e8 m between two scans (a corrupt log) would ask
   // for a lookup grid of 1e16 cells: refused with a message naming the cap.

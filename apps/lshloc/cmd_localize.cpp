@@ -49,6 +49,7 @@ struct LocalizeOptions {
   std::string plot_dir;
   bool json = false;
   bool map_slam = false;
+  bool no_odometry = false;
   std::size_t start = 0;
   std::size_t length = 0;
   std::optional<double> from_s, to_s;
@@ -86,6 +87,12 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
                       std::make_move_iterator(scans.begin() + static_cast<std::ptrdiff_t>(end)));
   target.truth.assign(target.scans.size(), std::nullopt);
   target.laser_offset = log.front_laser_offset();
+  target.odometry = !opt.no_odometry && odometry_changes(target.scans);
+  if (!target.odometry && !opt.no_odometry)
+    std::fprintf(stderr,
+                 "lshloc: %s: its odometry never changes over %zu scans: localizing without odometry (every scan "
+                 "matched from the motion so far; --no-odometry says so for a stream)\n",
+                 path.c_str(), target.scans.size());
   return target;
 }
 
@@ -195,7 +202,9 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
     if (!localizer) {
       params.path = "stdin";
       params.robotlaser_offset = reader.robotlaser_offset();  // the first ROBOTLASER1 line's, if any
-      localizer = std::make_unique<Localizer>(map, with_target_laser_offset(config, params.front_laser_offset()));
+      LocalizerConfig c = with_target_laser_offset(config, params.front_laser_offset());
+      if (opt.no_odometry) c.scan_matcher.odometry = false;
+      localizer = std::make_unique<Localizer>(map, c);
     }
     LocalizationEstimate e;
     {
@@ -423,6 +432,9 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--plot", opt->plot_dir,
                   "write figures (PNG and SVG) into this directory: the run over the answer's submap, and the "
                   "confidence over time");
+  cmd->add_flag("--no-odometry", opt->no_odometry,
+                "the targets have no odometry (a laser alone): match every scan from the motion so far; a target log "
+                "whose odometry never changes is localized so without it");
   cmd->add_flag("--map-slam", opt->map_slam,
                 "map logs given without a poses file are raw logs: pose their scans by lshloc's SLAM (scan matching "
                 "and loop closure) instead of taking their FLASER poses");

@@ -9,6 +9,14 @@
 
 namespace lshloc {
 
+bool odometry_changes(std::span<const LaserScan> scans) {
+  if (scans.size() < 2) return true;
+  const Pose2& first = scans.front().odometry;
+  return std::any_of(scans.begin() + 1, scans.end(), [&](const LaserScan& s) {
+    return s.odometry.x != first.x || s.odometry.y != first.y || s.odometry.theta != first.theta;
+  });
+}
+
 const std::vector<std::string>& canonical_building_order() {
   static const std::vector<std::string> order = {
       "fr079",      "intel",     "aces",       "fr101",           "mit-csail",         "acapulco",

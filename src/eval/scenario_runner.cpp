@@ -76,6 +76,7 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
                             std::shared_mutex* map_mutex) {
   ScenarioRun run;
   config = with_target_laser_offset(config, target.laser_offset);
+  if (!target.odometry) config.scan_matcher.odometry = false;
   Localizer localizer(map, config);
   const auto& scans = target.scans;
   run.estimates.reserve(scans.size());

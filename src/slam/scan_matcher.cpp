@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <limits>
 #include <string>
 
@@ -313,6 +314,36 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
     result.source = ScanMatchSource::kFirst;
     result.laser_pose = Pose2::identity();
     result.quality = 1.0;
+  } else if (!config_.odometry) {
+    // No odometry: the constant-velocity prediction, else standing still.
+    const double dt = scan.timestamp - previous_timestamp_;
+    const double k = previous_dt_ > 0.0 && dt > 0.0 ? std::clamp(dt / previous_dt_, 0.0, 3.0) : 1.0;
+    const Pose2 velocity_step(k * previous_laser_step_.x, k * previous_laser_step_.y, k * previous_laser_step_.theta);
+    result.laser_pose = previous_laser_pose_ * velocity_step;
+    result.source = ScanMatchSource::kOdometry;
+    if (!map_points_.empty()) {
+      thin_source(endpoints_);
+      bool ok = match(result.laser_pose, velocity_step, result);
+      // Failing that, from standing still, turned by 0, -10, +10, ... +40
+      // degrees (a turn faster than the last step's: the prediction's error
+      // is mostly in heading): the smallest turn that fits.
+      for (int j = 0; !ok && j <= 8; ++j) {
+        ++stats_.velocity_retries;
+        const double turn = (j % 2 == 0 ? 1.0 : -1.0) * ((j + 1) / 2) * (10.0 * std::numbers::pi / 180.0);
+        const Pose2 step(0.0, 0.0, turn);
+        ScanMatchResult retry = result;
+        retry.laser_pose = previous_laser_pose_ * step;
+        if (match(retry.laser_pose, step, retry)) result = retry, ok = true;
+      }
+      if (ok) {
+        result.source = ScanMatchSource::kMatched;
+        ++stats_.matched;
+        if (result.degenerate) ++stats_.degenerate;
+      } else {
+        result.degenerate = false;
+        ++stats_.odometry_fallbacks;  // (the prediction kept)
+      }
+    }
   } else {
     // Odometry increment of the robot, moved into the laser frame.
     const Pose2 robot_step = previous_odometry_.between(scan.odometry);

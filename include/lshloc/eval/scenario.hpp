@@ -7,6 +7,7 @@
 // order is a constant built once) and are safe from any thread.
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -41,7 +42,13 @@ struct TargetRun {
   std::vector<LaserScan> scans;             ///< raw scans, in log order
   std::vector<std::optional<Pose2>> truth;  ///< ground-truth laser pose per scan, in the submap frame
   Pose2 laser_offset;
+  /// false: the log's odometry never changes (a laser alone): the scan
+  /// matcher runs without it (ScanMatcherConfig::odometry).
+  bool odometry = true;
 };
+
+/// Whether the scans' odometry poses ever change (fewer than two scans: true).
+bool odometry_changes(std::span<const LaserScan> scans);
 
 struct ScenarioConfig {
   std::string building = "fr079";   ///< target building

@@ -74,6 +74,10 @@ struct ScanMatcherConfig {
   /// oscillate between correspondence sets, and on sparse or cluttered scans
   /// such matches are where the heading jumps by degrees.
   bool reject_unconverged = true;
+  /// false: the log has no odometry (a laser alone, or odometry fields that
+  /// never change): every scan is matched, from the constant-velocity
+  /// prediction and, failing that, from standing still.
+  bool odometry = true;
   double stationary_translation = 1e-3;  ///< [m] odometry step below which matching is skipped ...
   double stationary_rotation = 1e-3;     ///< [rad] ... (the pose still moves with odometry)
 
