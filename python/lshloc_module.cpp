@@ -9,12 +9,14 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <numbers>
 #include <string>
 #include <tuple>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/scan_record.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/map_store.hpp"
 #include "lshloc/io/ros_map.hpp"
@@ -41,6 +43,16 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
   s.ranges.assign(ranges.data(), ranges.data() + ranges.size());
   s.angle_min = angle_min, s.angle_increment = angle_increment, s.max_range = max_range, s.timestamp = timestamp;
   s.pose = to_pose(pose), s.odometry = to_pose(odometry);
+  if (const char* problem = io::scan_update_problem(s, s.pose))
+    throw Error(std::string("LaserScan: expected ") + problem);
+  // Degrees (angle_min -90, step 1) would spread the beams over many turns.
+  const double span = std::abs(angle_increment) * static_cast<double>(s.ranges.empty() ? 0 : s.ranges.size() - 1);
+  constexpr double kTurn = 2.0 * std::numbers::pi + 1e-6;
+  if (std::abs(angle_min) > kTurn || span > kTurn)
+    throw Error("LaserScan: angle_min " + std::to_string(angle_min) + " and angle_increment " +
+                std::to_string(angle_increment) + " over " + std::to_string(s.ranges.size()) +
+                " beams: expected radians (a scan spans at most 2 pi)");
+  if (!(max_range > 0.0)) throw Error("LaserScan: expected max_range > 0 [m], got " + std::to_string(max_range));
   return s;
 }
 
@@ -89,7 +101,10 @@ PYBIND11_MODULE(lshloc, m) {
       .def_readonly("path", &io::CarmenLog::path)
       .def_readonly("scans", &io::CarmenLog::scans)
       .def_property_readonly("laser_offset", [](const io::CarmenLog& l) { return to_tuple(l.front_laser_offset()); })
-      .def_property_readonly("gmapping_corrected", &io::CarmenLog::gmapping_corrected);
+      .def_property_readonly("gmapping_corrected", &io::CarmenLog::gmapping_corrected)
+      .def_readonly("warnings", &io::CarmenLog::warnings,
+                    "what the reader noticed (time stamps backwards or repeated, bytes after the gzip stream), "
+                    "each naming the file and line");
   m.def(
       "read_carmen_log", [](const std::string& path) { return io::read_carmen_log(path); }, py::arg("path"),
       py::call_guard<py::gil_scoped_release>(), "Reads a CARMEN log (plain or .gz)");

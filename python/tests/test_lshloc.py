@@ -52,6 +52,22 @@ def test_a_scan_is_numpy_in_and_out():
     assert scan.pose == (1.0, 2.0, 0.5)
     with pytest.raises(lshloc.Error):
         lshloc.LaserScan(np.zeros((2, 2), dtype=np.float32), 0.0, 0.1)
+    # Degrees, a non-finite geometry or pose and a NaN maximum range are refused with what was expected.
+    with pytest.raises(lshloc.Error, match="expected radians"):
+        lshloc.LaserScan(np.ones(181, dtype=np.float32), angle_min=-90.0, angle_increment=1.0)
+    with pytest.raises(lshloc.Error, match="expected finite pose"):
+        lshloc.LaserScan(ranges, angle_min=-0.5, angle_increment=0.25, pose=(np.nan, 0.0, 0.0))
+    with pytest.raises(lshloc.Error, match="max_range|maximum range"):
+        lshloc.LaserScan(ranges, angle_min=-0.5, angle_increment=0.25, max_range=np.nan)
+
+
+def test_a_logs_warnings_reach_python(tmp_path):
+    log = tmp_path / "back.log"
+    line = "FLASER 3 1.0 1.0 1.0 0 0 0 0 0 0 {t} host {t}\n"
+    log.write_text(line.format(t=5.0) + line.format(t=4.0))
+    read = lshloc.read_carmen_log(str(log))
+    assert [s.timestamp for s in read.scans] == [5.0, 4.0]
+    assert len(read.warnings) == 1 and "first at line 2" in read.warnings[0], read.warnings
 
 
 def test_localizes_in_the_right_building_against_ground_truth(world):
