@@ -186,17 +186,22 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
 /// The target from stdin ("-"): each scan is localized as it arrives and its
 /// estimate printed at once (a CSV row, or a JSON line with --json); the
 /// answer follows on stderr at the end of the stream.
+/// `read_ahead`: records `reader` gave before (up to the first scan, whose
+/// laser a map from ROS grids takes).
 void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const LocalizeOptions& opt,
-                     std::shared_mutex* map_mutex) {
-  io::CarmenReader reader("-");
+                     std::shared_mutex* map_mutex, io::CarmenReader& reader, std::vector<io::CarmenRecord> read_ahead) {
   io::CarmenLog params;  // the PARAM lines seen before the first scan (the laser offset)
   std::unique_ptr<Localizer> localizer;
   io::CarmenRecord rec;
-  std::size_t index = 0, done = 0, confident = 0;
+  std::size_t index = 0, done = 0, confident = 0, ahead = 0;
   std::optional<std::size_t> first_confident;
   LocalizationEstimate last;
   if (!opt.json) std::printf("%s", kCsvHeader);
-  while ((opt.length == 0 || done < opt.length) && reader.next(rec)) {
+  const auto next = [&] {
+    if (ahead < read_ahead.size()) return rec = std::move(read_ahead[ahead++]), true;
+    return reader.next(rec);
+  };
+  while ((opt.length == 0 || done < opt.length) && next()) {
     if (rec.type == io::CarmenRecord::Type::kParam) params.params[rec.param_name] = rec.param_value;
     if (rec.type != io::CarmenRecord::Type::kLaser || index++ < opt.start) continue;
     if (!localizer) {
@@ -454,6 +459,23 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     const std::vector<std::string> outs = output_paths(*opt);
     for (const auto& out : outs) io::require_writable(out);
     std::vector<TargetRun> targets;
+    // A stream's first scan is read before the map is built when the map has
+    // ROS grids: their virtual scans take the target's laser, as for a log.
+    std::unique_ptr<io::CarmenReader> stdin_reader;
+    std::vector<io::CarmenRecord> read_ahead;
+    if (stream) {
+      stdin_reader = std::make_unique<io::CarmenReader>("-");
+      if (std::any_of(opt->maps.begin(), opt->maps.end(), [](const std::string& m) { return is_grid_argument(m); })) {
+        io::CarmenRecord rec;
+        while (stdin_reader->next(rec)) {
+          read_ahead.push_back(rec);
+          if (rec.type == io::CarmenRecord::Type::kLaser) break;
+        }
+      }
+    }
+    const LaserScan* first_scan = nullptr;
+    if (!read_ahead.empty() && read_ahead.back().type == io::CarmenRecord::Type::kLaser)
+      first_scan = &read_ahead.back().scan;
     if (!stream) {
       for (const auto& path : paths) {
         io::CarmenLog log = io::read_carmen_log(path);
@@ -490,8 +512,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       }
     }
     if (!map) map = std::make_unique<GlobalMap>(config.map);
-    const MapSources sources = add_map_arguments(*map, built, opt->map_slam,
-                                                 opt->grid.resolve(targets.empty() ? nullptr : &targets[0].scans[0]));
+    if (!targets.empty()) first_scan = &targets[0].scans[0];
+    const MapSources sources = add_map_arguments(*map, built, opt->map_slam, opt->grid.resolve(first_scan));
     const double map_s = seconds_since(t0);
     // (A fleet's map may still be empty: its mappers fill it while the targets localize.)
     if (map->stats().features == 0 && !follower)
@@ -503,7 +525,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     if (follower) follower->start(*map, map_mutex);
     std::shared_mutex* shared = follower ? &map_mutex : nullptr;
     if (stream) {
-      localize_stream(*map, config.localizer, *opt, shared);
+      localize_stream(*map, config.localizer, *opt, shared, *stdin_reader, std::move(read_ahead));
       return;
     }
     const auto t_localize = std::chrono::steady_clock::now();
