@@ -118,6 +118,22 @@ void expect_recovered(const RecoveryResult& r, const Pose2& truth) {
   EXPECT_GT(r.best->mean_score(), 0.7);  // most local points land on the map under it
 }
 
+TEST(IncrementalRansac, ScoresKeepGrowingPastWhatAFloatHolds) {
+  // A hypothesis held for hours passes C = 2^24, where a float sum of +1s stops growing.
+  IncrementalRansacConfig config;
+  config.block_size = std::size_t{1} << 40;  // no preemption
+  IncrementalRansac ransac(config);
+  const double start = 16777216.0 - 10.0;
+  ransac.add_features(std::vector<LocalPoint>{{0.0f, 0.0f, 0.0f}});
+  ransac.add_scored_hypotheses(
+      std::vector<ScoredHypothesis>{{{0, Pose2(1.0, 2.0, 0.3)}, start, static_cast<std::uint32_t>(start)}});
+  ransac.iterate([](const LocalPoint&, const HypothesisBatch& v, float* c) { std::fill_n(c, v.size, 1.0f); }, 1000);
+  const auto best = ransac.best();
+  ASSERT_TRUE(best.has_value());
+  EXPECT_EQ(best->score, start + 1000.0);
+  EXPECT_EQ(best->mean_score(), 1.0);
+}
+
 TEST(IncrementalRansac, RecoversTransformAt90PercentOutliers) {
   const auto r = run_recovery(0.90, FeatureOrderRule::kUniform, 101);
   expect_recovered(r, make_scene(101).T_true);

@@ -80,14 +80,14 @@ HypothesisBatch HypothesisBatchBuffer::assign(std::span<const Hypothesis> hypoth
 }
 
 void IncrementalRansac::add_hypotheses(std::span<const Hypothesis> hypotheses) {
-  for (const Hypothesis& h : hypotheses) insert_hypothesis(h, 0.0f, 0);
+  for (const Hypothesis& h : hypotheses) insert_hypothesis(h, 0.0, 0);
 }
 
 void IncrementalRansac::add_scored_hypotheses(std::span<const ScoredHypothesis> hypotheses) {
-  for (const ScoredHypothesis& h : hypotheses) insert_hypothesis(h.hypothesis, static_cast<float>(h.score), h.scored);
+  for (const ScoredHypothesis& h : hypotheses) insert_hypothesis(h.hypothesis, h.score, h.scored);
 }
 
-void IncrementalRansac::insert_hypothesis(const Hypothesis& h, float score, std::uint32_t scored) {
+void IncrementalRansac::insert_hypothesis(const Hypothesis& h, double score, std::uint32_t scored) {
   const Pose2& T = h.T_submap_local;
   if (!std::isfinite(T.x) || !std::isfinite(T.y) || !std::isfinite(T.theta))
     throw Error("iRANSAC: a hypothesis of submap " + std::to_string(h.submap) + " has a non-finite pose");
@@ -136,7 +136,7 @@ void IncrementalRansac::preempt(std::size_t keep) {
   // the order is total and the survivors are the same whatever V's order.
   rank_.resize(m);
   for (std::size_t j = 0; j < m; ++j) {
-    rank_[j] = scored_[j] > 0 ? static_cast<double>(score_[j]) / scored_[j] : 0.0;
+    rank_[j] = scored_[j] > 0 ? score_[j] / scored_[j] : 0.0;
   }
   auto better = [&](std::uint32_t a, std::uint32_t b) {
     return rank_[a] != rank_[b] ? rank_[a] > rank_[b] : serial_[a] < serial_[b];
@@ -164,8 +164,7 @@ std::optional<ScoredHypothesis> IncrementalRansac::best() const {
   double best_mean = 0.0;
   for (std::size_t j = 0; j < tx_.size(); ++j) {
     if (scored_[j] == 0 || score_[j] < config_.min_score) continue;
-    const double mean =
-        static_cast<double>(score_[j]) / scored_[j] - config_.preference_z / std::sqrt(static_cast<double>(scored_[j]));
+    const double mean = score_[j] / scored_[j] - config_.preference_z / std::sqrt(static_cast<double>(scored_[j]));
     if (best) {
       const std::size_t b = *best;
       if (mean < best_mean) continue;

@@ -173,7 +173,7 @@ class IncrementalRansac {
       const std::size_t m = tx_.size();
       if (scratch_.size() < m) scratch_.resize(m);
       scorer(x, batch(), scratch_.data());
-      float* c = score_.data();
+      double* c = score_.data();
       std::uint32_t* nn = scored_.data();
       const float* s = scratch_.data();
       for (std::size_t j = 0; j < m; ++j) c[j] += s[j], nn[j] += 1;
@@ -207,7 +207,7 @@ class IncrementalRansac {
   std::size_t next_feature();
   std::size_t random_below(std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
   void move_hypothesis(std::size_t from, std::size_t to);
-  void insert_hypothesis(const Hypothesis& h, float score, std::uint32_t scored);
+  void insert_hypothesis(const Hypothesis& h, double score, std::uint32_t scored);
 
   IncrementalRansacConfig config_;
   std::mt19937_64 rng_;
@@ -220,7 +220,9 @@ class IncrementalRansac {
   // V: the active hypotheses, structure-of-arrays, randomly permuted.
   std::vector<std::uint32_t> submap_;
   std::vector<float> tx_, ty_, cos_, sin_, theta_;
-  std::vector<float> score_;           ///< C_j
+  /// C_j, in double: a float sum stops growing at 2^24 (a hypothesis held
+  /// for hours), and sums of the scorers' half-integers are exact in either.
+  std::vector<double> score_;
   std::vector<std::uint32_t> scored_;  ///< N_j
   std::vector<std::uint64_t> serial_;  ///< arrival number (tie-break: older first)
   std::vector<Pose2> pose_;            ///< T_submap_local in double, for output
