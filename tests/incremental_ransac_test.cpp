@@ -134,6 +134,37 @@ TEST(IncrementalRansac, ScoresKeepGrowingPastWhatAFloatHolds) {
   EXPECT_EQ(best->mean_score(), 1.0);
 }
 
+TEST(IncrementalRansac, ALongRunKeepsItsNewestDataPointsWithinMaxFeatures) {
+  for (const auto rule : {FeatureOrderRule::kRecentWindow, FeatureOrderRule::kFreshFirst, FeatureOrderRule::kUniform}) {
+    IncrementalRansacConfig config;
+    config.recent_window = 100, config.max_features = 400, config.order_rule = rule;
+    config.new_features_per_scan = 40, config.block_size = 1000000;
+    IncrementalRansac ransac(config);
+    ransac.add_hypotheses(std::vector<Hypothesis>{{0, Pose2(0.0, 0.0, 0.0)}});
+    std::vector<LocalPoint> scan(40);
+    std::size_t added = 0;
+    float oldest_scored = 1e30f;
+    for (int k = 0; k < 2500; ++k) {
+      for (LocalPoint& p : scan) p.x = static_cast<float>(added++);  // x: the point's number
+      ransac.add_scan(scan, {});
+      ransac.iterate(
+          [&](const LocalPoint& x, const HypothesisBatch& v, float* c) {
+            if (k == 2499) oldest_scored = std::min(oldest_scored, x.x);
+            std::fill_n(c, v.size, 0.0f);
+          },
+          50);
+      ASSERT_LE(ransac.features().size(), 400u);
+      ASSERT_EQ(ransac.features_dropped() + ransac.features().size(), added);
+    }
+    // The newest are kept, in order, and the last scan's iterations read only them.
+    EXPECT_EQ(ransac.features().back().x, static_cast<float>(added - 1));
+    EXPECT_EQ(ransac.features().front().x, static_cast<float>(ransac.features_dropped()));
+    EXPECT_GE(oldest_scored,
+              static_cast<float>(rule == FeatureOrderRule::kUniform ? ransac.features_dropped() : added - 100));
+    EXPECT_EQ(ransac.stats().features_dropped, ransac.features_dropped());
+  }
+}
+
 TEST(IncrementalRansac, RecoversTransformAt90PercentOutliers) {
   const auto r = run_recovery(0.90, FeatureOrderRule::kUniform, 101);
   expect_recovered(r, make_scene(101).T_true);

@@ -315,11 +315,11 @@ void Localizer::sample_data_points(const LaserScan& scan) {
 void Localizer::verify_hypotheses() {
   CpuStopwatch watch;
   ransac_.add_scan(data_points_, hypotheses_);
-  data_points_end_.push_back(static_cast<std::uint32_t>(ransac_.features().size()));
+  data_points_end_.push_back(ransac_.features_dropped() + ransac_.features().size());
   prescore_newly_mapped();
   // The order rule reaches back to the data-points of the scans that saw
   // newly mapped places while those hypotheses are young.
-  const std::size_t scan = data_points_end_.size() - 1, points = ransac_.features().size();
+  const std::size_t scan = data_points_end_.size() - 1, points = data_points_end_.back();
   if (reach_back_from_ && scan <= reach_back_until_ && *reach_back_from_ < points) {
     ransac_.reach_back(points - *reach_back_from_);
   } else {
@@ -353,14 +353,17 @@ void Localizer::prescore_newly_mapped() {
     const std::size_t first_scan = block * kBlock > w ? block * kBlock - w : 0;
     const std::size_t last_scan = std::min(scans - 1, std::size_t{block} * kBlock + kBlock - 1 + w);
     const std::size_t begin = first_scan > 0 ? data_points_end_[first_scan - 1] : 0, end = data_points_end_[last_scan];
-    const std::size_t n = end > begin ? std::min(end - begin, config_.newly_mapped_points) : 0;
+    // (absolute data-point numbers; U may have dropped its oldest: what is left of them)
+    const std::size_t dropped = ransac_.features_dropped();
+    const std::size_t kept_begin = std::max(begin, dropped) - dropped, kept_end = std::max(end, dropped) - dropped;
+    const std::size_t n = kept_end > kept_begin ? std::min(kept_end - kept_begin, config_.newly_mapped_points) : 0;
     const std::size_t first_scored = scored_newly_mapped_.size();
     for (const Hypothesis& h : group_) scored_newly_mapped_.push_back({h, 0.0, static_cast<std::uint32_t>(n)});
     if (n > 0) {
       const HypothesisBatch batch = batch_.assign(group_);
       prescore_.resize(group_.size());
       for (std::size_t k = 0; k < n; ++k) {  // evenly spread over the scans
-        scorer_(points[begin + k * (end - begin) / n], batch, prescore_.data());
+        scorer_(points[kept_begin + k * (kept_end - kept_begin) / n], batch, prescore_.data());
         for (std::size_t j = 0; j < group_.size(); ++j) scored_newly_mapped_[first_scored + j].score += prescore_[j];
       }
       reach_back_from_ = std::min(reach_back_from_.value_or(begin), begin);

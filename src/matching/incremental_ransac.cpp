@@ -1,5 +1,6 @@
 #include "lshloc/matching/incremental_ransac.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -15,6 +16,8 @@ void IncrementalRansacConfig::validate() const {
           new_hypotheses_per_scan);
   require(std::isfinite(min_score), "IncrementalRansacConfig.min_score", "a finite C_o", min_score);
   require(recent_window >= 1, "IncrementalRansacConfig.recent_window", ">= 1 data-point", recent_window);
+  require(max_features >= 2 * recent_window, "IncrementalRansacConfig.max_features", ">= 2 recent_window",
+          max_features);
 }
 
 IncrementalRansac::IncrementalRansac(IncrementalRansacConfig config) : config_(config), rng_(config.seed) {
@@ -54,6 +57,20 @@ void IncrementalRansac::add_features(std::span<const LocalPoint> features) {
       permutation_[j] = index;
     }
   }
+  if (features_.size() > config_.max_features) drop_oldest_features();
+}
+
+void IncrementalRansac::drop_oldest_features() {
+  const std::size_t n = features_.size() / 2;
+  features_.erase(features_.begin(), features_.begin() + static_cast<std::ptrdiff_t>(n));
+  dropped_ += n;
+  stats_.features_dropped = dropped_;
+  fresh_next_ = fresh_next_ > n ? fresh_next_ - n : 0;
+  // A new uniform permutation of what is left (kUniform's order).
+  permutation_.resize(features_.size());
+  for (std::size_t i = 0; i < permutation_.size(); ++i) permutation_[i] = static_cast<std::uint32_t>(i);
+  std::shuffle(permutation_.begin(), permutation_.end(), rng_);
+  cursor_ = 0;
 }
 
 void IncrementalRansac::move_hypothesis(std::size_t from, std::size_t to) {

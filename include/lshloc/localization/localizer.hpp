@@ -216,7 +216,7 @@ class Localizer {
   std::vector<ScoredHypothesis> scored_newly_mapped_;
   std::vector<Hypothesis> group_;  ///< prescore_newly_mapped() scratch
   std::vector<float> prescore_;
-  std::vector<std::uint32_t> data_points_end_;  ///< iRANSAC's |U| after each scan
+  std::vector<std::size_t> data_points_end_;    ///< data-points added to iRANSAC's U by the end of each scan
   std::optional<std::size_t> reach_back_from_;  ///< the oldest data-point newly mapped hypotheses need
   std::size_t reach_back_until_ = 0;            ///< ... until this scan
   HypothesisBatchBuffer batch_;

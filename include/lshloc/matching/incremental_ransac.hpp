@@ -66,7 +66,12 @@ struct IncrementalRansacConfig {
   /// (docs/results/matching.md), the paper's kUniform worst with drift.
   FeatureOrderRule order_rule = FeatureOrderRule::kRecentWindow;
   std::size_t recent_window = 8000;  ///< [features] window of kRecentWindow / kFreshFirst
-  std::uint64_t seed = 0x5eed0002;   ///< random insertion and feature sampling
+  /// U keeps at most this many data-points: past it the oldest half is
+  /// dropped, so that a day-long run's memory stays bounded (2e6 points:
+  /// about 14 hours of 40 points per scan at 1 Hz, 32 MB); every window
+  /// anything reads is far smaller.
+  std::size_t max_features = 2'000'000;
+  std::uint64_t seed = 0x5eed0002;  ///< random insertion and feature sampling
 
   /// Throws lshloc::Error when a field is out of range.
   void validate() const;
@@ -76,6 +81,7 @@ struct IncrementalRansacStats {
   std::size_t active_hypotheses = 0;      ///< |V| now
   std::size_t active_hypotheses_max = 0;  ///< largest |V| seen
   std::size_t features = 0;               ///< |U| now
+  std::size_t features_dropped = 0;       ///< the oldest data-points dropped past max_features
   std::size_t iterations = 0;             ///< iterations done (those with features and hypotheses)
   std::size_t scores = 0;                 ///< feature-hypothesis pairs scored
   std::size_t hypotheses_added = 0;
@@ -199,12 +205,16 @@ class IncrementalRansac {
     return {submap_.data(), tx_.data(), ty_.data(), cos_.data(), sin_.data(), theta_.data(), tx_.size()};
   }
   std::span<const LocalPoint> features() const { return features_; }
+  /// Data-points dropped from U's front so far (max_features): features()[i]
+  /// is the (features_dropped() + i)-th data-point ever added.
+  std::size_t features_dropped() const { return dropped_; }
 
   /// Counters, plus best()'s scores (an O(|V|) scan).
   IncrementalRansacStats stats() const;
 
  private:
   std::size_t next_feature();
+  void drop_oldest_features();
   std::size_t random_below(std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
   void move_hypothesis(std::size_t from, std::size_t to);
   void insert_hypothesis(const Hypothesis& h, double score, std::uint32_t scored);
@@ -217,6 +227,7 @@ class IncrementalRansac {
   std::size_t cursor_ = 0;      ///< kUniform: next position in permutation_
   std::size_t fresh_next_ = 0;  ///< kFreshFirst: first feature not yet scored on arrival
   std::size_t reach_back_ = 0;  ///< reach_back()
+  std::size_t dropped_ = 0;     ///< features_dropped()
   // V: the active hypotheses, structure-of-arrays, randomly permuted.
   std::vector<std::uint32_t> submap_;
   std::vector<float> tx_, ty_, cos_, sin_, theta_;
