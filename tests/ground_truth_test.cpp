@@ -55,6 +55,20 @@ TEST(GroundTruth, TwoPosesAtOneTimeStampAreRefusedNamingBothLines) {
   EXPECT_THROW(read_tum_trajectory(tum), Error);
 }
 
+TEST(GroundTruth, HeadingsBeyondATurnAreWarnedNamingTheFirstLine) {
+  const std::string path = test::temp_path(".txt");
+  test::write_file(path, "# t x y theta\n1.0 0 0 0.5\n2.0 1 0 153.97\n3.0 2 0 -90.0\n");
+  std::vector<std::string> warnings;
+  const auto poses = io::read_pose_file(path, warnings);
+  ASSERT_EQ(poses.size(), 3u);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find(path + ":3: 2 headings beyond +-2 pi (up to 153.97"), std::string::npos) << warnings[0];
+  test::write_file(path, "1.0 0 0 0.5\n2.0 1 0 -3.1\n");
+  warnings.clear();
+  io::read_pose_file(path, warnings);
+  EXPECT_TRUE(warnings.empty());
+}
+
 TEST(TimeJoin, MatchesWithinToleranceOnly) {
   const std::vector<double> reference = {5.0, 1.0, 3.0005, 9.0};
   const std::vector<double> queries = {1.0004, 3.0, 4.0, 8.9989, 9.0009, 0.0};

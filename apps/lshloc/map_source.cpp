@@ -49,7 +49,12 @@ std::vector<StampedPose> read_map_poses(const std::string& path, const Pose2& la
     for (StampedPose& p : poses) p.pose = p.pose * laser_offset;
     return poses;
   }
-  if (fields == 4) return io::read_pose_file(path);
+  if (fields == 4) {
+    std::vector<std::string> warnings;
+    std::vector<StampedPose> poses = io::read_pose_file(path, warnings);
+    for (const std::string& w : warnings) std::fprintf(stderr, "lshloc: warning: %s\n", w.c_str());
+    return poses;
+  }
   throw Error(path +
               ": expected a poses file of `timestamp x y theta` lines (laser poses) or a TUM trajectory "
               "(`timestamp x y z qx qy qz qw`, robot poses); its first line has " +

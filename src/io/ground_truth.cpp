@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/line_reader.hpp"
@@ -38,13 +39,26 @@ void read_table(const std::string& path, std::size_t min_fields, const char* lay
 }  // namespace
 
 std::vector<StampedPose> read_pose_file(const std::string& path) {
+  std::vector<std::string> warnings;
+  return read_pose_file(path, warnings);
+}
+
+std::vector<StampedPose> read_pose_file(const std::string& path, std::vector<std::string>& warnings) {
   std::vector<StampedPose> out;
   std::vector<std::size_t> lines;
+  std::size_t beyond = 0, first_beyond = 0;
+  double largest = 0.0;
   read_table(path, 4, "timestamp x y theta", [&](const std::vector<double>& v, std::size_t line) {
     out.push_back({v[0], Pose2(v[1], v[2], v[3])});
     lines.push_back(line);
+    if (std::abs(v[3]) > 2.0 * std::numbers::pi + 1e-6 && beyond++ == 0) first_beyond = line;
+    largest = std::max(largest, std::abs(v[3]));
   });
   require_distinct_stamps(out, lines, path);
+  if (beyond > 0)
+    warnings.push_back(path + ":" + std::to_string(first_beyond) + ": " + std::to_string(beyond) +
+                       " headings beyond +-2 pi (up to " + std::to_string(largest) +
+                       "): read as radians; if they are degrees, convert them");
   return out;
 }
 

@@ -20,6 +20,9 @@ using Relation = ::lshloc::Relation;
 /// and blank lines are skipped. Errors name file:line; two poses with the
 /// same time stamp are an error (a join by time could take either).
 std::vector<StampedPose> read_pose_file(const std::string& path);
+/// The same, and with `warnings`: one line naming the file, the first line
+/// and the count when headings lie beyond +-2 pi (degrees given for radians?).
+std::vector<StampedPose> read_pose_file(const std::string& path, std::vector<std::string>& warnings);
 
 /// Throws lshloc::Error naming `path` and both lines when two of `poses`
 /// (read from `lines`) share a time stamp.
