@@ -86,7 +86,10 @@ void write_file_atomically(const std::string& path, std::string_view bytes) {
 }
 
 void write_files_atomically(std::span<const FileOutput> files) {
-  std::vector<std::string> temporaries, backups;  // backups[i] empty: files[i] did not exist (or cannot be linked)
+  // backups[i]: a hard link to the old files[i]; empty when there was none,
+  // and then `existed[i]` says whether an old file (that cannot be linked) is replaced.
+  std::vector<std::string> temporaries, backups;
+  std::vector<bool> existed;
   std::size_t renamed = 0;
   const auto remove_leftovers = [&] {
     for (std::size_t i = renamed; i < temporaries.size(); ++i) ::unlink(temporaries[i].c_str());
@@ -110,14 +113,16 @@ void write_files_atomically(std::span<const FileOutput> files) {
     }
     for (const FileOutput& f : files) {
       const std::string backup = temporary_path_for(f.path);
-      backups.push_back(::link(f.path.c_str(), backup.c_str()) == 0 ? backup : std::string());
+      const bool linked = ::link(f.path.c_str(), backup.c_str()) == 0;
+      backups.push_back(linked ? backup : std::string());
+      existed.push_back(linked || errno != ENOENT);
     }
     for (; renamed < files.size(); ++renamed) {
       if (::rename(temporaries[renamed].c_str(), files[renamed].path.c_str()) == 0) continue;
       const std::string why = system_error(files[renamed].path, "cannot replace it with " + temporaries[renamed]);
       for (std::size_t i = 0; i < renamed; ++i) {  // put the old files back
         if (backups[i].empty()) {
-          ::unlink(files[i].path.c_str());
+          if (!existed[i]) ::unlink(files[i].path.c_str());  // (an old file without a link stays replaced)
         } else if (::rename(backups[i].c_str(), files[i].path.c_str()) == 0) {
           backups[i].clear();
         }
