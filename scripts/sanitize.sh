@@ -10,9 +10,9 @@
 # (the live map's threads and several localizers on one map: ctest -R "Live|SharedMap").
 # -O1 and a unity build keep build plus tests within CI's budget. Not run here:
 # `format` and `layers` (they check source text, no compiled code), the
-# Python bindings (the interpreter is not instrumented) and `full_disk`
+# Python bindings (the interpreter is not instrumented), `full_disk`
 # (file-size limits around commands cli_localize already runs instrumented:
-# 30 s of CI); the Release tests run them. (`fleet_loopback` skips itself
+# 30 s of CI) and the few long tests named below; the Release tests run them. (`fleet_loopback` skips itself
 # under sanitizers.)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -40,7 +40,10 @@ cmake -G Ninja -S . -B build-sanitize -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD
   -DLSHLOC_SANITIZE=address,undefined -DLSHLOC_BUILD_FUZZERS=ON >/dev/null
 cmake --build build-sanitize -j"$(nproc)"
 echo "sanitize: built in $(($(date +%s) - start)) s"
-ctest --test-dir build-sanitize -j"$(nproc)" --output-on-failure -E '^(format|layers|full_disk)$'
+# Left to the Release run as well, for CI's 15 minutes: option parsing (cli_options) and four long runs whose
+# code paths shorter tests here take too (policy and equality checks on whole synthetic or real-log runs).
+long='Localizer\.(AMapCompleteBeforeTheFirstScan|GivesUpAWellSupportedPlace).*|MapStoreRealData\..*|LshDatabase\.FindsTheExactNearestNeighbourMostOfTheTime'
+ctest --test-dir build-sanitize -j"$(nproc)" --output-on-failure -E "^(format|layers|full_disk|cli_options|$long)\$"
 echo "sanitize: ctest under ASan and UBSan passed ($(($(date +%s) - start)) s so far)"
 if [ "$fuzz_time" != 0 ]; then
   # All targets at once: each smoke run is --fuzz-time seconds of wall time, sharing the cores.

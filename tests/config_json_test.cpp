@@ -8,6 +8,7 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/run_config_json.hpp"
 #include "lshloc/io/config_json.hpp"
+#include "test_support.hpp"
 
 namespace lshloc {
 namespace {
@@ -95,7 +96,7 @@ TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndNothingElse) {
 }
 
 TEST(ConfigJson, ReadingAFileNamesItOnSyntaxErrors) {
-  const std::string path = testing::TempDir() + "/lshloc_bad_config.json";
+  const std::string path = test::temp_path("_bad_config.json");
   {
     std::FILE* f = std::fopen(path.c_str(), "w");
     ASSERT_NE(f, nullptr);

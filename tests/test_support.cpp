@@ -31,11 +31,33 @@ std::optional<std::string> data_dir() {
   return std::nullopt;
 }
 
+namespace {
+// One folder per test process, removed with everything in it when the process
+// exits (a forked child that exits does not remove its parent's folder).
+class TestTempDir {
+ public:
+  TestTempDir()
+      : owner_(::getpid()), dir_(std::filesystem::temp_directory_path() / ("lshloc-test-" + std::to_string(owner_))) {
+    std::filesystem::create_directories(dir_);
+  }
+  TestTempDir(const TestTempDir&) = delete;
+  TestTempDir& operator=(const TestTempDir&) = delete;
+  ~TestTempDir() {
+    std::error_code ec;
+    if (::getpid() == owner_) std::filesystem::remove_all(dir_, ec);
+  }
+  const std::filesystem::path& dir() const { return dir_; }
+
+ private:
+  pid_t owner_;
+  std::filesystem::path dir_;
+};
+}  // namespace
+
 std::string temp_path(const std::string& suffix) {
+  static TestTempDir folder;
   static std::atomic<int> counter{0};
-  return (std::filesystem::temp_directory_path() /
-          ("lshloc-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++) + suffix))
-      .string();
+  return (folder.dir() / (std::to_string(counter++) + suffix)).string();
 }
 
 std::string read_file(const std::string& path) {

@@ -23,8 +23,8 @@ std::vector<MapSection> map_contents(const GlobalMap& map);
 /// Expects two maps to hold the same contents, section by section.
 void expect_same_map_contents(const GlobalMap& a, const GlobalMap& b);
 
-/// A fresh temporary file path with the given suffix (removed at exit is not
-/// guaranteed; files are small).
+/// A fresh temporary file path with the given suffix, in a folder of this
+/// process's own that is removed when the process exits normally.
 std::string temp_path(const std::string& suffix);
 
 /// Three synthetic buildings (seed 11), the target touring building 1: the
