@@ -473,8 +473,10 @@ std::size_t MapAppender::add_scan(std::uint32_t submap, const LaserScan& scan, c
   std::size_t added = 0;
   try {
     added = map_->add_scan(submap, replayed, laser_pose);
+  } catch (const Error&) {
+    throw;  // refused whole (GlobalMap::add_scan): map and journal as they were, appending goes on
   } catch (...) {
-    broken_ = true;  // the in-memory map may hold part of the scan; the file does not
+    broken_ = true;  // out of memory part-way: the in-memory map may hold part of the scan; the file does not
     throw;
   }
   put_record(pending_, payload);

@@ -110,7 +110,9 @@ class MapAppender {
   /// Opens a new submap (journaled with the next scan's batch) and returns its id.
   std::uint32_t add_submap(const std::string& name);
   /// Adds one mapper scan to `submap` at `laser_pose` (its frame's pose);
-  /// returns the features it added. Syncs when the batch is full.
+  /// returns the features it added. Syncs when the batch is full. A scan the
+  /// map refuses (lshloc::Error) is neither in the map nor journaled, and the
+  /// next scans append as usual.
   std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose);
   /// Writes and fsyncs every pending record; afterwards every scan added so
   /// far is acknowledged. A failed write (a full disk) may be retried: the
