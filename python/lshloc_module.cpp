@@ -9,7 +9,6 @@
 #include <pybind11/stl.h>
 
 #include <memory>
-#include <numbers>
 #include <string>
 #include <tuple>
 
@@ -45,10 +44,8 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
   s.pose = to_pose(pose), s.odometry = to_pose(odometry);
   if (const char* problem = io::scan_update_problem(s, s.pose))
     throw Error(std::string("LaserScan: expected ") + problem);
-  // Degrees (angle_min -90, step 1) would spread the beams over many turns.
   const double span = std::abs(angle_increment) * static_cast<double>(s.ranges.empty() ? 0 : s.ranges.size() - 1);
-  constexpr double kTurn = 2.0 * std::numbers::pi + 1e-6;
-  if (std::abs(angle_min) > kTurn || span > kTurn)
+  if (!scan_angles_in_radians(angle_min, span))
     throw Error("LaserScan: angle_min " + std::to_string(angle_min) + " and angle_increment " +
                 std::to_string(angle_increment) + " over " + std::to_string(s.ranges.size()) +
                 " beams: expected radians (a scan spans at most 2 pi)");

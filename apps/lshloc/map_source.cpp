@@ -191,8 +191,8 @@ nlohmann::json fleet_map_json(const FleetMap& fleet, const GlobalMap& map) {
 
 void warn_refused_scans(const std::string& url, const fleet::MapFollowerStats& stats) {
   if (stats.refused_scans == 0) return;
-  std::fprintf(stderr, "lshloc: warning: %s: the map refused %zu scans of the map log and skipped them; last: %s\n",
-               url.c_str(), stats.refused_scans, stats.last_refusal.c_str());
+  print_warnings({url + ": the map refused " + std::to_string(stats.refused_scans) +
+                  " scans of the map log and skipped them; last: " + stats.last_refusal});
 }
 
 GridSubmapConfig GridMapOptions::resolve(const LaserScan* like) const {

@@ -4,7 +4,6 @@
 #include <charconv>
 #include <cmath>
 #include <limits>
-#include <numbers>
 
 #include "lshloc/common/error.hpp"
 
@@ -115,9 +114,7 @@ void CarmenReader::parse_robotlaser1(const std::string& where, CarmenRecord& rec
                 ": ROBOTLASER1 start angle, field of view, resolution and maximum range must be finite, fov and range "
                 "> 0");
   }
-  // Angles in degrees (start -90, fov 180) would read as beams over many turns.
-  constexpr double kTurn = 2.0 * std::numbers::pi + 1e-6;
-  if (std::abs(start) > kTurn || fov > kTurn)
+  if (!scan_angles_in_radians(start, fov))
     throw Error(where + ": ROBOTLASER1 start angle " + std::string(f[2]) + " and field of view " + std::string(f[3]) +
                 ": expected radians (at most 2 pi)");
   // The beam step is the resolution (its sign the sweep's direction); the

@@ -6,6 +6,7 @@
 // nobody mutates the scan. set_flaser_geometry keeps no state.
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <vector>
 
 #include "lshloc/geometry/pose2.hpp"
@@ -57,5 +58,13 @@ struct LaserScan {
 /// degrees: n odd (181, 361) spans exactly -90..+90 degrees; n even (180, 360)
 /// puts n beams of pi/n each centred on the axis.
 void set_flaser_geometry(LaserScan& scan);
+
+/// Whether a scan's start angle and angular span [rad] read as radians: at
+/// most one turn each (plus rounding). Angles in degrees (start -90, span
+/// 180) would spread the beams over many turns.
+inline bool scan_angles_in_radians(double start, double span) {
+  constexpr double kTurn = 2.0 * std::numbers::pi + 1e-6;
+  return std::abs(start) <= kTurn && std::abs(span) <= kTurn;
+}
 
 }  // namespace lshloc
