@@ -11,18 +11,20 @@ fail() { echo "FAIL: $*"; exit 1; }
 header="scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,truth_x,truth_y,truth_theta,error_m,heading_error_deg"
 # Right: within 2 m and 10 deg with an estimate. Values 0.95 (3 right of 4),
 # 0.15 (1 right of 2: 11 deg off counts as wrong); a row without truth is skipped.
+# As `eval --trace` writes them: no pose without an estimate, no heading error
+# for an estimate in another submap (error inf).
 cat >"$d/a.csv" <<CSV
 $header
 0,0.0,1,0,0,0,0,1,0.95,0.5,100,0.3,0,0,0,0.10,1.0
 1,0.1,1,0,0,0,0,1,0.95,0.5,100,0.3,0,0,0,0.20,2.0
 2,0.2,1,0,0,0,0,1,0.95,0.5,100,0.3,0,0,0,1.90,9.0
-3,0.3,1,0,0,0,0,1,0.95,0.5,100,0.3,0,0,0,inf,0.0
+3,0.3,1,0,0,0,0,1,0.95,0.5,100,0.3,0,0,0,inf,
 4,0.4,1,0,0,0,0,0,0.15,0.5,100,0.3,0,0,0,0.10,11.0
 5,0.5,1,0,0,0,0,0,0.15,0.5,100,0.3,,,,,
 CSV
 mkdir "$d/dir" && cat >"$d/dir/b.csv" <<CSV
 $header
-0,0.0,0,0,0,0,0,0,0.15,0,0,0,0,0,0,inf,0.0
+0,0.0,0,,,,,0,0.15,0,0,0,0,0,0,inf,
 1,0.1,1,0,0,0,0,0,0.15,0.5,100,0.3,0,0,0,0.5,3.0
 CSV
 echo "not a trace" >"$d/dir/b.csv.truth.csv"
@@ -41,6 +43,26 @@ assert len(rows) == 10 and int(rows[9]["count"]) == 4
 PY
 [ "$(head -c 4 "$d/rel.png" | tail -c 3)" = PNG ] || fail "no PNG diagram"
 grep -q "<svg" "$d/rel.svg" || fail "no SVG diagram"
+
+# A trace `eval --trace` wrote (real logs; skipped without them): a scan without
+# an estimate has no pose, one in another submap no heading error, and
+# calibration reads it.
+data=${LSHLOC_DATA:-$(dirname "$0")/../../shared/data}
+if [ -d "$data/intel" ]; then
+  "$LSHLOC" eval --building intel --start 5004 --length 30 --submaps 1 --trace "$d/tr.csv" >/dev/null 2>&1 ||
+    fail "eval --trace"
+  python3 - "$d/tr.csv" <<'PY' || fail "eval --trace rows"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+none = [r for r in rows if r["has_estimate"] == "0"]
+assert none and all(r["x"] == r["submap"] == r["theta"] == "" for r in none), none[:1]
+assert all(r["heading_error_deg"] == "" for r in rows if r["error_m"] == "inf")
+assert all(r["heading_error_deg"] != "" for r in rows if r["error_m"] not in ("", "inf"))
+PY
+  "$LSHLOC" calibration "$d/tr.csv" >/dev/null || fail "calibration of an eval trace"
+else
+  echo "cli_calibration: no real logs at $data: the eval --trace check is skipped"
+fi
 
 # Bad input: a missing column, a value outside [0, 1], a short row.
 echo "scan,confidence" >"$d/bad1.csv"

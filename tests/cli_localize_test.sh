@@ -44,6 +44,43 @@ assert 0.0 <= j["confidence"] <= 1.0
 assert abs(float(rows[-1]["heading_deg"]) - j["final_heading_deg"]) < 1e-3
 PY
 
+# Outputs other tools read: a submap name with a comma and a quote stays one CSV
+# field; the TUM holds robot poses (a declared 0.25 m laser mount taken off the
+# CSV's laser poses) in ascending time.
+"$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" "$b/sim-3-001-corrected.log.gz" --name 'west, "A"' \
+  --name 'east, "B"' --out "$d/named.map" >/dev/null 2>&1
+{ echo "PARAM robot_frontlaser_offset 0.25"; zcat "$b/sim-3-001.log.gz"; } >"$d/mounted.log"
+"$LSHLOC" localize --map "$d/named.map" --target "$d/mounted.log" --start 300 --length 150 --out "$d/n.tum" \
+  >/dev/null 2>&1 || fail "localize with named submaps"
+python3 - "$d/n.tum.csv" "$d/n.tum" <<'PY' || fail "CSV fields or TUM robot poses"
+import csv, math, sys
+text = open(sys.argv[1]).read().splitlines()
+rows = list(csv.reader(text))
+assert all(len(r) == len(rows[0]) == 19 for r in rows), {len(r) for r in rows}
+head = rows[0]
+confident = [dict(zip(head, r)) for r in rows[1:] if r[head.index("confident")] == "1"]
+assert confident and {r["submap"] for r in confident} <= {'west, "A"', 'east, "B"'}, confident[:1]
+tum = [list(map(float, l.split())) for l in open(sys.argv[2]) if l.strip() and not l.startswith("#")]
+stamps = [t[0] for t in tum]
+assert stamps == sorted(stamps)
+final = [r for r in confident if r["submap"] == rows[-1][head.index("submap")]]
+assert len(tum) == len(final) > 0, (len(tum), len(final))
+by_time = {round(t[0], 6): t for t in tum}
+for r in final:
+    t = by_time[round(float(r["time"]), 6)]
+    th = math.radians(float(r["heading_deg"]))
+    assert abs(t[1] - (float(r["x"]) - 0.25 * math.cos(th))) < 2e-4 and abs(t[2] - (float(r["y"]) - 0.25 * math.sin(th))) < 2e-4
+    assert abs(math.remainder(2 * math.atan2(t[6], t[7]) - th, 2 * math.pi)) < 1e-4
+PY
+
+# A submap name that is not UTF-8 (file names are bytes) still gives valid JSON.
+"$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" --name $'caf\xe9' --out "$d/latin1.map" >/dev/null 2>&1 ||
+  fail "map build with a Latin-1 name"
+"$LSHLOC" map info "$d/latin1.map" --json | python3 -c '
+import json, sys
+j = json.load(sys.stdin)
+assert [s["name"] for s in j["submap_list"]] == ["caf\ufffd"], j["submap_list"]' || fail "a Latin-1 name in JSON"
+
 # The target from stdin: each scan's estimate as it arrives, the same as from the file.
 # (Reading stops after 150 scans, so zcat may end by SIGPIPE: not a pipeline.)
 "$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 150 >"$d/stream.csv" 2>"$d/stream.err" \

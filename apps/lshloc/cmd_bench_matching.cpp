@@ -303,14 +303,14 @@ void add_bench_matching_command(CLI::App& bench, GlobalOptions& global) {
   cmd->add_flag("--print-config", o->print_config, "print the effective settings as JSON and exit");
   cmd->callback([o] {
     if (o->print_config) {
-      std::printf("%s\n", nlohmann::json(o->settings).dump(2).c_str());
+      std::printf("%s\n", io::json_text(nlohmann::json(o->settings), 2).c_str());
       return;
     }
     const nlohmann::json out = run_bench(*o);
     if (o->json) {
-      std::printf("%s\n", out.dump().c_str());
+      std::printf("%s\n", io::json_text(out).c_str());
     } else {
-      for (const auto& [k, v] : out.items()) std::printf("%-24s %s\n", k.c_str(), v.dump().c_str());
+      for (const auto& [k, v] : out.items()) std::printf("%-24s %s\n", k.c_str(), io::json_text(v).c_str());
     }
     std::fflush(stdout);
   });

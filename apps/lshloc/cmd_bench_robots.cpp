@@ -169,7 +169,7 @@ void add_bench_robots_command(CLI::App& bench, GlobalOptions& global) {
       j["rss_mb_one_map_per_robot"] = lone_rss * t;
       j["hardware_threads"] = std::thread::hardware_concurrency();
       j["estimates_identical"] = static_cast<bool>(identical[k]);
-      std::printf("%s\n", j.dump().c_str());
+      std::printf("%s\n", io::json_text(j).c_str());
       std::fflush(stdout);
     }
   });

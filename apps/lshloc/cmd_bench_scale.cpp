@@ -251,7 +251,7 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
     for (std::size_t size : opt->sizes) {
       if (size == 0) throw Error("bench scale: a map size must be at least 1 submap");
       const nlohmann::json j = run_size(*opt, size, tty);
-      std::printf("%s\n", j.dump().c_str());
+      std::printf("%s\n", io::json_text(j).c_str());
       std::fflush(stdout);
       const double n = j["map_features"].get<double>();
       series[0].map_features.push_back(n), series[0].cost.push_back(j["us_update_per_feature"].get<double>());

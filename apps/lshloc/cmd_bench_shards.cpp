@@ -161,7 +161,7 @@ void add_bench_shards_command(CLI::App& bench, GlobalOptions& global) {
     const bool tty = isatty(fileno(stderr));
     for (const std::size_t k : opt->shards) {
       if (k > opt->submaps) throw Error("bench shards: K = " + std::to_string(k) + " is more than --submaps");
-      std::printf("%s\n", run_sharded(*opt, k, tty).dump().c_str());
+      std::printf("%s\n", io::json_text(run_sharded(*opt, k, tty)).c_str());
       std::fflush(stdout);
     }
   });

@@ -2,6 +2,7 @@
 // calibrated over `eval --trace` files: reliability bins, the expected
 // calibration error, and the reliability diagram.
 #include <algorithm>
+#include <limits>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -86,7 +87,10 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
     if (!(value >= 0.0 && value <= 1.0))
       throw Error(reader.where() + ": confidence " + std::string(f[c_value]) + " is outside [0, 1]");
     const double err = io::parse_double(f[c_err], reader.where(), c_err, "a position error [m]");
-    const double heading = io::parse_double(f[c_heading], reader.where(), c_heading, "a heading error [deg]");
+    // No heading error where the estimate is in another submap (or there is none): not right.
+    const double heading = f[c_heading].empty()
+                               ? std::numeric_limits<double>::infinity()
+                               : io::parse_double(f[c_heading], reader.where(), c_heading, "a heading error [deg]");
     values.push_back(value);
     right.push_back(f[c_has] == "1" && err <= rule.wrong_confident_m && heading <= rule.wrong_confident_deg);
   }
@@ -113,7 +117,7 @@ void run_calibration(const CalibrationOptions& opt) {
                          {"expected_calibration_error", c.expected_calibration_error},
                          {"max_calibration_error", c.max_calibration_error},
                          {"bins", bins}};
-  std::printf("%s\n", j.dump().c_str());
+  std::printf("%s\n", io::json_text(j).c_str());
   if (!opt.out.empty()) {
     char title[160];
     std::snprintf(title, sizeof title, "confidence calibration: %zu scans of %zu traces, ECE %.3f", c.samples,

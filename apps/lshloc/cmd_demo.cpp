@@ -76,7 +76,7 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
     write_scenario_trace(opt->out + "/trace.csv", sc, run, m);
     const double wall = seconds_since(t0);
     if (opt->json) {
-      std::printf("%s\n", scenario_json(sc, run, m).dump().c_str());
+      std::printf("%s\n", io::json_text(scenario_json(sc, run, m)).c_str());
       return;
     }
     const auto& last = run.estimates.back();

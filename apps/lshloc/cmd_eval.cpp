@@ -228,6 +228,14 @@ ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const 
 /// returns its error curve.
 io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config, const EvalOptions& opt,
                               bool suffix_trace) {
+  // Output paths first: a typo must not cost a whole run.
+  const std::string trace_path = suffix_trace ? opt.trace + ".R" + std::to_string(config.submaps) : opt.trace;
+  if (!opt.trace.empty()) io::require_writable(trace_path), io::require_writable(trace_path + ".truth.csv");
+  if (!opt.plot_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(opt.plot_dir, ec);
+    io::require_writable(opt.plot_dir + "/figure.png");
+  }
   // A saved or a fleet's map holds the submaps: only the target's logs are read.
   Scenario sc = opt.load_map.empty() && opt.map_redis.empty()
                     ? load_eval_scenario(catalog, config, slam_pose_cache(opt.slam_cache))
@@ -286,14 +294,14 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     j["mapper_scans"] = live->mapper_scans;
     j["mapper_scans_total"] = live->mapper_scans_total;
   }
-  std::printf("%s\n", j.dump().c_str());
+  std::printf("%s\n", io::json_text(j).c_str());
   std::fflush(stdout);
   if (!opt.plot_dir.empty()) {
     const std::string stem = write_scenario_figures(opt.plot_dir, sc, run, m);
     std::fprintf(stderr, "figures: %s-{error,map}.{png,svg}\n", stem.c_str());
   }
   if (!opt.trace.empty()) {
-    const std::string path = suffix_trace ? opt.trace + ".R" + std::to_string(config.submaps) : opt.trace;
+    const std::string& path = trace_path;
     write_scenario_trace(path, sc, run, m);
     std::string f;
     io::append_format(f,

@@ -71,7 +71,7 @@ void add_info_command(CLI::App& app, GlobalOptions& global) {
     }
     for (const auto& f : files) {
       try {
-        std::printf("%s\n", summarize_log(f).dump().c_str());
+        std::printf("%s\n", io::json_text(summarize_log(f)).c_str());
         std::fflush(stdout);
       } catch (const Error& e) {
         std::fprintf(stderr, "lshloc: error: %s\n", e.what());

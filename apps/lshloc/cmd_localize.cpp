@@ -104,11 +104,19 @@ constexpr const char* kCsvHeader =
     "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,confidence,score,scored,margin,stable,supported,"
     "place_supported,"
     "kept_scans,newest_fit,newest_evidence\n";
+/// A CSV field as RFC 4180 quotes it: submap names may hold commas or quotes.
+std::string csv_field(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string out = "\"";
+  for (const char c : text) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
 void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, double time, const GlobalMap& map,
                     const LocalizationEstimate& e) {
   if (e.has_estimate) {
     io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f\n", scan,
-                      log_scan, time, map.submap_name(e.submap).c_str(), e.submap, e.pose.x, e.pose.y,
+                      log_scan, time, csv_field(map.submap_name(e.submap)).c_str(), e.submap, e.pose.x, e.pose.y,
                       degrees(e.pose.theta), e.localized ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin,
                       e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit,
                       e.newest_evidence);
@@ -117,26 +125,46 @@ void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, do
   }
 }
 
+/// The TUM file of the confident poses in `submap` when it is not the
+/// answer's: OUT.<name>.tum, with the submap's id added when another submap's
+/// name gives the same file name.
+std::string other_submap_tum(const std::string& out, const GlobalMap& map, std::uint32_t submap) {
+  const auto file_name = [&](std::uint32_t id) {
+    std::string name = map.submap_name(id);
+    for (char& c : name)
+      if (c == '/' || c == ' ') c = '_';
+    return name;
+  };
+  const std::string name = file_name(submap);
+  for (std::uint32_t other = 0; other < map.submap_count(); ++other)
+    if (other != submap && file_name(other) == name) return out + "." + name + "-" + std::to_string(submap) + ".tum";
+  return out + "." + name + ".tum";
+}
+
+/// Writes OUT.csv and the TUM files together (all or none). The CSV holds
+/// laser poses, as every other output; the TUM files hold robot poses (the
+/// target's laser mount taken off), in time order, as TUM tools expect.
 void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun& target, const ScenarioRun& run) {
   std::string csv = kCsvHeader;
   std::map<std::uint32_t, std::vector<StampedPose>> confident;
+  const Pose2 robot_from_laser = target.laser_offset.inverse();
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const double t = target.scans[i].timestamp;
     append_csv_row(csv, i, target.start + i, t, map, e);
-    if (e.has_estimate && e.localized) confident[e.submap].push_back({t, e.pose});
+    if (e.has_estimate && e.localized) confident[e.submap].push_back({t, e.pose * robot_from_laser});
   }
-  io::write_file_atomically(out + ".csv", csv);
   const auto& last = run.estimates.back();
   const std::uint32_t main = last.has_estimate ? last.submap : (confident.empty() ? 0 : confident.begin()->first);
-  io::write_tum_trajectory(out, confident[main]);
-  for (const auto& [submap, poses] : confident) {
+  std::vector<std::pair<std::string, std::string>> files{{out + ".csv", std::move(csv)},
+                                                         {out, io::tum_text(confident[main])}};
+  for (auto& [submap, poses] : confident) {
     if (submap == main) continue;
-    std::string name = map.submap_name(submap);
-    for (char& c : name)
-      if (c == '/' || c == ' ') c = '_';
-    io::write_tum_trajectory(out + "." + name + ".tum", poses);
+    files.emplace_back(other_submap_tum(out, map, submap), io::tum_text(poses));
   }
+  std::vector<io::FileOutput> outputs;
+  for (const auto& [path, text] : files) outputs.push_back({path, text});
+  io::write_files_atomically(outputs);
 }
 
 /// A log's file name without its directory and log extensions.
@@ -229,7 +257,7 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                   {"pose", {e.pose.x, e.pose.y, e.pose.theta}},
                   {"heading_deg", degrees(e.pose.theta)},
                   {"score", e.mean_score}});
-      std::printf("%s\n", j.dump().c_str());
+      std::printf("%s\n", io::json_text(j).c_str());
     } else {
       std::string row;
       append_csv_row(row, done, index - 1, rec.scan.timestamp, map, e);
@@ -395,10 +423,11 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "`timestamp x y theta` file (laser poses) or a TUM trajectory (robot poses, as `lshloc slam\n"
       "--out` writes); --map MAP.yaml builds a submap from a ROS occupancy grid (map_server's YAML + PGM,\n"
       "as gmapping, slam_toolbox and Cartographer save it); --map FILE.map loads a saved map.\n"
-      "Prints where the robot is (submap, x, y, heading), since when it is confident and what it cost;\n"
-      "--json prints the same as one JSON line. --out T.tum writes T.tum.csv (one row per target scan)\n"
-      "and T.tum: the confident poses in the final answer's submap (those in other submaps, if any,\n"
-      "in T.tum.<submap>.tum).");
+      "Prints where the robot is (submap, x, y, heading of its laser), since when it is confident and\n"
+      "what it cost; --json prints the same as one JSON line. --out T.tum writes T.tum.csv (one row per\n"
+      "target scan, laser poses) and T.tum: the confident robot poses (the laser mount taken off) in\n"
+      "the final answer's submap, in time order (those in other submaps, if any, in T.tum.<submap>.tum),\n"
+      "all or none of them.");
   const CLI::Option* map_option =
       cmd->add_option("--map", opt->maps,
                       "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "
@@ -457,7 +486,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       throw Error("--target -: the stream is localized scan by scan; --from/--to, --out and --plot need a log file");
     // Output paths first: a typo must not cost a whole run.
     const std::vector<std::string> outs = output_paths(*opt);
-    for (const auto& out : outs) io::require_writable(out);
+    for (const auto& out : outs) io::require_writable(out), io::require_writable(out + ".csv");
     std::vector<TargetRun> targets;
     // A stream's first scan is read before the map is built when the map has
     // ROS grids: their virtual scans take the target's laser, as for a log.
@@ -549,7 +578,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
         j["map_log"] = fleet_map_json(fleet_map, *map);
       }
       if (opt->json) {
-        std::printf("%s\n", j.dump().c_str());
+        std::printf("%s\n", io::json_text(j).c_str());
       } else {
         if (targets.size() > 1) std::printf("%s%s:\n", k ? "\n" : "", paths[k].c_str());
         print_answer(j);

@@ -112,7 +112,7 @@ const CLI::Option* add_build_options(CLI::App& cmd, BuildOptions& opt) {
 void run_build(const BuildOptions& opt, const char* made_by) {
   const GlobalMapConfig config = map_settings(opt.config);
   if (opt.print_config) {
-    std::printf("%s\n", nlohmann::json(config).dump(2).c_str());
+    std::printf("%s\n", io::json_text(nlohmann::json(config), 2).c_str());
     return;
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -138,7 +138,7 @@ void run_build(const BuildOptions& opt, const char* made_by) {
   j["build_s"] = build_s;
   j["save_s"] = save_s;
   if (opt.json) {
-    std::printf("%s\n", j.dump().c_str());
+    std::printf("%s\n", io::json_text(j).c_str());
   } else {
     std::printf(
         "%s: %zu submaps, %zu scans, %zu features, %llu bytes (%.1f per feature); built in %.1f s, saved in "
@@ -262,7 +262,7 @@ void add_append(CLI::App& map_cmd) {
                         {"scans_per_s", seconds > 0 ? static_cast<double>(appended) / seconds : 0.0},
                         {"sync_every", opt->sync_every}};
     if (opt->json) {
-      std::printf("%s\n", j.dump().c_str());
+      std::printf("%s\n", io::json_text(j).c_str());
     } else if (!opt->ack_lines) {
       std::printf("%s: appended %zu scans (%zu features) to submap %s in %.2f s (%.0f scans/s)\n", opt->map.c_str(),
                   appended, features, name.c_str(), seconds, j["scans_per_s"].get<double>());
@@ -288,7 +288,7 @@ void add_info(CLI::App& map_cmd) {
     j["load_s"] = load_s;
     j["load_cpu_s"] = load_cpu_s;
     if (*json) {
-      std::printf("%s\n", j.dump().c_str());
+      std::printf("%s\n", io::json_text(j).c_str());
       return;
     }
     std::printf("%s: lshloc map, format version %u\n", path->c_str(), loaded.info.format_version);
@@ -436,7 +436,7 @@ void add_from_redis(CLI::App& map_cmd) {
                               {"reconnects", st.reconnects},
                               {"refused_scans", st.refused_scans},
                               {"read_s", read_s}};
-    std::printf("%s\n", j.dump().c_str());
+    std::printf("%s\n", io::json_text(j).c_str());
   });
 }
 

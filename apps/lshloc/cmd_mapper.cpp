@@ -201,7 +201,7 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
                       {"reconnects", reconnects},
                       {"submaps", subs}};
   if (sources.size() == 1) j.update(subs[0]);  // one log: its fields at the top level too
-  std::printf("%s\n", j.dump().c_str());
+  std::printf("%s\n", io::json_text(j).c_str());
 }
 
 }  // namespace

@@ -117,11 +117,11 @@ void add_recall_command(CLI::App& app, GlobalOptions& global) {
   cmd->callback([&global, opt, cmd] {
     if (cmd->count("--start") == 0) opt->scenario.start = default_window_start(opt->scenario.building);
     if (opt->print_config) {
-      std::printf("%s\n", nlohmann::json(static_cast<const PlaceRecallConfig&>(*opt)).dump(2).c_str());
+      std::printf("%s\n", io::json_text(nlohmann::json(static_cast<const PlaceRecallConfig&>(*opt)), 2).c_str());
       return;
     }
     const nlohmann::json out = run_recall(global, *opt);
-    std::printf("%s\n", opt->json ? out.dump().c_str() : out.dump(2).c_str());
+    std::printf("%s\n", opt->json ? io::json_text(out).c_str() : io::json_text(out, 2).c_str());
   });
 }
 

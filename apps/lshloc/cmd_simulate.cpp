@@ -111,7 +111,7 @@ void run_simulate(const SimulateOptions& o) {
                                    {"poses", files.poses},
                                    {"segments_file", segments},
                                    {"svg", svg}};
-      std::printf("%s\n", line.dump().c_str());
+      std::printf("%s\n", io::json_text(line).c_str());
     } else {
       std::printf(
           "%s: %.1f x %.1f m, %zu segments, %zu rooms, %zu halls, %zu doors; %zu scans over %.0f m "
@@ -126,7 +126,7 @@ void run_simulate(const SimulateOptions& o) {
   if (o.json) {
     const nlohmann::json summary = {{"buildings", o.buildings}, {"scans", total_scans}, {"generate_s", generate_s},
                                     {"simulate_s", simulate_s}, {"write_s", write_s},   {"scans_per_s", rate}};
-    std::printf("%s\n", summary.dump().c_str());
+    std::printf("%s\n", io::json_text(summary).c_str());
   } else {
     std::printf("%zu buildings, %zu scans: floor plans %.2f s, simulation %.2f s (%.0f scans/s), writing %.2f s\n",
                 o.buildings, total_scans, generate_s, simulate_s, rate, write_s);

@@ -207,7 +207,7 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
                         {"loop_ambiguous", gs.loop_ambiguous},
                         {"loop_poor", gs.loop_poor},
                         {"optimizations", gs.optimizations}};
-    std::printf("%s\n", j.dump().c_str());
+    std::printf("%s\n", io::json_text(j).c_str());
     return;
   }
   std::printf(
@@ -264,7 +264,7 @@ void add_slam_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_flag("--print-config", opt->print_config, "print the effective settings as JSON and exit");
   cmd->callback([opt, log, &global] {
     if (opt->print_config) {
-      std::printf("%s\n", nlohmann::json(configured(*opt)).dump(2).c_str());
+      std::printf("%s\n", io::json_text(nlohmann::json(configured(*opt)), 2).c_str());
       return;
     }
     require_given({log});

@@ -70,7 +70,7 @@ inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) {
 /// command then stops).
 inline bool print_config_if_asked(const LocalizerOptions& o) {
   if (!o.print_config) return false;
-  std::printf("%s\n", nlohmann::json(make_run_config(o)).dump(2).c_str());
+  std::printf("%s\n", io::json_text(nlohmann::json(make_run_config(o)), 2).c_str());
   return true;
 }
 

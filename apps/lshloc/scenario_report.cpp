@@ -139,16 +139,25 @@ void write_scenario_trace(const std::string& path, const Scenario& sc, const Sce
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = sc.target.truth[i];
-    io::append_format(f, "%zu,%.6f,%d,%u,%.4f,%.4f,%.5f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%.4f,%.4f,", i,
-                      sc.target.scans[i].timestamp, e.has_estimate ? 1 : 0, e.submap, e.pose.x, e.pose.y, e.pose.theta,
-                      e.localized ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin, e.stable ? 1 : 0,
-                      e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence,
-                      e.whole_map_fit, e.whole_map_lead);
-    if (t)
-      io::append_format(f, "%.4f,%.4f,%.5f,%.4f,%.3f\n", t->x, t->y, t->theta, m.error_per_scan_m[i],
-                        angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);
+    io::append_format(f, "%zu,%.6f,%d,", i, sc.target.scans[i].timestamp, e.has_estimate ? 1 : 0);
+    // No estimate: no pose (empty fields, not a pose at the origin of submap 0).
+    if (e.has_estimate)
+      io::append_format(f, "%u,%.4f,%.4f,%.5f,", e.submap, e.pose.x, e.pose.y, e.pose.theta);
     else
-      io::append_format(f, ",,,,\n");
+      f += ",,,,";
+    io::append_format(f, "%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%.4f,%.4f,", e.localized ? 1 : 0, e.confidence,
+                      e.mean_score, e.scored, e.margin, e.stable ? 1 : 0, e.supported ? 1 : 0,
+                      e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence, e.whole_map_fit,
+                      e.whole_map_lead);
+    if (t) {
+      io::append_format(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
+      // A heading error only where the estimate is in the true submap (finite error): other frames do not compare.
+      if (std::isfinite(m.error_per_scan_m[i]))
+        io::append_format(f, "%.3f", angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);
+      f += '\n';
+    } else {
+      f += ",,,,\n";
+    }
   }
   io::write_file_atomically(path, f);
 }

@@ -50,7 +50,7 @@ std::string temporary_path_for(const std::string& path) {
 int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
   const std::string tmp = temporary_path_for(path);
   const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error(system_error(tmp, "cannot create"));
+  if (fd < 0) throw Error(system_error(path, "cannot create its temporary file " + tmp));
   try {
     if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw Error(system_error(tmp, "cannot lock"));
     write_all(fd, bytes, tmp);
@@ -101,7 +101,7 @@ void write_files_atomically(std::span<const FileOutput> files) {
       temporaries.push_back(temporary_path_for(f.path));
       const std::string& tmp = temporaries.back();
       const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-      if (fd < 0) throw Error(system_error(tmp, "cannot create"));
+      if (fd < 0) throw Error(system_error(f.path, "cannot create its temporary file " + tmp));
       try {
         write_all(fd, {reinterpret_cast<const std::uint8_t*>(f.bytes.data()), f.bytes.size()}, tmp);
         if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync"));

@@ -151,6 +151,10 @@ void check_config_patch(const nlohmann::json& patch, const nlohmann::json& curre
 
 void throw_config_error(const std::string& source, const std::string& what) { throw Error(source + ": " + what); }
 
+std::string json_text(const nlohmann::json& j, int indent) {
+  return j.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 nlohmann::json read_json_file(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw Error(path + ": cannot open for reading");

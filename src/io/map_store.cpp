@@ -111,8 +111,8 @@ void put_section(ByteWriter& out, const std::string& name, std::span<const std::
 
 std::vector<std::uint8_t> encode_snapshot(const GlobalMap& map, const nlohmann::json& meta) {
   std::vector<std::pair<std::string, std::vector<std::uint8_t>>> sections;
-  const std::string settings = nlohmann::json(map.config()).dump();
-  const std::string meta_text = meta.dump();
+  const std::string settings = io::json_text(nlohmann::json(map.config()));
+  const std::string meta_text = io::json_text(meta);
   sections.emplace_back("settings", std::vector<std::uint8_t>(settings.begin(), settings.end()));
   sections.emplace_back("meta", std::vector<std::uint8_t>(meta_text.begin(), meta_text.end()));
   for (MapSection& s : map.snapshot()) sections.emplace_back(s.name, std::move(s.bytes));
@@ -391,7 +391,7 @@ void require_localizer_fits_map(const LocalizerConfig& localizer, const GlobalMa
     throw Error(source +
                 ": settings the localizer cannot use: the map's features settings differ from the "
                 "localizer's (" +
-                diff.dump() + "); localize with the map's settings (`lshloc map info --json`)");
+                io::json_text(diff) + "); localize with the map's settings (`lshloc map info --json`)");
   }
   if (localizer.context_scans != map.context_scans || localizer.context_spacing != map.context_spacing)
     throw Error(source + ": settings the localizer cannot use: the map's descriptor context (context_scans " +

@@ -1,5 +1,6 @@
 #include "lshloc/io/trajectory_writer.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -11,18 +12,23 @@
 
 namespace lshloc::io {
 
-void write_tum_trajectory(const std::string& path, std::span<const StampedPose> trajectory) {
+std::string tum_text(std::span<const StampedPose> trajectory) {
+  std::vector<StampedPose> sorted(trajectory.begin(), trajectory.end());
+  // Logs may hold stamps out of order (buffered scans); TUM readers expect ascending time.
+  std::stable_sort(sorted.begin(), sorted.end(),
+                   [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
   std::string text = "# timestamp x y z qx qy qz qw\n";
-  char line[192];
-  for (const auto& p : trajectory) {
+  for (const auto& p : sorted) {
     // A rotation by theta about z: q = (0, 0, sin(theta/2), cos(theta/2)).
     const double half = 0.5 * p.pose.theta;
-    const int n = std::snprintf(line, sizeof line, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.timestamp, p.pose.x, p.pose.y,
-                                std::sin(half), std::cos(half));
-    if (n < 0 || static_cast<std::size_t>(n) >= sizeof line) throw Error(path + ": cannot format a pose");
-    text.append(line, static_cast<std::size_t>(n));
+    append_format(text, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.timestamp, p.pose.x, p.pose.y, std::sin(half),
+                  std::cos(half));
   }
-  write_file_atomically(path, text);
+  return text;
+}
+
+void write_tum_trajectory(const std::string& path, std::span<const StampedPose> trajectory) {
+  write_file_atomically(path, tum_text(trajectory));
 }
 
 std::vector<StampedPose> read_tum_trajectory(const std::string& path) {

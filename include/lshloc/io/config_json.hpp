@@ -108,4 +108,9 @@ void apply_config_patch(const nlohmann::json& patch, Config& config, const std::
 /// column of a syntax error).
 nlohmann::json read_json_file(const std::string& path);
 
+/// `j` as JSON text (one line, or indented by `indent` spaces). Strings that
+/// are not UTF-8 (file names are bytes) get U+FFFD in place of each bad byte
+/// instead of failing the whole output.
+std::string json_text(const nlohmann::json& j, int indent = -1);
+
 }  // namespace lshloc::io

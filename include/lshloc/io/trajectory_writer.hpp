@@ -11,10 +11,13 @@
 
 namespace lshloc::io {
 
-/// Writes a planar trajectory in the TUM format, one pose per line:
-/// `timestamp x y z qx qy qz qw` with z = 0 and the quaternion of a rotation
-/// by theta about the z axis. Time stamps keep microseconds, positions
-/// micrometres. Written atomically (io/atomic_file.hpp); throws lshloc::Error
+/// A planar trajectory in the TUM format, one pose per line in ascending time
+/// (poses with equal stamps keep their order): `timestamp x y z qx qy qz qw`
+/// with z = 0 and the quaternion of a rotation by theta about the z axis.
+/// Time stamps keep microseconds, positions micrometres.
+std::string tum_text(std::span<const StampedPose> trajectory);
+
+/// tum_text() written atomically (io/atomic_file.hpp); throws lshloc::Error
 /// when the file cannot be written.
 void write_tum_trajectory(const std::string& path, std::span<const StampedPose> trajectory);
 
