@@ -2,13 +2,18 @@
 // store, CARMEN logs and ROS occupancy grids. Scans are numpy arrays of ranges with their beam
 // angles; poses are (x, y, theta) tuples [m, m, rad]. The heavy calls
 // (adding scans, localizing, loading and saving maps) release the GIL.
-// Thread safety: as the C++ classes (docs/design.md section 5): a GlobalMap
-// and the Localizers reading it belong to one thread at a time.
+// Thread safety: a GlobalMap may be used from several Python threads: its
+// writes (add_submap, add_scan, add_grid_submap) take its lock exclusively,
+// its reads (Localizer.add_scan, save, stats) shared (the C++ map's contract:
+// concurrent reads, exclusive writes). A Localizer serializes its own calls.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
 #include <memory>
+#include <mutex>
+#include <shared_mutex>
 #include <string>
 #include <tuple>
 
@@ -53,17 +58,55 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
   return s;
 }
 
-/// A localizer that keeps its map alive and knows its config.
-struct PyLocalizer {
+/// `p` unless a value is not finite.
+Pose2 finite_pose(const PoseTuple& t, const char* what) {
+  const Pose2 p = to_pose(t);
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.theta))
+    throw Error(std::string(what) + ": expected a finite (x, y, theta)");
+  return p;
+}
+
+/// The Python GlobalMap: the map and the lock its Python users share (see the top of this file).
+struct PyGlobalMap {
   std::shared_ptr<GlobalMap> map;
-  std::unique_ptr<Localizer> localizer;
+  std::shared_ptr<std::shared_mutex> lock = std::make_shared<std::shared_mutex>();
+
+  std::uint32_t checked(std::uint32_t submap) const {
+    if (submap >= map->submap_count())
+      throw Error("GlobalMap: no submap " + std::to_string(submap) + " (ids 0 to " +
+                  std::to_string(map->submap_count()) + " - 1)");
+    return submap;
+  }
 };
 
-LocalizerConfig localizer_config(const GlobalMap& map, const std::string& config_json, const PoseTuple& laser_offset) {
+/// A localizer that keeps its map (and the map's lock) alive.
+struct PyLocalizer {
+  PyGlobalMap map;
+  std::unique_ptr<Localizer> localizer;
+  std::unique_ptr<std::mutex> busy = std::make_unique<std::mutex>();  ///< one add_scan at a time
+};
+
+/// A config_json argument parsed, its syntax errors as lshloc.Error naming it.
+nlohmann::json parse_config_json(const std::string& text) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw Error(std::string("config_json: ") + e.what());
+  }
+}
+
+LocalizerConfig localizer_config(const GlobalMap& map, const std::string& config_json, const Pose2& laser_offset) {
   LocalizerConfig c;
-  if (!config_json.empty()) io::apply_config_patch(nlohmann::json::parse(config_json), c, "config_json");
+  if (!config_json.empty()) {
+    const nlohmann::json patch = parse_config_json(config_json);
+    if (patch.is_object() && patch.contains("features"))
+      throw Error(
+          "config_json: features: the localizer takes the map's feature settings; set them in the map's "
+          "config_json");
+    io::apply_config_patch(patch, c, "config_json");
+  }
   c.features = map.config().features;  // the map's, as every command does
-  return with_target_laser_offset(c, to_pose(laser_offset));
+  return with_target_laser_offset(c, laser_offset);
 }
 
 }  // namespace
@@ -85,14 +128,32 @@ PYBIND11_MODULE(lshloc, m) {
                                for (std::size_t i = 0; i < s.ranges.size(); ++i) v(i) = s.bearing(i);
                                return a;
                              })
-      .def_readwrite("timestamp", &LaserScan::timestamp)
-      .def_readwrite("max_range", &LaserScan::max_range)
+      .def_property_readonly(
+          "angle_min", [](const LaserScan& s) { return s.angle_min; }, "[rad] the first beam's angle")
+      .def_property_readonly(
+          "angle_increment", [](const LaserScan& s) { return s.angle_increment; }, "[rad] between beams")
+      .def_property(
+          "timestamp", [](const LaserScan& s) { return s.timestamp; },
+          [](LaserScan& s, double t) {
+            if (!std::isfinite(t)) throw Error("LaserScan.timestamp: expected a finite time [s]");
+            s.timestamp = t;
+          },
+          "[s]")
+      .def_property(
+          "max_range", [](const LaserScan& s) { return s.max_range; },
+          [](LaserScan& s, double r) {
+            if (!(r > 0.0)) throw Error("LaserScan.max_range: expected > 0 [m]");
+            s.max_range = r;
+          },
+          "[m] ranges at or beyond it are no return")
       .def_property(
           "pose", [](const LaserScan& s) { return to_tuple(s.pose); },
-          [](LaserScan& s, const PoseTuple& p) { s.pose = to_pose(p); }, "laser pose the log gives (x, y, theta)")
+          [](LaserScan& s, const PoseTuple& p) { s.pose = finite_pose(p, "LaserScan.pose"); },
+          "laser pose the log gives (x, y, theta)")
       .def_property(
           "odometry", [](const LaserScan& s) { return to_tuple(s.odometry); },
-          [](LaserScan& s, const PoseTuple& p) { s.odometry = to_pose(p); });
+          [](LaserScan& s, const PoseTuple& p) { s.odometry = finite_pose(p, "LaserScan.odometry"); },
+          "the robot's odometry pose (x, y, theta) at the scan");
 
   py::class_<io::CarmenLog>(m, "CarmenLog", "A CARMEN log in memory")
       .def_readonly("path", &io::CarmenLog::path)
@@ -109,24 +170,44 @@ PYBIND11_MODULE(lshloc, m) {
   py::class_<OccupancyGrid>(m, "OccupancyGrid",
                             "An occupancy grid as nav_msgs has it: cells[row, col] is -1 (unknown), 0 (free) or 100 "
                             "(occupied), row 0 at the origin's y")
-      .def(py::init([](const py::array_t<std::int8_t, py::array::c_style | py::array::forcecast>& cells,
-                       double resolution, const PoseTuple& origin) {
-             if (cells.ndim() != 2)
+      .def(py::init([](const py::array& cells_in, double resolution, const PoseTuple& origin) {
+             // nav_msgs data: int8, -1 unknown, 0..100 (0 free, 100 occupied); a uint8 view reads -1 as 255.
+             const char kind = cells_in.dtype().kind();
+             if (kind != 'i' && kind != 'u')
+               throw Error(
+                   "OccupancyGrid: cells must be integers as nav_msgs/OccupancyGrid holds them (-1 unknown, "
+                   "0 free, 100 occupied), got dtype kind '" +
+                   std::string(1, kind) + "'");
+             const bool bytes = kind == 'u' && cells_in.itemsize() == 1;
+             const auto cells = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(cells_in);
+             if (!cells || cells.ndim() != 2)
                throw Error("OccupancyGrid: cells must be a 2-D array (rows, columns), got " +
-                           std::to_string(cells.ndim()) + "-D");
+                           std::to_string(cells_in.ndim()) + "-D");
+             if (cells.size() == 0) throw Error("OccupancyGrid: cells must not be empty");
+             if (!(resolution > 0.0) || !std::isfinite(resolution))
+               throw Error("OccupancyGrid: resolution must be a finite > 0 m");
              OccupancyGrid g;
              g.resolution = resolution;
-             g.origin = {std::get<0>(origin), std::get<1>(origin)};
-             g.origin_yaw = std::get<2>(origin);
+             const Pose2 o = finite_pose(origin, "OccupancyGrid origin");
+             g.origin = {o.x, o.y};
+             g.origin_yaw = o.theta;
              g.height = static_cast<std::size_t>(cells.shape(0)), g.width = static_cast<std::size_t>(cells.shape(1));
-             g.cells.assign(cells.data(), cells.data() + cells.size());
-             for (std::int8_t& v : g.cells)
-               if (v != occupancy::kFree && v != occupancy::kOccupied) v = occupancy::kUnknown;
-             if (!(resolution > 0.0)) throw Error("OccupancyGrid: resolution must be > 0 m");
+             g.cells.resize(static_cast<std::size_t>(cells.size()));
+             const std::int64_t* data = cells.data();
+             for (std::size_t i = 0; i < g.cells.size(); ++i) {
+               const std::int64_t v = bytes && data[i] == 255 ? -1 : data[i];
+               if (v < -1 || v > 100)
+                 throw Error("OccupancyGrid: cell " + std::to_string(i) + " (row " + std::to_string(i / g.width) +
+                             ", column " + std::to_string(i % g.width) + ") is " + std::to_string(data[i]) +
+                             "; expected -1 (unknown) or 0..100 (nav_msgs occupancy)");
+               g.cells[i] = v == 0 ? occupancy::kFree : v == 100 ? occupancy::kOccupied : occupancy::kUnknown;
+             }
              return g;
            }),
            py::arg("cells"), py::arg("resolution"), py::arg("origin") = PoseTuple{0, 0, 0},
-           "cells: 2-D int8 array; values other than 0 and 100 read as unknown")
+           "cells: 2-D integer array as nav_msgs/OccupancyGrid data, row 0 at the origin's y: -1 unknown, 0 free, "
+           "100 occupied; 1..99 read as unknown (as AMCL reads them); uint8 255 is -1. resolution [m]; origin (x, y, "
+           "yaw) of cell (0, 0)'s corner")
       .def_readonly("resolution", &OccupancyGrid::resolution)
       .def_property_readonly("origin",
                              [](const OccupancyGrid& g) {
@@ -152,25 +233,39 @@ PYBIND11_MODULE(lshloc, m) {
       py::arg("scans"), py::arg("resolution") = 0.05, py::call_guard<py::gil_scoped_release>(),
       "The occupancy grid of posed scans (each scan's pose is its laser pose), as `lshloc map to-grid`");
 
-  py::class_<GlobalMap, std::shared_ptr<GlobalMap>>(m, "GlobalMap",
-                                                    "The global map mapper robots feed, one scan at a time")
+  py::class_<PyGlobalMap>(m, "GlobalMap",
+                          "The global map mapper robots feed, one scan at a time; usable from several threads (writes "
+                          "exclusive, reads shared)")
       .def(py::init([](const std::string& config_json) {
              GlobalMapConfig c;
-             if (!config_json.empty()) io::apply_config_patch(nlohmann::json::parse(config_json), c, "config_json");
-             return std::make_shared<GlobalMap>(c);
+             if (!config_json.empty()) io::apply_config_patch(parse_config_json(config_json), c, "config_json");
+             return PyGlobalMap{std::make_shared<GlobalMap>(c)};
            }),
-           py::arg("config_json") = "")
-      .def("add_submap", &GlobalMap::add_submap, py::arg("name"), "Opens a new submap; returns its id")
+           py::arg("config_json") = "",
+           "config_json: a JSON object of GlobalMapConfig fields to change (the `map` part of `lshloc map build "
+           "--print-config`), e.g. '{\"database\": {\"L\": 16}}'")
+      .def(
+          "add_submap",
+          [](PyGlobalMap& g, const std::string& name) {
+            const std::unique_lock writing(*g.lock);
+            return g.map->add_submap(name);
+          },
+          py::arg("name"), py::call_guard<py::gil_scoped_release>(), "Opens a new submap; returns its id")
       .def(
           "add_scan",
-          [](GlobalMap& g, std::uint32_t submap, const LaserScan& scan, const PoseTuple& pose) {
-            return g.add_scan(submap, scan, to_pose(pose));
+          [](PyGlobalMap& g, std::uint32_t submap, const LaserScan& scan, const PoseTuple& pose) {
+            const Pose2 laser_pose = to_pose(pose);
+            if (const char* problem = io::scan_update_problem(scan, laser_pose))
+              throw Error(std::string("GlobalMap.add_scan: expected ") + problem);
+            const std::unique_lock writing(*g.lock);
+            return g.map->add_scan(g.checked(submap), scan, laser_pose);
           },
           py::arg("submap"), py::arg("scan"), py::arg("laser_pose"), py::call_guard<py::gil_scoped_release>(),
-          "Adds a mapper scan at its laser pose in the submap's frame; returns the features it added")
+          "Adds a mapper scan at its laser pose in the submap's frame; returns the features it added. A scan the map "
+          "cannot take raises lshloc.Error and leaves the map as it was")
       .def(
           "add_grid_submap",
-          [](GlobalMap& g, const std::string& name, const OccupancyGrid& grid, double pose_spacing,
+          [](PyGlobalMap& g, const std::string& name, const OccupancyGrid& grid, double pose_spacing,
              std::size_t headings, std::size_t beams, double field_of_view, double max_range) {
             GridSubmapConfig c;
             c.pose_spacing = pose_spacing, c.headings = headings, c.beams = beams, c.field_of_view = field_of_view,
@@ -179,8 +274,8 @@ PYBIND11_MODULE(lshloc, m) {
             std::uint32_t id = 0;
             {
               py::gil_scoped_release release;
-              id = g.add_submap(name);
-              st = add_grid_submap(g, id, grid, c);
+              const std::unique_lock writing(*g.lock);
+              id = add_grid_as_new_submap(*g.map, name, grid, c, &st);
             }
             return py::make_tuple(
                 id, py::dict(py::arg("positions") = st.positions, py::arg("virtual_scans") = st.virtual_scans,
@@ -191,49 +286,93 @@ PYBIND11_MODULE(lshloc, m) {
           py::arg("field_of_view") = GridSubmapConfig{}.field_of_view,
           py::arg("max_range") = GridSubmapConfig{}.max_range,
           "Adds a submap built from an occupancy grid (virtual scans of the given laser from free positions); "
-          "returns (submap id, stats)")
-      .def_property_readonly("submap_count", &GlobalMap::submap_count)
-      .def("submap_name", &GlobalMap::submap_name, py::arg("submap"))
-      .def("submap_scans", &GlobalMap::submap_scans, py::arg("submap"))
-      .def("stats",
-           [](const GlobalMap& g) {
-             const GlobalMapStats s = g.stats();
-             return py::dict(py::arg("submaps") = s.submaps, py::arg("scans") = s.scans,
-                             py::arg("features") = s.features, py::arg("bytes_per_feature") = s.bytes_per_feature());
-           })
+          "returns (submap id, stats). A grid or setting that cannot make a submap raises lshloc.Error before the "
+          "map changes")
+      .def_property_readonly("submap_count",
+                             [](const PyGlobalMap& g) {
+                               const std::shared_lock reading(*g.lock);
+                               return g.map->submap_count();
+                             })
       .def(
-          "save", [](const GlobalMap& g, const std::string& path) { io::save_map(path, g); }, py::arg("path"),
-          py::call_guard<py::gil_scoped_release>(), "Saves the map (docs/map-format.md)");
+          "submap_name",
+          [](const PyGlobalMap& g, std::uint32_t submap) {
+            const std::shared_lock reading(*g.lock);
+            return g.map->submap_name(g.checked(submap));
+          },
+          py::arg("submap"), "The name the submap was opened with")
+      .def(
+          "submap_scans",
+          [](const PyGlobalMap& g, std::uint32_t submap) {
+            const std::shared_lock reading(*g.lock);
+            return g.map->submap_scans(g.checked(submap));
+          },
+          py::arg("submap"), "Scans (mapper or virtual) the submap holds")
+      .def(
+          "stats",
+          [](const PyGlobalMap& g) {
+            GlobalMapStats s;
+            {
+              const std::shared_lock reading(*g.lock);
+              s = g.map->stats();
+            }
+            return py::dict(py::arg("submaps") = s.submaps, py::arg("scans") = s.scans,
+                            py::arg("features") = s.features, py::arg("bytes_per_feature") = s.bytes_per_feature());
+          },
+          "A dict: submaps, scans, features, bytes_per_feature")
+      .def(
+          "save",
+          [](const PyGlobalMap& g, const std::string& path) {
+            const std::shared_lock reading(*g.lock);
+            io::save_map(path, *g.map);
+          },
+          py::arg("path"), py::call_guard<py::gil_scoped_release>(), "Saves the map (docs/map-format.md)");
   m.def(
       "load_map",
       [](const std::string& path) {
-        io::LoadedMap loaded = io::load_map(path);
-        return std::shared_ptr<GlobalMap>(std::move(loaded.map));
+        io::LoadedMap loaded;
+        {
+          py::gil_scoped_release release;
+          loaded = io::load_map(path);
+        }
+        // What lost nothing acknowledged (a torn last journal record) is a Python warning.
+        for (const std::string& w : loaded.warnings)
+          if (PyErr_WarnEx(PyExc_UserWarning, w.c_str(), 1) != 0) throw py::error_already_set();
+        return PyGlobalMap{std::shared_ptr<GlobalMap>(std::move(loaded.map))};
       },
-      py::arg("path"), py::call_guard<py::gil_scoped_release>(), "Loads a saved map (snapshot and journal)");
+      py::arg("path"),
+      "Loads a saved map (snapshot and journal); a torn last journal record is dropped with a UserWarning");
 
   py::class_<PyLocalizer>(m, "Localizer", "Localizes one target robot in a GlobalMap from no initial guess")
-      .def(py::init([](std::shared_ptr<GlobalMap> map, const std::string& config_json, const PoseTuple& laser_offset) {
+      .def(py::init([](const PyGlobalMap& map, const std::string& config_json, const PoseTuple& laser_offset) {
              PyLocalizer l;
-             l.localizer = std::make_unique<Localizer>(*map, localizer_config(*map, config_json, laser_offset));
-             l.map = std::move(map);
+             const std::shared_lock reading(*map.lock);
+             l.localizer = std::make_unique<Localizer>(
+                 *map.map, localizer_config(*map.map, config_json, finite_pose(laser_offset, "laser_offset")));
+             l.map = map;
              return l;
            }),
-           py::arg("map"), py::arg("config_json") = "", py::arg("laser_offset") = PoseTuple{0, 0, 0})
+           py::arg("map"), py::arg("config_json") = "", py::arg("laser_offset") = PoseTuple{0, 0, 0},
+           "map: the GlobalMap (kept alive by the localizer); config_json: a JSON object of LocalizerConfig fields to "
+           "change (the `localizer` part of `lshloc localize --print-config`; the feature settings are the map's); "
+           "laser_offset: the target's laser pose (x, y, theta) on the robot, which its odometry moves")
       .def(
           "add_scan",
           [](PyLocalizer& l, const LaserScan& scan) {
             LocalizationEstimate e;
+            std::string submap_name;
             {
               py::gil_scoped_release release;
+              const std::lock_guard mine(*l.busy);
+              const std::shared_lock reading(*l.map.lock);
               e = l.localizer->add_scan(scan);
+              if (e.has_estimate) submap_name = l.map.map->submap_name(e.submap);
             }
             py::dict d;
             d["has_estimate"] = e.has_estimate;
             d["localized"] = e.localized;
             d["confidence"] = e.confidence;
             d["submap"] = e.has_estimate ? py::cast(e.submap) : py::none();
-            d["submap_name"] = e.has_estimate ? py::cast(l.map->submap_name(e.submap)) : py::none();
+            d["submap_name"] = e.has_estimate ? py::cast(submap_name) : py::none();
             d["pose"] = e.has_estimate ? py::cast(to_tuple(e.pose)) : py::none();
             d["mean_score"] = e.mean_score;
             d["margin"] = e.margin;

@@ -160,7 +160,8 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
     nlohmann::json grids = nlohmann::json::array();
     for (const Submap& submap : sc.submaps) {
       const OccupancyGrid occupancy = build_occupancy_grid(submap.scans);
-      const GridSubmapStats st = add_grid_submap(map, map.add_submap(submap.name), occupancy, grid);
+      GridSubmapStats st;
+      add_grid_as_new_submap(map, submap.name, occupancy, grid, &st);
       grids.push_back({{"submap", submap.name},
                        {"cells", occupancy.cells.size()},
                        {"virtual_scans", st.virtual_scans},

@@ -6,6 +6,8 @@ import math
 import os
 import pathlib
 import subprocess
+import threading
+import warnings
 
 import numpy as np
 import pytest
@@ -115,6 +117,99 @@ def test_a_map_from_ros_grids_localizes_against_ground_truth(world, tmp_path):
     with pytest.raises(lshloc.Error, match="expected the key 'image'"):
         (tmp_path / "bad.yaml").write_text("resolution: 0.05\norigin: [0, 0, 0]\n")
         lshloc.read_ros_map(str(tmp_path / "bad.yaml"))
+
+
+def test_a_map_written_on_one_thread_while_another_localizes_ends_as_one_fed_alone(world):
+    """Writes take the map's lock exclusively, localizing shared: no crash, no
+    spurious error, and the map ends as the same scans fed on one thread."""
+    a = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000-corrected.log.gz"))
+    target = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000.log.gz"))
+    shared, alone = lshloc.GlobalMap(), lshloc.GlobalMap()
+    for g in (shared, alone):
+        g.add_submap("a")
+        for scan in a.scans[:100]:
+            g.add_scan(0, scan, scan.pose)
+    errors = []
+
+    def write():
+        try:
+            for scan in a.scans[100:500]:
+                shared.add_scan(0, scan, scan.pose)
+        except Exception as e:  # noqa: BLE001 (reported below)
+            errors.append(e)
+
+    def localize():
+        try:
+            loc = lshloc.Localizer(shared)
+            for scan in target.scans[100:250]:
+                loc.add_scan(scan)
+        except Exception as e:  # noqa: BLE001
+            errors.append(e)
+
+    threads = [threading.Thread(target=write), threading.Thread(target=localize)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    for scan in a.scans[100:500]:
+        alone.add_scan(0, scan, scan.pose)
+    assert shared.stats() == alone.stats() and shared.submap_scans(0) == 500
+
+
+def test_bad_arguments_raise_what_was_expected(world, tmp_path):
+    gmap = lshloc.GlobalMap()
+    with pytest.raises(TypeError):
+        lshloc.Localizer(None)
+    with pytest.raises(lshloc.Error, match="config_json"):
+        lshloc.GlobalMap('{"database": ')
+    with pytest.raises(lshloc.Error, match="features"):
+        lshloc.Localizer(gmap, '{"features": {"max_keypoints": 5}}')
+    with pytest.raises(lshloc.Error, match="no submap 7"):
+        gmap.submap_name(7)
+    scan = lshloc.LaserScan(np.ones(181, dtype=np.float32), -math.pi / 2, math.pi / 180)
+    gmap.add_submap("a")
+    with pytest.raises(lshloc.Error, match="finite pose"):
+        gmap.add_scan(0, scan, (math.nan, 0.0, 0.0))
+    with pytest.raises(lshloc.Error, match="max_range"):
+        scan.max_range = math.nan
+    with pytest.raises(lshloc.Error, match="pose"):
+        scan.pose = (0.0, math.inf, 0.0)
+    assert gmap.stats()["scans"] == 0
+    # Occupancy cells as nav_msgs holds them: -1, 0..100; a uint8 view's 255 is -1; nothing else.
+    cells = np.array([[0, 100, -1], [0, 0, 50]], dtype=np.int8)
+    assert np.array_equal(lshloc.OccupancyGrid(cells, 0.05).cells, [[0, 100, -1], [0, 0, -1]])
+    assert np.array_equal(lshloc.OccupancyGrid(cells.view(np.uint8), 0.05).cells, [[0, 100, -1], [0, 0, -1]])
+    with pytest.raises(lshloc.Error, match="row 0, column 1\\) is 356"):
+        lshloc.OccupancyGrid(np.array([[0, 356]], dtype=np.int32), 0.05)
+    with pytest.raises(lshloc.Error, match="integers"):
+        lshloc.OccupancyGrid(np.array([[0.0, 0.65]]), 0.05)
+    with pytest.raises(lshloc.Error, match="origin"):
+        lshloc.OccupancyGrid(cells, 0.05, (math.nan, 0.0, 0.0))
+    with pytest.raises(lshloc.Error, match="empty"):
+        lshloc.OccupancyGrid(np.zeros((0, 3), dtype=np.int8), 0.05)
+    # A grid or setting that cannot make a submap leaves the map as it was.
+    walls = lshloc.OccupancyGrid(np.full((20, 20), 100, dtype=np.int8), 0.05)
+    room = lshloc.OccupancyGrid(np.pad(np.zeros((60, 60), dtype=np.int8), 1, constant_values=100), 0.05)
+    for grid, kwargs in ((walls, {}), (room, {"headings": 0}), (room, {"pose_spacing": -1.0})):
+        with pytest.raises(lshloc.Error):
+            gmap.add_grid_submap("walls", grid, **kwargs)
+    assert gmap.submap_count == 1
+
+
+def test_a_torn_journal_record_is_a_warning(world, tmp_path):
+    a = str(world / "sim-3-000" / "sim-3-000-corrected.log.gz")
+    path = tmp_path / "m.map"
+    subprocess.run([CLI, "map", "build", a, "--out", str(path)], check=True, capture_output=True)
+    subprocess.run([CLI, "map", "append", str(path), a, "--submap", "more", "--count", "5"], check=True,
+                   capture_output=True)
+    with open(path, "r+b") as f:
+        f.truncate(path.stat().st_size - 7)  # the last record loses its end, as a crash mid-write leaves it
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        gmap = lshloc.load_map(str(path))
+    assert any("torn" in str(w.message) for w in caught), [str(w.message) for w in caught]
+    assert gmap.submap_scans(gmap.submap_count - 1) == 4
 
 
 @pytest.mark.skipif(not (DATA / "intel").is_dir(), reason="shared data directory not found (set LSHLOC_DATA)")

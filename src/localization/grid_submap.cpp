@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -131,14 +133,19 @@ LaserScan cast_virtual_scan(const OccupancyGrid& grid, const Pose2& laser_pose, 
   return scan;
 }
 
-GridSubmapStats add_grid_submap(GlobalMap& map, std::uint32_t submap, const OccupancyGrid& grid,
-                                const GridSubmapConfig& config) {
+namespace {
+
+/// add_grid_submap() into the submap `open_submap` returns, called once
+/// every check has passed: a grid or config that cannot make a submap
+/// throws before the map changes.
+GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32_t()>& open_submap,
+                                 const std::string& name, const OccupancyGrid& grid, const GridSubmapConfig& config) {
   config.validate();
-  const std::string name = submap < map.submap_count() ? map.submap_name(submap) : std::to_string(submap);
-  if (submap >= map.submap_count() || map.submap_scans(submap) != 0)
-    throw Error("occupancy grid for submap " + name + ": expected a new, empty submap of the map");
   if (grid.width == 0 || grid.height == 0 || grid.cells.size() != grid.width * grid.height)
     throw Error("occupancy grid " + name + ": expected width x height cells, got " + std::to_string(grid.cells.size()));
+  if (!(grid.resolution > 0.0) || !std::isfinite(grid.resolution) || !std::isfinite(grid.origin.x()) ||
+      !std::isfinite(grid.origin.y()) || !std::isfinite(grid.origin_yaw))
+    throw Error("occupancy grid " + name + ": expected a finite resolution > 0 m and a finite origin");
   const CpuStopwatch total;
   GridSubmapStats stats;
   const Pose2 origin = grid.origin_pose();
@@ -173,6 +180,7 @@ GridSubmapStats add_grid_submap(GlobalMap& map, std::uint32_t submap, const Occu
     throw Error("occupancy grid " + name + ": " + std::to_string(stats.positions * config.headings) +
                 " virtual scans exceed GridSubmapConfig.max_virtual_scans (" +
                 std::to_string(config.max_virtual_scans) + "); use a wider pose_spacing or fewer headings");
+  const std::uint32_t submap = open_submap();
 
   for (std::size_t k = 0; k < config.headings; ++k) {
     const double heading = 2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(config.headings);
@@ -262,6 +270,26 @@ GridSubmapStats add_grid_submap(GlobalMap& map, std::uint32_t submap, const Occu
   }
   stats.cpu_s = total.seconds();
   return stats;
+}
+
+}  // namespace
+
+GridSubmapStats add_grid_submap(GlobalMap& map, std::uint32_t submap, const OccupancyGrid& grid,
+                                const GridSubmapConfig& config) {
+  const std::string name = submap < map.submap_count() ? map.submap_name(submap) : std::to_string(submap);
+  if (submap >= map.submap_count() || map.submap_scans(submap) != 0)
+    throw Error("occupancy grid for submap " + name + ": expected a new, empty submap of the map");
+  return fill_grid_submap(
+      map, [submap] { return submap; }, name, grid, config);
+}
+
+std::uint32_t add_grid_as_new_submap(GlobalMap& map, const std::string& name, const OccupancyGrid& grid,
+                                     const GridSubmapConfig& config, GridSubmapStats* stats) {
+  std::uint32_t id = 0;
+  const GridSubmapStats st = fill_grid_submap(
+      map, [&] { return id = map.add_submap(name); }, name, grid, config);
+  if (stats) *stats = st;
+  return id;
 }
 
 }  // namespace lshloc

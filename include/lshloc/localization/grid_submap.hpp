@@ -59,6 +59,12 @@ struct GridSubmapStats {
 GridSubmapStats add_grid_submap(GlobalMap& map, std::uint32_t submap, const OccupancyGrid& grid,
                                 const GridSubmapConfig& config = {});
 
+/// add_grid_submap() into a new submap named `name`, opened only once the
+/// grid and config have passed every check (the map is unchanged when it
+/// throws); returns its id, and its statistics into `stats` if given.
+std::uint32_t add_grid_as_new_submap(GlobalMap& map, const std::string& name, const OccupancyGrid& grid,
+                                     const GridSubmapConfig& config = {}, GridSubmapStats* stats = nullptr);
+
 /// The virtual scan from `laser_pose` (map frame): each ray runs through the
 /// grid's cells until an occupied cell (range: the cell centre's distance
 /// along the ray) and is a no-return (max_range) when it first meets an
