@@ -391,5 +391,33 @@ TEST(CarmenWriter, NonFlaserLayoutsUseRobotLaser1) {
   std::filesystem::remove(path);
 }
 
+// The laser's mount (forward, sideways, angle) as CARMEN's three PARAMs,
+// read back whole (FLASER lines carry no mount of their own).
+TEST(CarmenWriter, TheLasersMountReadsBack) {
+  const auto b = building_with_seed(3);
+  SimulationConfig config;
+  config.scans = 20;
+  const BuildingRecording rec = simulate_recording(b, config);
+  const std::string path = test::temp_path(".log");
+  const Pose2 mount(0.21, -0.05, 0.3);
+  io::write_carmen_log(path, rec.raw_scans, true, mount);
+  const io::CarmenLog back = io::read_carmen_log(path);
+  EXPECT_NEAR(back.front_laser_offset().x, mount.x, 1e-6);
+  EXPECT_NEAR(back.front_laser_offset().y, mount.y, 1e-6);
+  EXPECT_NEAR(back.front_laser_offset().theta, mount.theta, 1e-6);
+  test::write_file(path, "PARAM robot_frontlaser_angular_offset 17deg\n" + test::read_file(path));
+  EXPECT_THROW(
+      {
+        try {
+          io::read_carmen_log(path);
+        } catch (const Error& e) {
+          EXPECT_NE(std::string(e.what()).find("expected a number of radians"), std::string::npos) << e.what();
+          throw;
+        }
+      },
+      Error);
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace lshloc::sim

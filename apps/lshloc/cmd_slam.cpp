@@ -96,7 +96,9 @@ void run_slam(const SlamOptions& opt, const GlobalOptions& global) {
   // The laser offset: the log's PARAM, else the catalog's documented value
   // for the building, else the config's.
   const KnownLog known = known_log(opt.log, global.resolved_data_dir());
-  if (log.params.count("robot_frontlaser_offset") != 0) {
+  if (log.params.count("robot_frontlaser_offset") + log.params.count("robot_frontlaser_side_offset") +
+          log.params.count("robot_frontlaser_angular_offset") !=
+      0) {
     slam_config.matcher.laser_offset = log.front_laser_offset();
   } else if (known.documented_laser_offset) {
     slam_config.matcher.laser_offset = Pose2(*known.documented_laser_offset, 0.0, 0.0);

@@ -1,13 +1,25 @@
 #include "lshloc/io/carmen_reader.hpp"
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <limits>
+#include <string_view>
+#include <utility>
 
 #include "lshloc/common/error.hpp"
 
 namespace lshloc::io {
+
+namespace {
+/// CARMEN's laser mounting parameters: the laser's pose on the robot.
+constexpr std::array<std::pair<std::string_view, const char*>, 3> kLaserOffsetParams{{
+    {"robot_frontlaser_offset", "a number of metres (forward)"},
+    {"robot_frontlaser_side_offset", "a number of metres (to the left)"},
+    {"robot_frontlaser_angular_offset", "a number of radians"},
+}};
+}  // namespace
 
 CarmenReader::CarmenReader(std::string path, CarmenReaderConfig config)
     : lines_(std::move(path)), config_(config), flaser_max_range_(config.default_max_range) {
@@ -183,10 +195,10 @@ bool CarmenReader::next(CarmenRecord& record) {
       record.type = CarmenRecord::Type::kParam;
       record.param_name = fields_[1];
       record.param_value = fields_[2];
-      if (record.param_name == "robot_frontlaser_offset" &&
-          !std::isfinite(parse_double(fields_[2], where, 2, "the front laser's offset [m]")))
-        throw Error(where + ": PARAM robot_frontlaser_offset is '" + std::string(fields_[2]) +
-                    "', expected a number of metres");
+      for (const auto& [name, unit] : kLaserOffsetParams)
+        if (record.param_name == name && !std::isfinite(parse_double(fields_[2], where, 2, unit)))
+          throw Error(where + ": PARAM " + std::string(name) + " is '" + std::string(fields_[2]) + "', expected " +
+                      unit);
       if (record.param_name == "robot_front_laser_max") {
         const double v = parse_double(fields_[2], where, 2, "the laser's maximum range [m]");
         if (v > 0.0 && std::isfinite(v)) flaser_max_range_ = v;
@@ -246,15 +258,17 @@ void CarmenReader::require_messages() const {
 
 Pose2 CarmenLog::front_laser_offset() const {
   if (robotlaser_offset) return *robotlaser_offset;
-  const auto it = params.find("robot_frontlaser_offset");
-  if (it == params.end()) return {};
-  double v = 0.0;
-  const char* end = it->second.data() + it->second.size();
-  const auto [p, ec] = std::from_chars(it->second.data(), end, v);
-  if (ec != std::errc() || p != end || !std::isfinite(v)) {
-    throw Error(path + ": PARAM robot_frontlaser_offset is '" + it->second + "', expected a number of metres");
+  std::array<double, 3> v{};  // forward, sideways, angle: kLaserOffsetParams' order
+  for (std::size_t k = 0; k < kLaserOffsetParams.size(); ++k) {
+    const auto& [name, unit] = kLaserOffsetParams[k];
+    const auto it = params.find(std::string(name));
+    if (it == params.end()) continue;
+    const char* end = it->second.data() + it->second.size();
+    const auto [p, ec] = std::from_chars(it->second.data(), end, v[k]);
+    if (ec != std::errc() || p != end || !std::isfinite(v[k]))
+      throw Error(path + ": PARAM " + std::string(name) + " is '" + it->second + "', expected " + unit);
   }
-  return {v, 0.0, 0.0};
+  return {v[0], v[1], v[2]};
 }
 
 CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config) {

@@ -1,5 +1,6 @@
 #include "lshloc/io/carmen_writer.hpp"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <zlib.h>
@@ -115,8 +116,20 @@ void CarmenWriter::close() {
     error = path_ + ": closing the gzip stream failed";
   if (file_ && std::fclose(static_cast<std::FILE*>(file_)) != 0 && error.empty()) error = path_ + ": closing failed";
   gz_ = file_ = nullptr;
+  if (error.empty()) {  // durable before it takes the final name (docs/reliability.md, "Writes")
+    const int fd = ::open(temp_path_.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0 || ::fsync(fd) != 0) error = system_error(temp_path_, "cannot sync the log written for " + path_);
+    if (fd >= 0) ::close(fd);
+  }
   if (error.empty() && ::rename(temp_path_.c_str(), path_.c_str()) != 0)
     error = system_error(path_, "cannot rename " + temp_path_ + " to it");
+  if (error.empty()) {
+    try {
+      sync_directory_of(path_);
+    } catch (const Error& e) {
+      error = e.what();
+    }
+  }
   if (!error.empty()) {
     ::unlink(temp_path_.c_str());
     throw Error(error);

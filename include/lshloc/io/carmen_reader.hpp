@@ -109,7 +109,8 @@ struct CarmenLog {
   bool gmapping_corrected() const { return skipped_messages.count("NEFF") != 0; }
 
   /// The laser's mounting pose on the robot: robotlaser_offset when the log
-  /// has one, else PARAM robot_frontlaser_offset (metres forward), else identity.
+  /// has one, else PARAM robot_frontlaser_offset, robot_frontlaser_side_offset
+  /// [m] and robot_frontlaser_angular_offset [rad] (each 0 when absent).
   Pose2 front_laser_offset() const;
 };
 
