@@ -157,7 +157,9 @@ PYBIND11_MODULE(lshloc, m) {
 
   py::class_<io::CarmenLog>(m, "CarmenLog", "A CARMEN log in memory")
       .def_readonly("path", &io::CarmenLog::path)
-      .def_readonly("scans", &io::CarmenLog::scans)
+      .def_readonly("scans", &io::CarmenLog::scans,
+                    "the laser scans, a new list on each access (items refer into the log): keep "
+                    "`scans = log.scans` rather than indexing log.scans in a loop")
       .def_property_readonly("laser_offset", [](const io::CarmenLog& l) { return to_tuple(l.front_laser_offset()); })
       .def_property_readonly("gmapping_corrected", &io::CarmenLog::gmapping_corrected)
       .def_readonly("warnings", &io::CarmenLog::warnings,
