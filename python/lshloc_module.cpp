@@ -113,7 +113,9 @@ LocalizerConfig localizer_config(const GlobalMap& map, const std::string& config
 
 PYBIND11_MODULE(lshloc, m) {
   m.doc() = "lshloc: global localization of 2D-laser robots in large, growing maps (LSH-RANSAC)";
-  py::register_exception<Error>(m, "Error", PyExc_ValueError);
+  const auto error = py::register_exception<Error>(m, "Error", PyExc_ValueError);
+  // A file that cannot be opened or read: both lshloc.Error and OSError.
+  py::register_exception<FileError>(m, "FileError", py::make_tuple(error, py::handle(PyExc_OSError)));
 
   py::class_<LaserScan>(m, "LaserScan", "One planar laser scan: ranges [m] at angle_min + i * angle_increment [rad]")
       .def(py::init(&make_scan), py::arg("ranges"), py::arg("angle_min"), py::arg("angle_increment"),

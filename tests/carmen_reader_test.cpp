@@ -75,6 +75,28 @@ TEST(CarmenReader, GzipEqualsPlain) {
   EXPECT_EQ(a.odometry.size(), b.odometry.size());
 }
 
+// A file that cannot be opened is a FileError (callers tell it from bad
+// content) naming the file and the system's reason.
+TEST(CarmenReader, AMissingFileIsAFileErrorNamingIt) {
+  const std::string path = test::temp_path("-missing.log");
+  try {
+    read_carmen_log(path);
+    FAIL() << "no error";
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find(path + ": no such file"), std::string::npos) << e.what();
+  }
+  test::write_file(path, "garbage that is no log\n");
+  EXPECT_THROW(
+      {
+        try {
+          read_carmen_log(path);
+        } catch (const FileError&) {
+          FAIL() << "bad content is no FileError";
+        }
+      },
+      Error);
+}
+
 TEST(CarmenReader, InvalidReadingsAreFlaggedNotFatal) {
   const std::string path = test::temp_path(".log");
   std::string line = flaser_line(4, 2.0, 1.0);

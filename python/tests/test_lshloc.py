@@ -197,6 +197,18 @@ def test_bad_arguments_raise_what_was_expected(world, tmp_path):
     assert gmap.submap_count == 1
 
 
+def test_a_missing_file_is_an_oserror_and_an_lshloc_error(tmp_path):
+    for read in (lshloc.read_carmen_log, lshloc.load_map, lshloc.read_ros_map):
+        with pytest.raises(OSError, match="missing.x: (no such file|cannot open)"):
+            read(str(tmp_path / "missing.x"))
+        with pytest.raises(lshloc.Error):
+            read(str(tmp_path / "missing.x"))
+    (tmp_path / "bad.log").write_text("no log here\n")
+    with pytest.raises(lshloc.Error) as bad:
+        lshloc.read_carmen_log(str(tmp_path / "bad.log"))
+    assert not isinstance(bad.value, OSError)
+
+
 def test_a_torn_journal_record_is_a_warning(world, tmp_path):
     a = str(world / "sim-3-000" / "sim-3-000-corrected.log.gz")
     path = tmp_path / "m.map"

@@ -1,6 +1,8 @@
 #include "lshloc/io/config_json.hpp"
 
 #include <array>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <utility>
@@ -157,7 +159,7 @@ std::string json_text(const nlohmann::json& j, int indent) {
 
 nlohmann::json read_json_file(const std::string& path) {
   std::ifstream in(path);
-  if (!in) throw Error(path + ": cannot open for reading");
+  if (!in) throw FileError(path + ": cannot open for reading: " + std::strerror(errno));
   try {
     return nlohmann::json::parse(in);
   } catch (const nlohmann::json::exception& e) {

@@ -36,7 +36,7 @@ struct LineReader::Source {
     const std::size_t kept = zs.avail_in;
     if (kept > 0 && zs.next_in != in.data()) std::memmove(in.data(), zs.next_in, kept);
     const std::size_t n = std::fread(in.data() + kept, 1, in.size() - kept, file);
-    if (n == 0 && std::ferror(file)) throw Error(path + ": cannot read: " + std::strerror(errno));
+    if (n == 0 && std::ferror(file)) throw FileError(path + ": cannot read: " + std::strerror(errno));
     zs.next_in = in.data();
     zs.avail_in = static_cast<uInt>(kept + n);
     return n > 0;
@@ -51,11 +51,11 @@ LineReader::LineReader(std::string path) : path_(std::move(path)) {
     return;
   }
   std::error_code ec;
-  if (!std::filesystem::exists(path_, ec)) throw Error(path_ + ": no such file");
-  if (std::filesystem::is_directory(path_, ec)) throw Error(path_ + ": is a directory, expected a log file");
+  if (!std::filesystem::exists(path_, ec)) throw FileError(path_ + ": no such file");
+  if (std::filesystem::is_directory(path_, ec)) throw FileError(path_ + ": is a directory, expected a log file");
   source_ = std::make_unique<Source>();
   source_->file = std::fopen(path_.c_str(), "rb");
-  if (source_->file == nullptr) throw Error(path_ + ": cannot open: " + std::strerror(errno));
+  if (source_->file == nullptr) throw FileError(path_ + ": cannot open: " + std::strerror(errno));
   // Small files get small buffers (a reader per poses file, per fuzz input).
   constexpr std::size_t kInputBytes = std::size_t{1} << 17;
   std::error_code size_ec;
@@ -82,7 +82,7 @@ std::size_t LineReader::read_plain() {
   if (src.zs.avail_in == 0) {
     // Past the bytes read to sniff the format: straight into the line buffer.
     const std::size_t n = std::fread(buffer_.data(), 1, buffer_.size(), src.file);
-    if (n == 0 && std::ferror(src.file)) throw Error(path_ + ": cannot read: " + std::strerror(errno));
+    if (n == 0 && std::ferror(src.file)) throw FileError(path_ + ": cannot read: " + std::strerror(errno));
     return n;
   }
   const std::size_t n = std::min<std::size_t>(src.zs.avail_in, buffer_.size());
@@ -140,7 +140,7 @@ bool LineReader::fill() {
     for (;;) {
       const ssize_t n = ::read(STDIN_FILENO, buffer_.data(), buffer_.size());
       if (n < 0 && errno == EINTR) continue;
-      if (n < 0) throw Error(std::string("stdin: cannot read: ") + std::strerror(errno));
+      if (n < 0) throw FileError(std::string("stdin: cannot read: ") + std::strerror(errno));
       got = static_cast<std::size_t>(n);
       break;
     }

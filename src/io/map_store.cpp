@@ -66,7 +66,7 @@ class FileBytes {
 
 std::unique_ptr<FileBytes> read_whole_file(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw Error(system_error(path, "cannot open the map"));
+  if (fd < 0) throw FileError(system_error(path, "cannot open the map"));
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
     ::close(fd);
@@ -84,7 +84,7 @@ std::unique_ptr<FileBytes> read_whole_file(const std::string& path) {
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
       ::close(fd);
-      throw Error(system_error(path, "cannot read the map"));
+      throw FileError(system_error(path, "cannot read the map"));
     }
     if (n == 0) break;  // shrank while reading: judge what was read
     done += static_cast<std::size_t>(n);
@@ -410,7 +410,7 @@ MapAppender::MapAppender(const std::string& path, MapAppenderConfig config) : pa
 
 void MapAppender::open_file() {
   fd_ = ::open(path_.c_str(), O_RDWR | O_CLOEXEC);
-  if (fd_ < 0) throw Error(system_error(path_, "cannot open the map for appending"));
+  if (fd_ < 0) throw FileError(system_error(path_, "cannot open the map for appending"));
   if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
     ::close(fd_);
     fd_ = -1;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -67,7 +68,7 @@ struct YamlValue {
 /// The top-level mapping of a map_server YAML file, key -> value.
 std::map<std::string, YamlValue> read_yaml_mapping(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open");
+  if (!in) throw FileError(path + ": cannot open: " + std::strerror(errno));
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (text.size() > (1u << 20))
     throw Error(path + ": expected a map_server YAML of a few lines, got " + std::to_string(text.size()) + " bytes");
@@ -130,7 +131,7 @@ struct GreyImage {
 
 GreyImage read_pgm(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open the map image");
+  if (!in) throw FileError(path + ": cannot open the map image: " + std::strerror(errno));
   const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   std::size_t pos = 0;
   const auto skip_space = [&] {

@@ -1,6 +1,6 @@
 #pragma once
 // The one exception type every lshloc layer throws (docs/design.md section 5,
-// "Errors").
+// "Errors"), and its kind for files that cannot be opened or read.
 // No physical units.
 // Thread safety: an Error is an immutable value; copy and read it from any thread.
 #include <stdexcept>
@@ -15,6 +15,14 @@ namespace lshloc {
 class Error : public std::runtime_error {
  public:
   explicit Error(const std::string& what) : std::runtime_error(what) {}
+};
+
+/// An Error about a file that cannot be opened or read at all (missing, no
+/// permission, an I/O error): callers may tell it from bad content (Python
+/// gets an OSError). The message names the file and the system's reason.
+class FileError : public Error {
+ public:
+  using Error::Error;
 };
 
 /// Throws Error("FIELD: expected EXPECTED, got GOT").
