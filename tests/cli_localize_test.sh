@@ -142,6 +142,13 @@ python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['localized']" "
 # target in the right building, and the saved map gives the same answer.
 "$LSHLOC" map to-grid "$a/sim-3-000-corrected.log.gz" --out "$d/ga" >/dev/null
 "$LSHLOC" map to-grid "$b/sim-3-001-corrected.log.gz" --out "$d/gb" >/dev/null
+# --out with the YAML's extension is the same stem; a folder is refused before the work.
+"$LSHLOC" map to-grid "$b/sim-3-001-corrected.log.gz" --out "$d/gb2.yaml" >/dev/null
+cmp -s "$d/gb.pgm" "$d/gb2.pgm" && [ ! -e "$d/gb2.yaml.yaml" ] || fail "to-grid --out X.yaml"
+if "$LSHLOC" map to-grid "$b/sim-3-001-corrected.log.gz" --out "$d/" >/dev/null 2>"$d/err.txt"; then
+  fail "to-grid --out DIR/ was accepted"
+fi
+grep -q "expected a path stem" "$d/err.txt" || fail "to-grid --out DIR/ message: $(cat "$d/err.txt")"
 "$LSHLOC" localize --map "$d/ga.yaml" --map "$d/gb.yaml" "${target[@]}" --json >"$d/grid.json" 2>/dev/null
 "$LSHLOC" map from-grid "$d/ga.yaml" "$d/gb.yaml" --out "$d/g.map" --grid-laser-of "$b/sim-3-001.log.gz" >/dev/null 2>&1
 "$LSHLOC" localize --map "$d/g.map" "${target[@]}" --json >"$d/gridmap.json" 2>/dev/null

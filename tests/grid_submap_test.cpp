@@ -128,6 +128,53 @@ TEST(RosMap, BadFilesNameTheFileTheKeyAndWhatWasExpected) {
             std::string::npos);
 }
 
+// What map_server writers and readers put in files besides the basics: a
+// stem with YAML syntax in it, a UTM origin kept to the last bit, a 16-bit
+// image thresholded at full precision, negate as a boolean, a CR LF header
+// refused, a directory named as the YAML, and an upper-case extension.
+TEST(RosMap, ReadsWhatOtherToolsWriteAndWritesWhatTheyRead) {
+  OccupancyGrid g = room_grid(0.123456789012);
+  g.origin = {4512345.678, 5412345.6789};
+  const std::string stem = test::temp_path("-map #2: \"quoted\"");
+  io::write_ros_map(stem, g);
+  const OccupancyGrid back = io::read_ros_map(stem + ".yaml");
+  EXPECT_EQ(back.cells, g.cells);
+  EXPECT_EQ(back.origin.x(), g.origin.x());
+  EXPECT_EQ(back.origin.y(), g.origin.y());
+  EXPECT_EQ(back.origin_yaw, g.origin_yaw);
+  EXPECT_EQ(back.resolution, g.resolution);
+
+  // p = (65535 - 22938) / 65535 = 0.64999: under occupied_thresh 0.65, so unknown (8-bit rounding made it occupied).
+  std::string wide = "P5\n2 1\n65535\n";
+  wide += std::string("\x59\x9a\x00\x00", 4);  // 22938, then 0 (black)
+  const std::string wide_pgm = write_text(".pgm", wide);
+  const auto yaml = [](const std::string& image, const std::string& extra) {
+    return write_text(".yaml", "image: " + image + "\nresolution: 0.1\norigin: [0, 0, 0]\n" + extra);
+  };
+  EXPECT_EQ(io::read_ros_map(yaml(wide_pgm, "")).cells,
+            (std::vector<std::int8_t>{occupancy::kUnknown, occupancy::kOccupied}));
+  const std::string pgm = write_text(".pgm", "P2\n2 1\n255\n0 255\n");
+  EXPECT_EQ(io::read_ros_map(yaml(pgm, "negate: true\n")).cells, io::read_ros_map(yaml(pgm, "negate: 1\n")).cells);
+  EXPECT_EQ(io::read_ros_map(yaml(pgm, "negate: false\n")).cells, io::read_ros_map(yaml(pgm, "")).cells);
+
+  const auto message = [](const std::string& path) {
+    try {
+      io::read_ros_map(path);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string crlf = write_text(".pgm", std::string("P5\r\n2 1\r\n255\r\n\x00\xff", 14));
+  EXPECT_NE(message(yaml(crlf, "")).find("ends in CR LF"), std::string::npos) << message(yaml(crlf, ""));
+  const std::string dir = test::temp_path(".yaml");
+  std::filesystem::create_directory(dir);
+  EXPECT_THROW(io::read_ros_map(dir), FileError);
+  EXPECT_NE(message(dir).find("not a regular file"), std::string::npos) << message(dir);
+  EXPECT_TRUE(io::is_ros_map_path("maps/FLOOR2.YAML") && io::is_ros_map_path("a.Yml"));
+  EXPECT_FALSE(io::is_ros_map_path("a.log"));
+}
+
 TEST(GridSubmap, VirtualScansMatchTheRoomsExactDistances) {
   for (const double yaw : {0.0, 0.7}) {
     const OccupancyGrid g = room_grid(yaw);

@@ -346,6 +346,11 @@ void add_to_grid(CLI::App& map_cmd) {
       ->check(within(0.01, 1000));
   cmd->add_flag("--slam", opt->slam, "pose a raw log given without a poses file by lshloc's SLAM");
   cmd->callback([opt] {
+    // --out map.yaml means the stem map (not map.yaml.yaml); a folder is no stem.
+    if (io::is_ros_map_path(opt->out)) opt->out = opt->out.substr(0, opt->out.rfind('.'));
+    if (opt->out.empty() || opt->out.back() == '/' || std::filesystem::path(opt->out).filename().empty())
+      throw Error("--out " + opt->out + ": expected a path stem such as maps/floor2 (writes floor2.yaml, floor2.pgm)");
+    io::require_writable(opt->out + ".yaml");
     const Submap submap = load_map_argument(opt->log, opt->slam);
     const OccupancyGrid grid = build_occupancy_grid(submap.scans, opt->grid);
     io::write_ros_map(opt->out, grid);

@@ -3,9 +3,11 @@
 #include <yaml.h>
 
 #include <cctype>
+#include <charconv>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -42,13 +44,29 @@ void write_ros_map(const std::string& stem, const OccupancyGrid& grid) {
     image << row;
   }
   const std::string image_bytes = image.str();
-  char origin[96];
-  std::snprintf(origin, sizeof origin, "[%.9g, %.9g, %.9g]", grid.origin.x(), grid.origin.y(), grid.origin_yaw);
-  std::ostringstream text;
-  text << "image: " << std::filesystem::path(pgm).filename().string()
-       << "\nmode: trinary\nresolution: " << std::setprecision(9) << grid.resolution << "\norigin: " << origin
-       << "\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
-  const std::string yaml_bytes = text.str();
+  // Numbers in their shortest exact form (UTM origins keep their millimetres); the
+  // image's name double-quoted (a '#' or ': ' in it would otherwise be YAML syntax).
+  const auto exact = [](double v) {
+    char buf[32];
+    const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+    return std::string(buf, ec == std::errc() ? end : buf);
+  };
+  std::string name = "\"";
+  for (const char c : std::filesystem::path(pgm).filename().string()) {
+    if (c == '"' || c == '\\') {
+      name += '\\', name += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02X", static_cast<unsigned>(static_cast<unsigned char>(c)));
+      name += hex;
+    } else {
+      name += c;
+    }
+  }
+  name += '"';
+  const std::string yaml_bytes = "image: " + name + "\nmode: trinary\nresolution: " + exact(grid.resolution) +
+                                 "\norigin: [" + exact(grid.origin.x()) + ", " + exact(grid.origin.y()) + ", " +
+                                 exact(grid.origin_yaw) + "]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
   // Together: an image beside the YAML of another map would be a silently wrong map.
   const FileOutput files[] = {{pgm, image_bytes}, {yaml, yaml_bytes}};
   write_files_atomically(files);
@@ -65,12 +83,23 @@ struct YamlValue {
   std::size_t line = 0;
 };
 
+/// The bytes of the regular file at `path` (`what` names it in messages).
+std::string read_regular_file(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw FileError(path + ": " + what + " is not a regular file (a directory?)");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FileError(path + ": cannot open " + what + ": " + std::strerror(errno));
+  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw FileError(path + ": cannot read " + what);
+  return data;
+}
+
 /// The top-level mapping of a map_server YAML file, key -> value.
 std::map<std::string, YamlValue> read_yaml_mapping(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw FileError(path + ": cannot open: " + std::strerror(errno));
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (text.size() > (1u << 20))
+  const std::string text = read_regular_file(path, "the map YAML");
+  // A few lines: the cap also bounds the parser's time on deeply nested junk.
+  if (text.size() > (1u << 16))
     throw Error(path + ": expected a map_server YAML of a few lines, got " + std::to_string(text.size()) + " bytes");
   yaml_parser_t parser;
   if (!yaml_parser_initialize(&parser)) throw Error(path + ": cannot start the YAML parser");
@@ -123,16 +152,15 @@ double parse_number(const std::string& text, const std::string& where, const std
   return v;
 }
 
-/// A PGM image (binary P5 or plain P2), grey values scaled to 0..255.
+/// A PGM image (binary P5 or plain P2) with its grey values as stored.
 struct GreyImage {
   std::size_t width = 0, height = 0;
-  std::vector<unsigned char> pixels;  // row-major, row 0 at the top
+  std::size_t maxval = 255;
+  std::vector<std::uint16_t> pixels;  // row-major, row 0 at the top
 };
 
 GreyImage read_pgm(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw FileError(path + ": cannot open the map image: " + std::strerror(errno));
-  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string data = read_regular_file(path, "the map image");
   std::size_t pos = 0;
   const auto skip_space = [&] {
     while (pos < data.size()) {
@@ -175,11 +203,19 @@ GreyImage read_pgm(const std::string& path) {
     throw Error(path + ": expected " + std::to_string(n) + " plain pixel values after the header, but only " +
                 std::to_string(left) + " bytes follow");
   img.pixels.resize(n);
-  const auto scaled = [&](std::size_t v) {
-    return static_cast<unsigned char>(maxval == 255 ? v : (v * 255 + maxval / 2) / maxval);
-  };
+  img.maxval = maxval;
+  const auto scaled = [](std::size_t v) { return static_cast<std::uint16_t>(v); };
   if (binary) {
-    ++pos;  // the one whitespace byte after maxval
+    // Exactly one whitespace byte after maxval, then the raster: a header line
+    // ending in CR LF would make the LF the first pixel and shift the map.
+    if (pos >= data.size() || !std::isspace(static_cast<unsigned char>(data[pos])))
+      throw Error(path + ": byte " + std::to_string(pos) +
+                  ": expected one whitespace byte between the maximum grey value and the pixels");
+    if (data[pos] == '\r' && pos + 1 < data.size() && data[pos + 1] == '\n')
+      throw Error(path +
+                  ": the PGM header ends in CR LF: expected one whitespace byte before the pixels (the LF "
+                  "would be read as the first pixel)");
+    ++pos;
     const std::size_t bytes = maxval > 255 ? 2 : 1;
     if (data.size() < pos + n * bytes)
       throw Error(path + ": expected " + std::to_string(n * bytes) + " bytes of pixels after the header, got " +
@@ -203,7 +239,8 @@ GreyImage read_pgm(const std::string& path) {
 }  // namespace
 
 bool is_ros_map_path(const std::string& path) {
-  const std::string ext = std::filesystem::path(path).extension().string();
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext == ".yaml" || ext == ".yml";
 }
 
@@ -236,8 +273,14 @@ OccupancyGrid read_ros_map(const std::string& yaml_path) {
   grid.origin = {parse_number(origin.items[0], where(origin), "origin x"),
                  parse_number(origin.items[1], where(origin), "origin y")};
   grid.origin_yaw = parse_number(origin.items[2], where(origin), "origin yaw");
-  const double negate = number("negate", 0.0);
-  if (negate != 0.0 && negate != 1.0) throw Error(where(*get("negate", true)) + ": negate: expected 0 or 1");
+  double negate = 0.0;  // 0 or 1, or (as nav2 also reads it) false or true
+  if (const YamlValue* n = get("negate", false)) {
+    if (!n->is_sequence && (n->scalar == "true" || n->scalar == "false"))
+      negate = n->scalar == "true" ? 1.0 : 0.0;
+    else
+      negate = number("negate", 0.0);
+    if (negate != 0.0 && negate != 1.0) throw Error(where(*n) + ": negate: expected 0 or 1 (or false or true)");
+  }
   const double occupied_thresh = number("occupied_thresh", 0.65), free_thresh = number("free_thresh", 0.196);
   if (!(free_thresh >= 0.0 && free_thresh <= occupied_thresh && occupied_thresh <= 1.0))
     throw Error(yaml_path + ": expected 0 <= free_thresh <= occupied_thresh <= 1, got " + std::to_string(free_thresh) +
@@ -256,18 +299,22 @@ OccupancyGrid read_ros_map(const std::string& yaml_path) {
   grid.cells.assign(img.width * img.height, occupancy::kUnknown);
   for (std::size_t r = 0; r < img.height; ++r) {
     // The image's top row is the grid's highest y.
-    const unsigned char* row = &img.pixels[(img.height - 1 - r) * img.width];
+    const std::uint16_t* row = &img.pixels[(img.height - 1 - r) * img.width];
+    const double maxval = static_cast<double>(img.maxval);
     for (std::size_t c = 0; c < img.width; ++c) {
-      const double v = row[c];
       std::int8_t& cell = grid.cells[r * img.width + c];
-      if (mode == "raw") {
+      if (mode == "raw") {  // the grey value read as 0..100 occupancy, on a 0..255 scale
+        const double v =
+            img.maxval == 255 ? row[c] : std::floor((static_cast<double>(row[c]) * 255.0 + maxval / 2) / maxval);
         if (v <= 100)
           cell = v / 100.0 > occupied_thresh ? occupancy::kOccupied
                  : v / 100.0 < free_thresh   ? occupancy::kFree
                                              : occupancy::kUnknown;
         continue;
       }
-      const double p = negate != 0.0 ? v / 255.0 : (255.0 - v) / 255.0;
+      // p from the value as stored (a 16-bit image is not rounded to 8 bits first).
+      const double v = row[c];
+      const double p = negate != 0.0 ? v / maxval : (maxval - v) / maxval;
       cell = p > occupied_thresh ? occupancy::kOccupied : p < free_thresh ? occupancy::kFree : occupancy::kUnknown;
     }
   }
