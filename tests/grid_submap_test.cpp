@@ -171,6 +171,16 @@ TEST(RosMap, ReadsWhatOtherToolsWriteAndWritesWhatTheyRead) {
   std::filesystem::create_directory(dir);
   EXPECT_THROW(io::read_ros_map(dir), FileError);
   EXPECT_NE(message(dir).find("not a regular file"), std::string::npos) << message(dir);
+  // Other tools' nested settings are skipped; a key we read given nested is named as such.
+  EXPECT_EQ(io::read_ros_map(yaml(pgm, "plugins: [{name: a}, {name: b}]\nnav2: {x: 1}\n")).cells,
+            io::read_ros_map(yaml(pgm, "")).cells);
+  const std::string nested_origin =
+      write_text(".yaml", "image: " + pgm + "\nresolution: 0.1\norigin: {x: 1, y: 2, yaw: 0}\n");
+  EXPECT_NE(message(nested_origin).find(":3: origin: expected a value or a list of numbers"), std::string::npos)
+      << message(nested_origin);
+  // An image error names the YAML's line too.
+  const std::string missing_image = yaml("missing.pgm", "");
+  EXPECT_NE(message(missing_image).find(missing_image + ":1: image: "), std::string::npos) << message(missing_image);
   EXPECT_TRUE(io::is_ros_map_path("maps/FLOOR2.YAML") && io::is_ros_map_path("a.Yml"));
   EXPECT_FALSE(io::is_ros_map_path("a.log"));
 }

@@ -80,6 +80,7 @@ struct YamlValue {
   std::string scalar;
   std::vector<std::string> items;
   bool is_sequence = false;
+  bool nested = false;  ///< a mapping, or a sequence holding more than scalars: other tools' settings
   std::size_t line = 0;
 };
 
@@ -132,11 +133,14 @@ std::map<std::string, YamlValue> read_yaml_mapping(const std::string& path) {
       for (const yaml_node_item_t* item = value->data.sequence.items.start; item < value->data.sequence.items.top;
            ++item) {
         const yaml_node_t* n = yaml_document_get_node(&doc, *item);
-        if (n->type != YAML_SCALAR_NODE) throw Error(where + ": " + scalar(key) + ": expected a list of numbers");
+        if (n->type != YAML_SCALAR_NODE) {
+          v.nested = true;
+          break;
+        }
         v.items.push_back(scalar(n));
       }
     } else {
-      continue;  // nested mappings belong to other tools (e.g. nav2's parameters)
+      v.nested = true;  // a mapping: other tools' settings (e.g. nav2's parameters), unless it is a key we read
     }
     if (!out.emplace(scalar(key), v).second) throw Error(where + ": key " + scalar(key) + " given twice");
   }
@@ -252,6 +256,9 @@ OccupancyGrid read_ros_map(const std::string& yaml_path) {
       if (required) throw Error(yaml_path + ": expected the key '" + key + "' (map_server's map YAML)");
       return nullptr;
     }
+    if (it->second.nested)
+      throw Error(yaml_path + ":" + std::to_string(it->second.line) + ": " + key +
+                  ": expected a value or a list of numbers (as map_server writes it), got nested values");
     return &it->second;
   };
   const auto where = [&](const YamlValue& v) { return yaml_path + ":" + std::to_string(v.line); };
@@ -294,7 +301,15 @@ OccupancyGrid read_ros_map(const std::string& yaml_path) {
 
   std::filesystem::path image_path(image.scalar);
   if (image_path.is_relative()) image_path = std::filesystem::path(yaml_path).parent_path() / image_path;
-  const GreyImage img = read_pgm(image_path.string());
+  // Image errors also name the YAML's line that points at the image.
+  GreyImage img;
+  try {
+    img = read_pgm(image_path.string());
+  } catch (const FileError& e) {
+    throw FileError(where(image) + ": image: " + e.what());
+  } catch (const Error& e) {
+    throw Error(where(image) + ": image: " + e.what());
+  }
   grid.width = img.width, grid.height = img.height;
   grid.cells.assign(img.width * img.height, occupancy::kUnknown);
   for (std::size_t r = 0; r < img.height; ++r) {
