@@ -71,6 +71,19 @@ struct PyGlobalMap {
   std::shared_ptr<GlobalMap> map;
   std::shared_ptr<std::shared_mutex> lock = std::make_shared<std::shared_mutex>();
 
+  /// f(map) under the lock shared: what reads the map.
+  template <class F>
+  auto read(F f) const {
+    const std::shared_lock reading(*lock);
+    return f(static_cast<const GlobalMap&>(*map));
+  }
+  /// f(map) under the lock alone: what writes it.
+  template <class F>
+  auto write(F f) {
+    const std::unique_lock writing(*lock);
+    return f(*map);
+  }
+
   std::uint32_t checked(std::uint32_t submap) const {
     if (submap >= map->submap_count())
       throw Error("GlobalMap: no submap " + std::to_string(submap) + " (ids 0 to " +
@@ -251,8 +264,7 @@ PYBIND11_MODULE(lshloc, m) {
       .def(
           "add_submap",
           [](PyGlobalMap& g, const std::string& name) {
-            const std::unique_lock writing(*g.lock);
-            return g.map->add_submap(name);
+            return g.write([&](GlobalMap& map) { return map.add_submap(name); });
           },
           py::arg("name"), py::call_guard<py::gil_scoped_release>(), "Opens a new submap; returns its id")
       .def(
@@ -261,8 +273,7 @@ PYBIND11_MODULE(lshloc, m) {
             const Pose2 laser_pose = to_pose(pose);
             if (const char* problem = io::scan_update_problem(scan, laser_pose))
               throw Error(std::string("GlobalMap.add_scan: expected ") + problem);
-            const std::unique_lock writing(*g.lock);
-            return g.map->add_scan(g.checked(submap), scan, laser_pose);
+            return g.write([&](GlobalMap& map) { return map.add_scan(g.checked(submap), scan, laser_pose); });
           },
           py::arg("submap"), py::arg("scan"), py::arg("laser_pose"), py::call_guard<py::gil_scoped_release>(),
           "Adds a mapper scan at its laser pose in the submap's frame; returns the features it added. A scan the map "
@@ -278,8 +289,7 @@ PYBIND11_MODULE(lshloc, m) {
             std::uint32_t id = 0;
             {
               py::gil_scoped_release release;
-              const std::unique_lock writing(*g.lock);
-              id = add_grid_as_new_submap(*g.map, name, grid, c, &st);
+              id = g.write([&](GlobalMap& map) { return add_grid_as_new_submap(map, name, grid, c, &st); });
             }
             return py::make_tuple(
                 id, py::dict(py::arg("positions") = st.positions, py::arg("virtual_scans") = st.virtual_scans,
@@ -292,33 +302,25 @@ PYBIND11_MODULE(lshloc, m) {
           "Adds a submap built from an occupancy grid (virtual scans of the given laser from free positions); "
           "returns (submap id, stats). A grid or setting that cannot make a submap raises lshloc.Error before the "
           "map changes")
-      .def_property_readonly("submap_count",
-                             [](const PyGlobalMap& g) {
-                               const std::shared_lock reading(*g.lock);
-                               return g.map->submap_count();
-                             })
+      .def_property_readonly(
+          "submap_count",
+          [](const PyGlobalMap& g) { return g.read([](const GlobalMap& map) { return map.submap_count(); }); })
       .def(
           "submap_name",
           [](const PyGlobalMap& g, std::uint32_t submap) {
-            const std::shared_lock reading(*g.lock);
-            return g.map->submap_name(g.checked(submap));
+            return g.read([&](const GlobalMap& map) { return map.submap_name(g.checked(submap)); });
           },
           py::arg("submap"), "The name the submap was opened with")
       .def(
           "submap_scans",
           [](const PyGlobalMap& g, std::uint32_t submap) {
-            const std::shared_lock reading(*g.lock);
-            return g.map->submap_scans(g.checked(submap));
+            return g.read([&](const GlobalMap& map) { return map.submap_scans(g.checked(submap)); });
           },
           py::arg("submap"), "Scans (mapper or virtual) the submap holds")
       .def(
           "stats",
           [](const PyGlobalMap& g) {
-            GlobalMapStats s;
-            {
-              const std::shared_lock reading(*g.lock);
-              s = g.map->stats();
-            }
+            const GlobalMapStats s = g.read([](const GlobalMap& map) { return map.stats(); });
             return py::dict(py::arg("submaps") = s.submaps, py::arg("scans") = s.scans,
                             py::arg("features") = s.features, py::arg("bytes_per_feature") = s.bytes_per_feature());
           },
@@ -326,8 +328,7 @@ PYBIND11_MODULE(lshloc, m) {
       .def(
           "save",
           [](const PyGlobalMap& g, const std::string& path) {
-            const std::shared_lock reading(*g.lock);
-            io::save_map(path, *g.map);
+            g.read([&](const GlobalMap& map) { io::save_map(path, map); });
           },
           py::arg("path"), py::call_guard<py::gil_scoped_release>(), "Saves the map (docs/map-format.md)");
   m.def(
@@ -349,9 +350,10 @@ PYBIND11_MODULE(lshloc, m) {
   py::class_<PyLocalizer>(m, "Localizer", "Localizes one target robot in a GlobalMap from no initial guess")
       .def(py::init([](const PyGlobalMap& map, const std::string& config_json, const PoseTuple& laser_offset) {
              PyLocalizer l;
-             const std::shared_lock reading(*map.lock);
-             l.localizer = std::make_unique<Localizer>(
-                 *map.map, localizer_config(*map.map, config_json, finite_pose(laser_offset, "laser_offset")));
+             const Pose2 offset = finite_pose(laser_offset, "laser_offset");
+             l.localizer = map.read([&](const GlobalMap& g) {
+               return std::make_unique<Localizer>(g, localizer_config(g, config_json, offset));
+             });
              l.map = map;
              return l;
            }),
@@ -367,9 +369,10 @@ PYBIND11_MODULE(lshloc, m) {
             {
               py::gil_scoped_release release;
               const std::lock_guard mine(*l.busy);
-              const std::shared_lock reading(*l.map.lock);
-              e = l.localizer->add_scan(scan);
-              if (e.has_estimate) submap_name = l.map.map->submap_name(e.submap);
+              l.map.read([&](const GlobalMap& map) {
+                e = l.localizer->add_scan(scan);
+                if (e.has_estimate) submap_name = map.submap_name(e.submap);
+              });
             }
             py::dict d;
             d["has_estimate"] = e.has_estimate;

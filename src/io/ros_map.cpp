@@ -208,7 +208,6 @@ GreyImage read_pgm(const std::string& path) {
                 std::to_string(left) + " bytes follow");
   img.pixels.resize(n);
   img.maxval = maxval;
-  const auto scaled = [](std::size_t v) { return static_cast<std::uint16_t>(v); };
   if (binary) {
     // Exactly one whitespace byte after maxval, then the raster: a header line
     // ending in CR LF would make the LF the first pixel and shift the map.
@@ -228,13 +227,13 @@ GreyImage read_pgm(const std::string& path) {
       std::size_t v = static_cast<unsigned char>(data[pos + i * bytes]);
       if (bytes == 2) v = v << 8 | static_cast<unsigned char>(data[pos + i * bytes + 1]);
       if (v > maxval) throw Error(path + ": pixel " + std::to_string(i) + " exceeds the maximum grey value");
-      img.pixels[i] = scaled(v);
+      img.pixels[i] = static_cast<std::uint16_t>(v);
     }
   } else {
     for (std::size_t i = 0; i < n; ++i) {
       const std::size_t v = header_number("pixel value");
       if (v > maxval) throw Error(path + ": pixel " + std::to_string(i) + " exceeds the maximum grey value");
-      img.pixels[i] = scaled(v);
+      img.pixels[i] = static_cast<std::uint16_t>(v);
     }
   }
   return img;
