@@ -184,6 +184,31 @@ TEST(FeatureExtractor, TheSamePlaceFromANearbyViewpointLooksAlike) {
   EXPECT_LT(same / double(n_same), 0.6 * other / double(n_other)) << n_same << " " << n_other;
 }
 
+TEST(BeamDirections, EndpointsFromThemAreTheTrigonometrysBitForBit) {
+  const std::vector<Wall> walls = room();
+  LaserScan scan = cast(walls, Pose2(2.0, 2.5, 0.3));
+  BeamDirections directions;
+  const auto same = [](const std::vector<Point2>& a, const std::vector<Point2>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      if (a[i].x() != b[i].x() || a[i].y() != b[i].y()) return false;
+    return true;
+  };
+  std::vector<Point2> cached;
+  scan.endpoints(cached, 0.05, 20.0, directions.of(scan));
+  EXPECT_TRUE(same(cached, scan.endpoints(0.05, 20.0)));
+  // A scan of another layout (a narrower field, fewer beams) is not given the first one's directions.
+  LaserScan narrow = scan;
+  narrow.ranges.resize(181);
+  narrow.angle_min = -0.25 * std::numbers::pi, narrow.angle_increment = 0.5 * std::numbers::pi / 180.0;
+  narrow.endpoints(cached, 0.05, 20.0, directions.of(narrow));
+  EXPECT_TRUE(same(cached, narrow.endpoints(0.05, 20.0)));
+  narrow.angle_min += 0.01;  // same size, other bearings
+  narrow.endpoints(cached, 0.05, 20.0, directions.of(narrow));
+  EXPECT_TRUE(same(cached, narrow.endpoints(0.05, 20.0)));
+  EXPECT_THROW(scan.endpoints(cached, 0.05, 20.0, directions.of(narrow)), Error);
+}
+
 TEST(FeatureExtractor, RejectsBadConfigAndSurvivesEmptyScans) {
   FeatureExtractorConfig cfg;
   cfg.descriptor_inner_radius = 3.0;

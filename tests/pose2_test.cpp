@@ -1,8 +1,11 @@
+#include "lshloc/geometry/fast_atan2.hpp"
 #include "lshloc/geometry/pose2.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
 #include <random>
 #include <vector>
 
@@ -93,6 +96,32 @@ TEST(Pose2, BatchTransformEqualsPointwiseAndAllowsAliasing) {
   }
   t.transform(pts, pts);
   for (std::size_t i = 0; i < pts.size(); ++i) EXPECT_NEAR((out[i] - pts[i]).norm(), 0.0, 1e-12);
+}
+
+TEST(FastAtan2, AgreesWithTheLibraryEverywhere) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> coord(-1.0, 1.0);
+  std::uniform_int_distribution<int> exponent(-30, 30);
+  double worst = 0.0;
+  for (int i = 0; i < 2'000'000; ++i) {
+    const double y = std::ldexp(coord(rng), exponent(rng)), x = std::ldexp(coord(rng), exponent(rng));
+    worst = std::max(worst, std::abs(fast_atan2(y, x) - std::atan2(y, x)));
+  }
+  EXPECT_LT(worst, 2e-14);
+  // The reduction's boundaries (tan(pi/8), tan(3pi/8)), the axes and the diagonals, in every quadrant.
+  for (const double deg : {0.0, 22.5, 45.0, 67.5, 90.0, 112.5, 135.0, 157.5, 180.0, -22.5, -90.0, -135.0, -179.999}) {
+    const double a = deg * std::numbers::pi / 180.0;
+    for (const double r : {1e-300, 1e-3, 1.0, 1e300}) {
+      const double y = r * std::sin(a), x = r * std::cos(a);
+      EXPECT_NEAR(fast_atan2(y, x), std::atan2(y, x), 2e-14) << deg << " deg, r " << r;
+    }
+  }
+  // Signed zeros as the library gives them.
+  for (const double y : {0.0, -0.0})
+    for (const double x : {0.0, -0.0}) {
+      EXPECT_EQ(fast_atan2(y, x), std::atan2(y, x));
+      EXPECT_EQ(std::signbit(fast_atan2(y, x)), std::signbit(std::atan2(y, x)));
+    }
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/geometry/fast_atan2.hpp"
 
 namespace lshloc {
 
@@ -65,8 +66,10 @@ void FeatureExtractorConfig::validate() const {
 
 FeatureExtractor::FeatureExtractor(FeatureExtractorConfig config) : config_(config) { config_.validate(); }
 
-ScanSurface FeatureExtractor::surface(const LaserScan& scan, const Pose2& laser_pose_map) const {
-  std::vector<Point2> pts = scan.endpoints(config_.min_range, config_.max_range);
+ScanSurface FeatureExtractor::surface(const LaserScan& scan, const Pose2& laser_pose_map,
+                                      std::span<const Point2> directions) const {
+  std::vector<Point2> pts;
+  scan.endpoints(pts, config_.min_range, config_.max_range, directions);
   laser_pose_map.transform(pts, pts);
   return surface(pts, laser_pose_map);
 }
@@ -234,7 +237,7 @@ FeatureExtractor::Support FeatureExtractor::describe(const Pose2& keypoint, cons
     const double r = std::sqrt(d2);
     // Continuous ring coordinate: [0, 1) inside `inner`, then log-spaced up to kRings.
     const double u = r < inner ? r / inner : 1.0 + (kRings - 1) * std::log(r / inner) / log_span;
-    const double v = (std::atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
+    const double v = (fast_atan2(ly, lx) + kPi) / (2.0 * kPi) * kSectors;
     // Soft binning between the two nearest bin centres in each dimension, so
     // a point near a bin edge does not flip the descriptor.
     const double uc = std::clamp(u - 0.5, 0.0, kRings - 1.0);

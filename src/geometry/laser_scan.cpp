@@ -1,6 +1,10 @@
 #include "lshloc/geometry/laser_scan.hpp"
 
+#include <bit>
 #include <numbers>
+#include <string>
+
+#include "lshloc/common/error.hpp"
 
 namespace lshloc {
 
@@ -10,15 +14,33 @@ std::vector<Point2> LaserScan::endpoints(double min_range, double max_use_range)
   return out;
 }
 
-void LaserScan::endpoints(std::vector<Point2>& out, double min_range, double max_use_range) const {
+void LaserScan::endpoints(std::vector<Point2>& out, double min_range, double max_use_range,
+                          std::span<const Point2> directions) const {
+  if (!directions.empty() && directions.size() != ranges.size())
+    throw Error("LaserScan::endpoints: " + std::to_string(directions.size()) + " beam directions for " +
+                std::to_string(ranges.size()) + " beams");
   out.clear();
   out.reserve(ranges.size());
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     if (status(i) != BeamStatus::kValid) continue;
     const double r = ranges[i];
     if (r < min_range || r >= max_use_range) continue;
-    out.push_back(endpoint(i));
+    out.push_back(directions.empty() ? endpoint(i) : endpoint(i, directions[i]));
   }
+}
+
+std::span<const Point2> BeamDirections::of(const LaserScan& scan) {
+  const auto min_bits = std::bit_cast<std::uint64_t>(scan.angle_min);
+  const auto increment_bits = std::bit_cast<std::uint64_t>(scan.angle_increment);
+  if (directions_.size() != scan.size() || min_bits != angle_min_bits_ || increment_bits != angle_increment_bits_) {
+    directions_.resize(scan.size());
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      const double a = scan.bearing(i);
+      directions_[i] = {std::cos(a), std::sin(a)};
+    }
+    angle_min_bits_ = min_bits, angle_increment_bits_ = increment_bits;
+  }
+  return directions_;
 }
 
 void set_flaser_geometry(LaserScan& scan) {

@@ -62,10 +62,12 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   check_submap(submap, "GlobalMap::add_scan");
   SubmapState& state = submaps_[submap];
 
-  CpuStopwatch watch;
-  const ScanSurface surface = extractor_.surface(scan, laser_pose);
+  // One CPU clock read per stage boundary: each is a system call.
+  const double t0 = thread_cpu_seconds();
+  const std::span<const Point2> directions = beam_directions_.of(scan);
+  const ScanSurface surface = extractor_.surface(scan, laser_pose, directions);
   const std::vector<Feature> features = extractor_.extract(surface, state.context.surfaces());
-  const double extract_s = watch.seconds();
+  const double t1 = thread_cpu_seconds();
 
   // The grid marks are planned first: a scan beyond the grids' limits
   // throws here, before any of it enters the map.
@@ -76,27 +78,20 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
     m->occupancy_plan_.clear();
     m->free_space_plan_.clear();
   });
-  double grid_s = 0.0;
-  if (grids == ScanGrids::kMark) {
-    watch = CpuStopwatch();
-    plan_grids(submap, scan, laser_pose, surface);
-    grid_s = watch.seconds();
-  }
-
-  watch = CpuStopwatch();
+  if (grids == ScanGrids::kMark) plan_grids(submap, scan, laser_pose, surface, directions);
+  const double t2 = thread_cpu_seconds();
   for (const Feature& f : features) {
     const std::uint32_t id = locations_.append(submap, f.pose);
     database_.insert(f.descriptor, id);
     keep_recent_key(id);
   }
-  stats_.database_insert_s += watch.seconds();
+  const double t3 = thread_cpu_seconds();
   stats_.features += features.size();
-
-  watch = CpuStopwatch();
   make_planned_marks();
-  stats_.grid_s += grid_s + watch.seconds();
-
-  stats_.extract_s += extract_s;
+  const double t4 = thread_cpu_seconds();
+  stats_.extract_s += t1 - t0;
+  stats_.grid_s += (t2 - t1) + (t4 - t3);
+  stats_.database_insert_s += t3 - t2;
   ++state.scans;
   ++stats_.scans;
   state.context.offer(surface);
@@ -156,7 +151,7 @@ void GlobalMap::make_planned_marks() {
 }
 
 void GlobalMap::plan_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
-                           const ScanSurface& surface) {
+                           const ScanSurface& surface, std::span<const Point2> directions) {
   const Point2 sensor = laser_pose.translation();
   // Every mark lies within the longest range (returns and their neighbours) of
   // the sensor; a window wider than 1025 cells is not worth clearing per scan.
@@ -176,7 +171,7 @@ void GlobalMap::plan_grids(std::uint32_t submap, const LaserScan& scan, const Po
   const double c = std::cos(laser_pose.theta), s = std::sin(laser_pose.theta);
   // Every beam's endpoint in the laser frame, computed once for both passes.
   beam_endpoints_.resize(scan.size());
-  for (std::size_t i = 0; i < scan.size(); ++i) beam_endpoints_[i] = scan.endpoint(i);
+  for (std::size_t i = 0; i < scan.size(); ++i) beam_endpoints_[i] = scan.endpoint(i, directions[i]);
   const auto valid = [&](std::size_t i) { return i < scan.size() && scan.status(i) == BeamStatus::kValid; };
   for (std::size_t i = 0; i < scan.size(); i += config_.free_ray_stride) {
     const BeamStatus status = scan.status(i);
@@ -204,8 +199,8 @@ void GlobalMap::plan_grids(std::uint32_t submap, const LaserScan& scan, const Po
       reach = r - margin;
     }
     reach = std::min(reach, config_.free_ray_max_range);
-    const double a = scan.bearing(i);
-    const double dx = c * std::cos(a) - s * std::sin(a), dy = s * std::cos(a) + c * std::sin(a);
+    const Point2& u = directions[i];  // cos and sin of the beam's bearing
+    const double dx = c * u.x() - s * u.y(), dy = s * u.x() + c * u.y();
     for (double d = 0.0; d < reach; d += step)
       mark_free_space(submap, {sensor.x() + d * dx, sensor.y() + d * dy}, cell_flags::kFree);
   }

@@ -137,8 +137,10 @@ class FeatureExtractor {
   ScanSurface surface(std::span<const Point2> points_map, const Pose2& sensor_pose) const;
 
   /// The same from a LaserScan placed at `laser_pose_map` (its own `pose`
-  /// field is ignored): valid beams within [min_range, max_range).
-  ScanSurface surface(const LaserScan& scan, const Pose2& laser_pose_map) const;
+  /// field is ignored): valid beams within [min_range, max_range);
+  /// `directions`, when given, are the beams' from BeamDirections::of(scan).
+  ScanSurface surface(const LaserScan& scan, const Pose2& laser_pose_map,
+                      std::span<const Point2> directions = {}) const;
 
   /// The features of `scan`. `context` holds other scans of the same map
   /// (e.g. the localizer's recent local-map scans) whose surface enters the

@@ -3,10 +3,12 @@
 // log gives for it (docs/design.md section 3).
 // Lengths [m], angles [rad], times [s].
 // Thread safety: a plain value; const methods may be called concurrently while
-// nobody mutates the scan. set_flaser_geometry keeps no state.
+// nobody mutates the scan. set_flaser_geometry keeps no state. A
+// BeamDirections is one writer's scratch: not for concurrent use.
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <span>
 #include <vector>
 
 #include "lshloc/geometry/pose2.hpp"
@@ -48,10 +50,33 @@ struct LaserScan {
     return {r * std::cos(a), r * std::sin(a)};
   }
 
+  /// endpoint() from beam i's direction (cos, sin of its bearing), as
+  /// BeamDirections keeps it: the same value without the trigonometry.
+  Point2 endpoint(std::size_t i, const Point2& direction) const {
+    const double r = ranges[i];
+    return {r * direction.x(), r * direction.y()};
+  }
+
   /// Valid endpoints in the laser frame whose range lies in [min_range, max_use_range).
   std::vector<Point2> endpoints(double min_range = 0.0, double max_use_range = 1e9) const;
-  /// The same into `out` (cleared first), reusing its storage.
-  void endpoints(std::vector<Point2>& out, double min_range, double max_use_range) const;
+  /// The same into `out` (cleared first), reusing its storage; `directions`,
+  /// when given, are the beams' from BeamDirections::of(*this).
+  void endpoints(std::vector<Point2>& out, double min_range, double max_use_range,
+                 std::span<const Point2> directions = {}) const;
+};
+
+/// cos and sin of every beam's bearing, kept for the last beam layout seen: a
+/// log's scans share one layout, so a writer that turns many scans into
+/// points (a mapper) computes them once instead of once per beam and scan.
+class BeamDirections {
+ public:
+  /// (cos, sin) of each of `scan`'s bearings, bit for bit what endpoint()
+  /// computes; valid until the next call.
+  std::span<const Point2> of(const LaserScan& scan);
+
+ private:
+  std::uint64_t angle_min_bits_ = 0, angle_increment_bits_ = 0;
+  std::vector<Point2> directions_;
 };
 
 /// Field of view [rad] and beam layout of a FLASER message of n beams over 180

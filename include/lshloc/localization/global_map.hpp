@@ -199,7 +199,9 @@ class GlobalMap {
   void make_planned_marks();
   /// Plans every grid mark of a scan (nothing is marked; throws when one lies
   /// beyond the grids); the caller makes them or, on an error, clears them.
-  void plan_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface);
+  /// `directions` are the beams' from BeamDirections::of(scan).
+  void plan_grids(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose, const ScanSurface& surface,
+                  std::span<const Point2> directions);
   void keep_recent_key(std::uint32_t id);  ///< of the feature database_ inserted last
 
   GlobalMapConfig config_;
@@ -210,6 +212,7 @@ class GlobalMap {
   PoseGridHashMap free_space_;
   std::vector<SubmapState> submaps_;
   GlobalMapStats stats_;
+  BeamDirections beam_directions_;                              // scratch of add_scan
   std::vector<Point2> beam_endpoints_;                          // scratch of plan_grids
   ScanMarks scan_marks_;                                        // scratch of plan_grids
   bool marking_scan_ = false;                                   // within add_scan: marks wait for its end
