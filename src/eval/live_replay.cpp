@@ -6,6 +6,7 @@
 #include <mutex>
 #include <numeric>
 #include <shared_mutex>
+#include <span>
 #include <string>
 #include <thread>
 
@@ -113,12 +114,16 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
   std::shared_mutex map_mutex;
   std::vector<Pose2> target_building_in_map;  // guarded by map_mutex
   std::size_t inserted = 0;                   // guarded by map_mutex
-  const auto insert = [&](const MapperEvent& e) {
-    const LaserScan& scan = scenario.submaps[e.submap].scans[e.scan];
+  // A mapper writes every scan that is due under one hold of the lock: one
+  // hand-over (and wake-up of the waiting localizer) per batch, not per scan.
+  const auto insert = [&](std::span<const MapperEvent* const> due) {
     const std::unique_lock<std::shared_mutex> writing(map_mutex);
-    map.add_scan(ids[e.submap], scan, scan.pose);
-    if (e.submap == scenario.target_submap) target_building_in_map.push_back(scan.pose);
-    ++inserted;
+    for (const MapperEvent* e : due) {
+      const LaserScan& scan = scenario.submaps[e->submap].scans[e->scan];
+      map.add_scan(ids[e->submap], scan, scan.pose);
+      if (e->submap == scenario.target_submap) target_building_in_map.push_back(scan.pose);
+      ++inserted;
+    }
   };
 
   // The target's replay clock: target scans begun (kDone once it has finished).
@@ -142,20 +147,25 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
         std::max<std::size_t>(1, std::min(max_mapper_threads, std::max<std::size_t>(scenario.submaps.size(), 1)));
     for (std::size_t t = 0; t < threads; ++t) {
       mappers.emplace_back([&, t, threads] {  // threads by value: this block ends before they do
+        std::vector<const MapperEvent*> mine, due;
+        for (const MapperEvent& e : events)
+          if (e.submap % threads == t) mine.push_back(&e);
         double cpu = 0.0;
-        for (const MapperEvent& e : events) {
-          if (e.submap % threads != t) continue;
-          for (;;) {  // until the target has reached this scan's time
-            const std::size_t r = reached.load(std::memory_order_acquire);
+        for (std::size_t next = 0; next < mine.size();) {
+          std::size_t r = 0;
+          for (;;) {  // until the target has reached the next scan's time
+            r = reached.load(std::memory_order_acquire);
             if (r == kDone) {
               mapper_cpu_s.fetch_add(cpu);
               return;
             }
-            if (r > 0 && target_time[r - 1] >= e.time_s) break;
+            if (r > 0 && target_time[r - 1] >= mine[next]->time_s) break;
             reached.wait(r, std::memory_order_acquire);
           }
+          due.clear();
+          while (next < mine.size() && target_time[r - 1] >= mine[next]->time_s) due.push_back(mine[next++]);
           const double c0 = thread_cpu_seconds();
-          insert(e);
+          insert(due);
           cpu += thread_cpu_seconds() - c0;
         }
         mapper_cpu_s.fetch_add(cpu);

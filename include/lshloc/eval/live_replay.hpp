@@ -71,10 +71,11 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
 /// scan enters once the target has reached its replay time (so never ahead
 /// of run_live_scenario's order, possibly behind it); submaps are spread
 /// over at most max_mapper_threads threads. Without `live`, the map is built
-/// first and the writers stay idle: the frozen-map reference. A map write
-/// holds a shared_mutex exclusively for one scan; the target holds it
-/// shared for each of its scans, so it waits at most one scan's insert.
-/// Not deterministic: the interleaving is the threads'.
+/// first and the writers stay idle: the frozen-map reference. A mapper
+/// holds a shared_mutex exclusively while it writes every scan that is due
+/// (one per scan let the target's back-to-back reads starve the writers);
+/// the target holds it shared for each of its scans, so it waits at most
+/// one mapper's due scans. Not deterministic: the interleaving is the threads'.
 LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& config,
                           const LiveReplayConfig& live_config, bool live, const Progress& progress = {},
                           std::size_t max_mapper_threads = 16);
