@@ -79,7 +79,7 @@ struct LocalizerConfig {
   /// after the target saw it still proposes hypotheses. k of each lookup
   /// (0: off). A map complete before the first scan never adds any.
   std::size_t newly_mapped_candidates = 10;
-  std::size_t newly_mapped_per_scan = 4096;  ///< at most this many (the newest) are looked up per scan
+  std::size_t newly_mapped_per_scan = 100;  ///< at most this many (the newest) are looked up per scan
   /// Of iRANSAC's |V_new| per scan, at most this share goes to newly mapped
   /// candidates, and at least the rest to the current scan's (the current
   /// scan's many candidates would otherwise crowd them out).
