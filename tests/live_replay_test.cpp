@@ -1,3 +1,4 @@
+#include "lshloc/common/error.hpp"
 #include "lshloc/eval/live_replay.hpp"
 
 #include <gtest/gtest.h>
@@ -108,6 +109,18 @@ TEST(LiveReplay, ATargetWhoseBuildingIsMappedOnlyMidRunIsNotFlaggedBeforeAndLoca
   EXPECT_TRUE(lm.final_place_mapped);
   EXPECT_EQ(run.mapper_scans, run.map_scans_in.back());
   EXPECT_GT(lm.map_scans_per_s, 0.0);
+}
+
+TEST(LiveThreads, AScanTheMapRefusesEndsTheRunWithItsError) {
+  // A mapper scan far beyond the grids' limits: add_scan refuses it. On one
+  // thread the error ends the run; on a mapper thread it used to escape the
+  // thread (std::terminate).
+  Scenario sc = sim::synthetic_scenario(test::small_world());
+  Submap& other = sc.submaps[sc.target_submap == 0 ? 1 : 0];
+  ASSERT_GT(other.scans.size(), 10u);
+  other.scans[10].pose.x = 1e7;
+  EXPECT_THROW(run_live_scenario(sc, ScenarioRunConfig{}, LiveReplayConfig{}), Error);
+  EXPECT_THROW(run_live_threaded(sc, ScenarioRunConfig{}, LiveReplayConfig{}, /*live=*/true), Error);
 }
 
 TEST(LiveThreads, AFrozenMapGivesTheBatchEstimates) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <mutex>
 #include <numeric>
 #include <shared_mutex>
@@ -134,6 +135,11 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
     target_time[i] = target.scans[i].timestamp - target.scans.front().timestamp;
   }
   std::atomic<double> mapper_cpu_s{0.0};
+  // A mapper's error (a scan the map refuses) ends the run with it, as on
+  // one thread, instead of escaping its thread (std::terminate).
+  std::mutex failure_mutex;
+  std::exception_ptr failure;  // the first; written under failure_mutex before `failed` is set
+  std::atomic<bool> failed{false};
   std::vector<std::thread> mappers;
   if (!live) {  // the batch feeder's order: the same map as run_scenario's
     const double cpu0 = thread_cpu_seconds();
@@ -151,22 +157,28 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
         for (const MapperEvent& e : events)
           if (e.submap % threads == t) mine.push_back(&e);
         double cpu = 0.0;
-        for (std::size_t next = 0; next < mine.size();) {
-          std::size_t r = 0;
-          for (;;) {  // until the target has reached the next scan's time
-            r = reached.load(std::memory_order_acquire);
-            if (r == kDone) {
-              mapper_cpu_s.fetch_add(cpu);
-              return;
+        try {
+          for (std::size_t next = 0; next < mine.size();) {
+            std::size_t r = 0;
+            for (;;) {  // until the target has reached the next scan's time
+              r = reached.load(std::memory_order_acquire);
+              if (r == kDone) {
+                mapper_cpu_s.fetch_add(cpu);
+                return;
+              }
+              if (r > 0 && target_time[r - 1] >= mine[next]->time_s) break;
+              reached.wait(r, std::memory_order_acquire);
             }
-            if (r > 0 && target_time[r - 1] >= mine[next]->time_s) break;
-            reached.wait(r, std::memory_order_acquire);
+            due.clear();
+            while (next < mine.size() && target_time[r - 1] >= mine[next]->time_s) due.push_back(mine[next++]);
+            const double c0 = thread_cpu_seconds();
+            insert(due);
+            cpu += thread_cpu_seconds() - c0;
           }
-          due.clear();
-          while (next < mine.size() && target_time[r - 1] >= mine[next]->time_s) due.push_back(mine[next++]);
-          const double c0 = thread_cpu_seconds();
-          insert(due);
-          cpu += thread_cpu_seconds() - c0;
+        } catch (...) {
+          const std::lock_guard<std::mutex> lock(failure_mutex);
+          if (!failure) failure = std::current_exception();
+          failed.store(true, std::memory_order_release);
         }
         mapper_cpu_s.fetch_add(cpu);
       });
@@ -174,6 +186,7 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
   }
   const double radius = live_config.mapped_radius_m;
   const BeforeScan advance = [&](std::size_t i) {
+    if (failed.load(std::memory_order_acquire)) std::rethrow_exception(failure);
     if (live) {
       reached.store(i + 1, std::memory_order_release);
       reached.notify_all();
@@ -194,6 +207,7 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
   reached.store(kDone, std::memory_order_release);
   reached.notify_all();
   for (std::thread& m : mappers) m.join();
+  if (failed.load(std::memory_order_acquire)) std::rethrow_exception(failure);
   out.mapper_scans = inserted;
   if (live) out.mapper_cpu_s = mapper_cpu_s.load();
   return out;
