@@ -344,12 +344,12 @@ void Localizer::prescore_newly_mapped() {
   const std::span<const LocalPoint> points = ransac_.features();
   const std::size_t w = config_.newly_mapped_scan_window, scans = data_points_end_.size();
   scored_newly_mapped_.clear();
+  prescore_groups_.clear();
   for (std::size_t g = 0; g < newly_mapped_hypotheses_.size();) {
     const std::uint32_t block = newly_mapped_hypotheses_[g].second / kBlock;
     std::size_t e = g;
-    group_.clear();
     for (; e < newly_mapped_hypotheses_.size() && newly_mapped_hypotheses_[e].second / kBlock == block; ++e)
-      group_.push_back(newly_mapped_hypotheses_[e].first);
+      scored_newly_mapped_.push_back({newly_mapped_hypotheses_[e].first, 0.0, 0});
     const std::size_t first_scan = block * kBlock > w ? block * kBlock - w : 0;
     const std::size_t last_scan = std::min(scans - 1, std::size_t{block} * kBlock + kBlock - 1 + w);
     const std::size_t begin = first_scan > 0 ? data_points_end_[first_scan - 1] : 0, end = data_points_end_[last_scan];
@@ -357,19 +357,49 @@ void Localizer::prescore_newly_mapped() {
     const std::size_t dropped = ransac_.features_dropped();
     const std::size_t kept_begin = std::max(begin, dropped) - dropped, kept_end = std::max(end, dropped) - dropped;
     const std::size_t n = kept_end > kept_begin ? std::min(kept_end - kept_begin, config_.newly_mapped_points) : 0;
-    const std::size_t first_scored = scored_newly_mapped_.size();
-    for (const Hypothesis& h : group_) scored_newly_mapped_.push_back({h, 0.0, static_cast<std::uint32_t>(n)});
+    prescore_groups_.push_back({g, e, kept_begin, kept_end, n});
     if (n > 0) {
-      const HypothesisBatch batch = batch_.assign(group_);
-      prescore_.resize(group_.size());
-      for (std::size_t k = 0; k < n; ++k) {  // evenly spread over the scans
-        scorer_(points[kept_begin + k * (kept_end - kept_begin) / n], batch, prescore_.data());
-        for (std::size_t j = 0; j < group_.size(); ++j) scored_newly_mapped_[first_scored + j].score += prescore_[j];
-      }
       reach_back_from_ = std::min(reach_back_from_.value_or(begin), begin);
       reach_back_until_ = scans - 1 + config_.newly_mapped_reach_scans;
     }
     g = e;
+  }
+  // Every hypothesis on every 4th of its data-points (evenly spread over the
+  // scans), then the better half on the rest: the others are iRANSAC's to
+  // preempt anyway, and the prescoring is most of a live scan's extra cost.
+  const auto score_group = [&](const PrescoreGroup& pg, bool first_quarter, const std::vector<std::uint8_t>* keep) {
+    group_.clear(), group_index_.clear();
+    for (std::size_t i = pg.begin; i < pg.end; ++i) {
+      if (keep && !(*keep)[i]) continue;
+      group_.push_back(scored_newly_mapped_[i].hypothesis);
+      group_index_.push_back(i);
+    }
+    if (group_.empty() || pg.n == 0) return;
+    const HypothesisBatch batch = batch_.assign(group_);
+    prescore_.resize(group_.size());
+    for (std::size_t k = 0; k < pg.n; ++k) {
+      if ((k % 4 == 0) != first_quarter) continue;
+      scorer_(points[pg.kept_begin + k * (pg.kept_end - pg.kept_begin) / pg.n], batch, prescore_.data());
+      for (std::size_t j = 0; j < group_.size(); ++j) scored_newly_mapped_[group_index_[j]].score += prescore_[j];
+    }
+    for (const std::size_t i : group_index_)
+      scored_newly_mapped_[i].scored +=
+          static_cast<std::uint32_t>(first_quarter ? (pg.n + 3) / 4 : pg.n - (pg.n + 3) / 4);
+  };
+  for (const PrescoreGroup& pg : prescore_groups_) score_group(pg, true, nullptr);
+  prescore_means_.clear();
+  for (const ScoredHypothesis& h : scored_newly_mapped_)
+    if (h.scored > 0) prescore_means_.push_back(h.score / h.scored);
+  if (!prescore_means_.empty()) {
+    const auto middle = prescore_means_.begin() + static_cast<std::ptrdiff_t>((prescore_means_.size() - 1) / 2);
+    std::nth_element(prescore_means_.begin(), middle, prescore_means_.end(), std::greater<>());
+    const double median = *middle;
+    prescore_keep_.assign(scored_newly_mapped_.size(), 0);
+    for (std::size_t i = 0; i < scored_newly_mapped_.size(); ++i) {
+      const ScoredHypothesis& h = scored_newly_mapped_[i];
+      prescore_keep_[i] = h.scored > 0 && h.score / h.scored >= median;
+    }
+    for (const PrescoreGroup& pg : prescore_groups_) score_group(pg, false, &prescore_keep_);
   }
   ransac_.add_scored_hypotheses(scored_newly_mapped_);
 }

@@ -214,7 +214,16 @@ class Localizer {
   std::vector<SeenFeature> newly_mapped_seen_;    ///< target side of this scan's newly mapped candidates
   std::vector<std::pair<Hypothesis, std::uint32_t>> newly_mapped_hypotheses_;  ///< with the scan that saw it
   std::vector<ScoredHypothesis> scored_newly_mapped_;
-  std::vector<Hypothesis> group_;  ///< prescore_newly_mapped() scratch
+  std::vector<Hypothesis> group_;  ///< prescore_newly_mapped() scratch, and the next five
+  std::vector<std::size_t> group_index_;
+  struct PrescoreGroup {
+    std::size_t begin, end;            ///< its hypotheses in scored_newly_mapped_
+    std::size_t kept_begin, kept_end;  ///< the data-points of its scans still in iRANSAC's U
+    std::size_t n;                     ///< how many of them it is scored on
+  };
+  std::vector<PrescoreGroup> prescore_groups_;
+  std::vector<double> prescore_means_;
+  std::vector<std::uint8_t> prescore_keep_;
   std::vector<float> prescore_;
   std::vector<std::size_t> data_points_end_;    ///< data-points added to iRANSAC's U by the end of each scan
   std::optional<std::size_t> reach_back_from_;  ///< the oldest data-point newly mapped hypotheses need
