@@ -351,6 +351,69 @@ TEST(PoseGridScorer, MatchesBruteForceDilatingAtInsert) { check_scorer(Tolerance
 TEST(PoseGridScorer, MatchesBruteForceProbingNeighbours) { check_scorer(ToleranceMode::kProbeNeighbours, 1, 1); }
 TEST(PoseGridScorer, MatchesBruteForceProbingHeadingOnly) { check_scorer(ToleranceMode::kProbeNeighbours, 0, 2); }
 
+/// score_pairs() must give each pair what operator() gives its point under
+/// that one hypothesis, surface and free-space points mixed.
+void check_score_pairs(ToleranceMode mode, int xy_tol, int theta_tol) {
+  PoseGridConfig cfg;
+  cfg.xy_tolerance = xy_tol, cfg.theta_tolerance = theta_tol, cfg.tolerance_mode = mode, cfg.cell_size = 0.5;
+  PoseGridHashMap occupancy(cfg);
+  PoseGridHashMap free_space(
+      PoseGridConfig{.cell_size = 0.5, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
+  const auto marks = random_marks(5000, 41);
+  for (const auto& m : marks) {
+    occupancy.mark(m.submap, m.x, m.y, m.theta, cell_flags::kOccupied);
+    free_space.mark(m.submap, m.x + 0.7, m.y, 0.0, m.flags | cell_flags::kReturn);
+  }
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> xy(-30.0, 30.0), th(-kPi, kPi), local(-3.0, 3.0);
+  std::vector<Hypothesis> hypotheses;
+  for (std::size_t j = 0; j < 37; ++j) {  // not a multiple of four: the scalar tail too
+    const auto& m = marks[j];
+    hypotheses.push_back({j % 3 == 0 ? m.submap : static_cast<std::uint32_t>(j % 5),
+                          j % 3 == 0 ? Pose2(m.x, m.y, m.theta) : Pose2(xy(rng), xy(rng), th(rng))});
+  }
+  HypothesisBatchBuffer buffer;
+  const HypothesisBatch v = buffer.assign(hypotheses);
+  std::vector<LocalPoint> points;
+  std::vector<std::uint32_t> of;
+  for (std::size_t k = 0; k < 403; ++k) {
+    const auto kind = k % 3 == 0 ? LocalPoint::Kind::kFreeSpace : LocalPoint::Kind::kSurface;
+    const float near = k % 2 == 0 ? 0.0f : 1.0f;  // half of them on the hypothesis' own mark
+    points.push_back({near * static_cast<float>(local(rng)), near * static_cast<float>(local(rng)),
+                      near * static_cast<float>(th(rng)), kind});
+    of.push_back(static_cast<std::uint32_t>(rng() % hypotheses.size()));
+  }
+  const PoseGridScorerConfig config{.hit = 1.0f,
+                                    .free = -1.0f,
+                                    .unknown = 0.0f,
+                                    .ray_through_wall = -2.0f,
+                                    .ray_through_free = 0.5f,
+                                    .ray_through_contested = -0.25f,
+                                    .surface_on_return = 0.75f};
+  PoseGridScorer pairs(occupancy, free_space, config), one(occupancy, free_space, config);
+  std::vector<float> scores(points.size());
+  pairs.score_pairs(points, of, v, scores.data());
+  std::size_t nonzero = 0;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const std::size_t h = of[k];
+    const HypothesisBatch single{v.submap + h, v.tx + h, v.ty + h, v.cos + h, v.sin + h, v.theta + h, 1};
+    float expected = 0.0f;
+    one(points[k], single, &expected);
+    ASSERT_EQ(scores[k], expected) << "pair " << k;
+    nonzero += expected != 0.0f;
+  }
+  EXPECT_GT(nonzero, 30u);
+  EXPECT_EQ(pairs.lookups(), one.lookups());
+  EXPECT_THROW(pairs.score_pairs(points, std::span(of).first(3), v, scores.data()), Error);
+  of[5] = static_cast<std::uint32_t>(hypotheses.size());
+  EXPECT_THROW(pairs.score_pairs(points, of, v, scores.data()), Error);
+}
+
+TEST(PoseGridScorer, ScorePairsEqualsOneCallPerPairExact) { check_score_pairs(ToleranceMode::kDilateAtInsert, 0, 0); }
+TEST(PoseGridScorer, ScorePairsEqualsOneCallPerPairProbing) {
+  check_score_pairs(ToleranceMode::kProbeNeighbours, 1, 1);
+}
+
 TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   // Map of submap 0: a wall along x = 5 (normal heading pi), seen by rays that
   // crossed x = 0..4 freely. The free-space grid marks the wall's cells as

@@ -367,26 +367,37 @@ void Localizer::prescore_newly_mapped() {
   // Every hypothesis on every 4th of its data-points (evenly spread over the
   // scans), then the better half on the rest: the others are iRANSAC's to
   // preempt anyway, and the prescoring is most of a live scan's extra cost.
-  const auto score_group = [&](const PrescoreGroup& pg, bool first_quarter, const std::vector<std::uint8_t>* keep) {
-    group_.clear(), group_index_.clear();
-    for (std::size_t i = pg.begin; i < pg.end; ++i) {
-      if (keep && !(*keep)[i]) continue;
-      group_.push_back(scored_newly_mapped_[i].hypothesis);
-      group_index_.push_back(i);
-    }
-    if (group_.empty() || pg.n == 0) return;
-    const HypothesisBatch batch = batch_.assign(group_);
-    prescore_.resize(group_.size());
-    for (std::size_t k = 0; k < pg.n; ++k) {
+  // The k-th data-points of all groups go as one batch of pairs.
+  prescore_hypotheses_.clear();
+  for (const ScoredHypothesis& h : scored_newly_mapped_) prescore_hypotheses_.push_back(h.hypothesis);
+  const HypothesisBatch batch = batch_.assign(prescore_hypotheses_);
+  std::size_t most_points = 0;
+  for (const PrescoreGroup& pg : prescore_groups_) most_points = std::max(most_points, pg.n);
+  const auto score_pass = [&](bool first_quarter, const std::vector<std::uint8_t>* keep) {
+    for (std::size_t k = 0; k < most_points; ++k) {
       if ((k % 4 == 0) != first_quarter) continue;
-      scorer_(points[pg.kept_begin + k * (pg.kept_end - pg.kept_begin) / pg.n], batch, prescore_.data());
-      for (std::size_t j = 0; j < group_.size(); ++j) scored_newly_mapped_[group_index_[j]].score += prescore_[j];
+      pair_points_.clear(), pair_hypotheses_.clear();
+      for (const PrescoreGroup& pg : prescore_groups_) {
+        if (k >= pg.n) continue;
+        const LocalPoint& point = points[pg.kept_begin + k * (pg.kept_end - pg.kept_begin) / pg.n];
+        for (std::size_t i = pg.begin; i < pg.end; ++i) {
+          if (keep && !(*keep)[i]) continue;
+          pair_points_.push_back(point);
+          pair_hypotheses_.push_back(static_cast<std::uint32_t>(i));
+        }
+      }
+      prescore_.resize(pair_points_.size());
+      scorer_.score_pairs(pair_points_, pair_hypotheses_, batch, prescore_.data());
+      for (std::size_t j = 0; j < pair_hypotheses_.size(); ++j)
+        scored_newly_mapped_[pair_hypotheses_[j]].score += prescore_[j];
     }
-    for (const std::size_t i : group_index_)
-      scored_newly_mapped_[i].scored +=
-          static_cast<std::uint32_t>(first_quarter ? (pg.n + 3) / 4 : pg.n - (pg.n + 3) / 4);
+    for (const PrescoreGroup& pg : prescore_groups_) {
+      const auto count = static_cast<std::uint32_t>(first_quarter ? (pg.n + 3) / 4 : pg.n - (pg.n + 3) / 4);
+      for (std::size_t i = pg.begin; i < pg.end; ++i)
+        if (!keep || (*keep)[i]) scored_newly_mapped_[i].scored += count;
+    }
   };
-  for (const PrescoreGroup& pg : prescore_groups_) score_group(pg, true, nullptr);
+  score_pass(true, nullptr);
   prescore_means_.clear();
   for (const ScoredHypothesis& h : scored_newly_mapped_)
     if (h.scored > 0) prescore_means_.push_back(h.score / h.scored);
@@ -399,7 +410,7 @@ void Localizer::prescore_newly_mapped() {
       const ScoredHypothesis& h = scored_newly_mapped_[i];
       prescore_keep_[i] = h.scored > 0 && h.score / h.scored >= median;
     }
-    for (const PrescoreGroup& pg : prescore_groups_) score_group(pg, false, &prescore_keep_);
+    score_pass(false, &prescore_keep_);
   }
   ransac_.add_scored_hypotheses(scored_newly_mapped_);
 }

@@ -3,6 +3,7 @@
 #include "lshloc/common/error.hpp"
 
 #include <algorithm>
+#include <string>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -48,6 +49,34 @@ inline __m128i floor_to_int4(__m128 v) {
 #endif
 }  // namespace
 
+/// The local point of hypothesis j: one for the whole batch (operator()) ...
+struct PoseGridScorer::OnePoint {
+  float px, py, pt;
+  float x(std::size_t) const { return px; }
+  float y(std::size_t) const { return py; }
+  float theta(std::size_t) const { return pt; }
+#if defined(__SSE2__)
+  __m128 x4(std::size_t) const { return _mm_set1_ps(px); }
+  __m128 y4(std::size_t) const { return _mm_set1_ps(py); }
+  __m128 theta4(std::size_t) const { return _mm_set1_ps(pt); }
+#endif
+};
+
+/// ... or one each (score_pairs()).
+struct PoseGridScorer::PointEach {
+  const float* __restrict px;
+  const float* __restrict py;
+  const float* __restrict pt;
+  float x(std::size_t j) const { return px[j]; }
+  float y(std::size_t j) const { return py[j]; }
+  float theta(std::size_t j) const { return pt[j]; }
+#if defined(__SSE2__)
+  __m128 x4(std::size_t j) const { return _mm_loadu_ps(px + j); }
+  __m128 y4(std::size_t j) const { return _mm_loadu_ps(py + j); }
+  __m128 theta4(std::size_t j) const { return _mm_loadu_ps(pt + j); }
+#endif
+};
+
 PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config)
     : grid_(grid), config_(config) {
   value_[0] = config_.unknown;
@@ -77,8 +106,8 @@ PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMa
   free_space_ = &free_space;
 }
 
-template <class Select, class Value>
-void PoseGridScorer::lookup_free_space(const LocalPoint& x, const HypothesisBatch& v, float* scores, Select select,
+template <class Points, class Select, class Value>
+void PoseGridScorer::lookup_free_space(const Points& x, const HypothesisBatch& v, float* scores, Select select,
                                        Value value) {
   const std::size_t n = v.size;
   if (selected_.size() < n) selected_.resize(n);
@@ -87,8 +116,8 @@ void PoseGridScorer::lookup_free_space(const LocalPoint& x, const HypothesisBatc
   std::size_t m = 0;
   for (std::size_t j = 0; j < n; ++j) {
     if (!select(j)) continue;
-    const float gx = v.tx[j] + v.cos[j] * x.x - v.sin[j] * x.y;
-    const float gy = v.ty[j] + v.sin[j] * x.x + v.cos[j] * x.y;
+    const float gx = v.tx[j] + v.cos[j] * x.x(j) - v.sin[j] * x.y(j);
+    const float gy = v.ty[j] + v.sin[j] * x.x(j) + v.cos[j] * x.y(j);
     xy_[m] = PoseGridHashMap::pack_xy(v.submap[j], floor_to_int(gx * inv), floor_to_int(gy * inv));
     home_[m] = static_cast<std::uint32_t>(table.home(xy_[m], 0));
     selected_[m++] = static_cast<std::uint32_t>(j);
@@ -102,8 +131,46 @@ void PoseGridScorer::lookup_free_space(const LocalPoint& x, const HypothesisBatc
 }
 
 void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores) {
+  score(OnePoint{x.x, x.y, x.theta}, x.kind, v, scores);
+}
+
+void PoseGridScorer::score_pairs(std::span<const LocalPoint> points, std::span<const std::uint32_t> hypotheses,
+                                 const HypothesisBatch& v, float* scores) {
+  if (points.size() != hypotheses.size()) {
+    throw Error("PoseGridScorer::score_pairs: " + std::to_string(points.size()) + " points for " +
+                std::to_string(hypotheses.size()) + " hypotheses");
+  }
+  for (const std::uint32_t h : hypotheses)
+    if (h >= v.size)
+      throw Error("PoseGridScorer::score_pairs: hypothesis " + std::to_string(h) + " of a batch of " +
+                  std::to_string(v.size));
+  // Each kind as one batch of its own, gathered: the lookups of all pairs
+  // overlap as operator()'s do, where one small batch per point would not.
+  for (const LocalPoint::Kind kind : {LocalPoint::Kind::kSurface, LocalPoint::Kind::kFreeSpace}) {
+    Gathered& g = gathered_;
+    g.index.clear();
+    for (std::size_t j = 0; j < points.size(); ++j)
+      if (points[j].kind == kind) g.index.push_back(static_cast<std::uint32_t>(j));
+    const std::size_t m = g.index.size();
+    if (m == 0) continue;
+    g.submap.resize(m), g.tx.resize(m), g.ty.resize(m), g.cos.resize(m), g.sin.resize(m), g.theta.resize(m);
+    g.px.resize(m), g.py.resize(m), g.pt.resize(m), g.scores.resize(m);
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::uint32_t j = g.index[k], h = hypotheses[j];
+      g.submap[k] = v.submap[h], g.tx[k] = v.tx[h], g.ty[k] = v.ty[h];
+      g.cos[k] = v.cos[h], g.sin[k] = v.sin[h], g.theta[k] = v.theta[h];
+      g.px[k] = points[j].x, g.py[k] = points[j].y, g.pt[k] = points[j].theta;
+    }
+    const HypothesisBatch sub{g.submap.data(), g.tx.data(), g.ty.data(), g.cos.data(), g.sin.data(), g.theta.data(), m};
+    score(PointEach{g.px.data(), g.py.data(), g.pt.data()}, kind, sub, g.scores.data());
+    for (std::size_t k = 0; k < m; ++k) scores[g.index[k]] = g.scores[k];
+  }
+}
+
+template <class Points>
+void PoseGridScorer::score(const Points& x, LocalPoint::Kind kind, const HypothesisBatch& v, float* scores) {
   if (xy_.size() < v.size) xy_.resize(v.size), home_.resize(v.size);
-  if (x.kind == LocalPoint::Kind::kFreeSpace) {
+  if (kind == LocalPoint::Kind::kFreeSpace) {
     if (free_space_ == nullptr) {
       std::fill_n(scores, v.size, 0.0f);
       return;
@@ -132,7 +199,8 @@ void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, f
       });
 }
 
-void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v, float* scores) {
+template <class Points>
+void PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, float* scores) {
   const std::size_t n = v.size;
   if (ix_.size() < n) xy_.resize(n), home_.resize(n), ix_.resize(n), iy_.resize(n), it_.resize(n), flags_.resize(n);
   const PoseGridHashMap::TableView table = grid_.table_view();
@@ -142,7 +210,6 @@ void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v
     const float inv = static_cast<float>(grid_.inv_cell_size());
     const float bpr = static_cast<float>(grid_.bins_per_radian());
     const std::int32_t bins = grid_.theta_bins();
-    const float px = x.x, py = x.y, pt = x.theta;
     const float* __restrict tx = v.tx;
     const float* __restrict ty = v.ty;
     const float* __restrict co = v.cos;
@@ -155,10 +222,10 @@ void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v
 #if defined(__SSE2__)
     // Four hypotheses at a time: the same float operations in the same order
     // as the scalar loop below, so both give identical cells.
-    const __m128 vpx = _mm_set1_ps(px), vpy = _mm_set1_ps(py), vpt = _mm_set1_ps(pt);
     const __m128 vinv = _mm_set1_ps(inv), vbpr = _mm_set1_ps(bpr);
     const __m128i vbins = _mm_set1_epi32(bins), vbins1 = _mm_set1_epi32(bins - 1), zero = _mm_setzero_si128();
     for (; j + 4 <= n; j += 4) {
+      const __m128 vpx = x.x4(j), vpy = x.y4(j), vpt = x.theta4(j);
       const __m128 c = _mm_loadu_ps(co + j), sn = _mm_loadu_ps(si + j);
       const __m128 gx = _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(tx + j), _mm_mul_ps(c, vpx)), _mm_mul_ps(sn, vpy));
       const __m128 gy = _mm_add_ps(_mm_add_ps(_mm_loadu_ps(ty + j), _mm_mul_ps(sn, vpx)), _mm_mul_ps(c, vpy));
@@ -171,6 +238,7 @@ void PoseGridScorer::score_surface(const LocalPoint& x, const HypothesisBatch& v
     }
 #endif
     for (; j < n; ++j) {
+      const float px = x.x(j), py = x.y(j), pt = x.theta(j);
       const float gx = tx[j] + co[j] * px - si[j] * py;
       const float gy = ty[j] + si[j] * px + co[j] * py;
       std::int32_t t = floor_to_int((th[j] + pt) * bpr);

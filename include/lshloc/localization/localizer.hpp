@@ -214,8 +214,9 @@ class Localizer {
   std::vector<SeenFeature> newly_mapped_seen_;    ///< target side of this scan's newly mapped candidates
   std::vector<std::pair<Hypothesis, std::uint32_t>> newly_mapped_hypotheses_;  ///< with the scan that saw it
   std::vector<ScoredHypothesis> scored_newly_mapped_;
-  std::vector<Hypothesis> group_;  ///< prescore_newly_mapped() scratch, and the next five
-  std::vector<std::size_t> group_index_;
+  std::vector<Hypothesis> prescore_hypotheses_;  ///< prescore_newly_mapped() scratch, and the next seven
+  std::vector<LocalPoint> pair_points_;
+  std::vector<std::uint32_t> pair_hypotheses_;
   struct PrescoreGroup {
     std::size_t begin, end;            ///< its hypotheses in scored_newly_mapped_
     std::size_t kept_begin, kept_end;  ///< the data-points of its scans still in iRANSAC's U

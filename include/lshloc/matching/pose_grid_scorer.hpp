@@ -6,6 +6,7 @@
 // Poses [m, rad]; scores unitless.
 // Thread safety: one scorer per thread (see PoseGridScorer).
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "lshloc/matching/incremental_ransac.hpp"
@@ -61,6 +62,12 @@ class PoseGridScorer {
   PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
 
   void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);
+  /// scores[j] = the score of points[j] under hypothesis hypotheses[j] of v,
+  /// exactly as operator() gives it: pairs that share no point, in one batch
+  /// whose lookups overlap. Throws lshloc::Error on spans of unequal sizes or
+  /// a hypothesis beyond v.
+  void score_pairs(std::span<const LocalPoint> points, std::span<const std::uint32_t> hypotheses,
+                   const HypothesisBatch& v, float* scores);
 
   /// The cell of local point x under hypothesis j of v, computed exactly as
   /// operator() does (float transform): for tests and diagnostics.
@@ -69,11 +76,16 @@ class PoseGridScorer {
   std::uint64_t lookups() const { return lookups_; }
 
  private:
-  void score_surface(const LocalPoint& x, const HypothesisBatch& v, float* scores);
+  struct OnePoint;   ///< the point of every hypothesis: the same
+  struct PointEach;  ///< ... or one of its own
+  template <class Points>
+  void score(const Points& x, LocalPoint::Kind kind, const HypothesisBatch& v, float* scores);
+  template <class Points>
+  void score_surface(const Points& x, const HypothesisBatch& v, float* scores);
   /// Looks up x under every hypothesis j with `select(j)` in the free-space
   /// grid and sets scores[j] = value(flags).
-  template <class Select, class Value>
-  void lookup_free_space(const LocalPoint& x, const HypothesisBatch& v, float* scores, Select select, Value value);
+  template <class Points, class Select, class Value>
+  void lookup_free_space(const Points& x, const HypothesisBatch& v, float* scores, Select select, Value value);
 
   const PoseGridHashMap& grid_;
   const PoseGridHashMap* free_space_ = nullptr;
@@ -84,6 +96,10 @@ class PoseGridScorer {
   std::vector<std::int32_t> ix_, iy_, it_;
   std::vector<CellFlags> flags_;
   std::vector<std::uint32_t> selected_;  ///< hypotheses looked up in the free-space grid
+  struct Gathered {                      ///< score_pairs()' batch of one kind, and where it came from
+    std::vector<std::uint32_t> index, submap;
+    std::vector<float> tx, ty, cos, sin, theta, px, py, pt, scores;
+  } gathered_;
   std::uint64_t lookups_ = 0;
 };
 
