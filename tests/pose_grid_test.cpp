@@ -351,6 +351,17 @@ TEST(PoseGridScorer, MatchesBruteForceDilatingAtInsert) { check_scorer(Tolerance
 TEST(PoseGridScorer, MatchesBruteForceProbingNeighbours) { check_scorer(ToleranceMode::kProbeNeighbours, 1, 1); }
 TEST(PoseGridScorer, MatchesBruteForceProbingHeadingOnly) { check_scorer(ToleranceMode::kProbeNeighbours, 0, 2); }
 
+/// A scorer config whose every outcome has its own score.
+PoseGridScorerConfig distinct_scores() {
+  return {.hit = 1.0f,
+          .free = -1.0f,
+          .unknown = 0.0f,
+          .ray_through_wall = -2.0f,
+          .ray_through_free = 0.5f,
+          .ray_through_contested = -0.25f,
+          .surface_on_return = 0.75f};
+}
+
 /// score_pairs() must give each pair what operator() gives its point under
 /// that one hypothesis, surface and free-space points mixed.
 void check_score_pairs(ToleranceMode mode, int xy_tol, int theta_tol) {
@@ -383,13 +394,7 @@ void check_score_pairs(ToleranceMode mode, int xy_tol, int theta_tol) {
                       near * static_cast<float>(th(rng)), kind});
     of.push_back(static_cast<std::uint32_t>(rng() % hypotheses.size()));
   }
-  const PoseGridScorerConfig config{.hit = 1.0f,
-                                    .free = -1.0f,
-                                    .unknown = 0.0f,
-                                    .ray_through_wall = -2.0f,
-                                    .ray_through_free = 0.5f,
-                                    .ray_through_contested = -0.25f,
-                                    .surface_on_return = 0.75f};
+  const PoseGridScorerConfig config = distinct_scores();
   PoseGridScorer pairs(occupancy, free_space, config), one(occupancy, free_space, config);
   std::vector<float> scores(points.size());
   pairs.score_pairs(points, of, v, scores.data());
@@ -436,13 +441,7 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   // A sparse return of a far wall: no normal, so not in `occupancy`.
   free_space.mark(0, 7.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
   free_space.mark(0, 7.26, 1.01, 0.0, cell_flags::kOccupied);
-  const PoseGridScorerConfig config{.hit = 1.0f,
-                                    .free = -1.0f,
-                                    .unknown = 0.0f,
-                                    .ray_through_wall = -2.0f,
-                                    .ray_through_free = 0.5f,
-                                    .ray_through_contested = -0.25f,
-                                    .surface_on_return = 0.75f};
+  const PoseGridScorerConfig config = distinct_scores();
   PoseGridScorer scorer(occupancy, free_space, config);
   // Hypotheses: identity in submap 0, identity in submap 1 (nothing mapped).
   const std::uint32_t submap[2] = {0, 1};

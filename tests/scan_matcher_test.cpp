@@ -178,6 +178,37 @@ TEST(ScanMatcher, BackwardDrivingSeenAsForwardByOdometry) {
   EXPECT_EQ(stats_off.velocity_retries, 0u);
 }
 
+TEST(ScanMatcher, TurnRetriesRecoverAScanWhoseStampRunsBackwards) {
+  // The robot spins in place, 8 degrees per scan. Scans 4 and 5 carry the
+  // stamps of scans 10 and 11, and their odometry was read at those times;
+  // scan 6's stamp runs back, its odometry step is -40 degrees (intel's raw log).
+  std::vector<Pose2> truth;
+  for (int i = 0; i < 14; ++i) truth.push_back(Pose2(4.0, 4.0, 8.0 * kDeg * i));
+  const auto stamp_of = [](int i) { return i == 4 ? 10 : i == 5 ? 11 : i; };
+  test::LaserSim sim(test::test_room());
+  const auto run = [&](bool turn_retries) {
+    ScanMatcherConfig c;
+    c.turn_retries = turn_retries;
+    ScanMatcher matcher(c);
+    Pose2 last;
+    for (int i = 0; i < static_cast<int>(truth.size()); ++i) {
+      const int k = stamp_of(i);
+      last = matcher.add_scan(sim.scan(truth[i], truth[k], 0.2 * k)).laser_pose;
+    }
+    return std::make_pair(last, matcher.stats());
+  };
+  const Pose2 moved = truth.front().between(truth.back());
+  const auto [with_turns, stats] = run(true);
+  expect_pose_near(with_turns, moved, 0.02, 0.5 * kDeg, "final pose, turn retries");
+  EXPECT_GT(stats.turn_matches, 0u);
+  EXPECT_EQ(stats.odometry_fallbacks, 0u);
+  // Without them the backward scan keeps odometry's step: tens of degrees off from there on.
+  const auto [without, stats_off] = run(false);
+  EXPECT_GT(angle_distance(without.theta, moved.theta), 20.0 * kDeg);
+  EXPECT_GT(stats_off.odometry_fallbacks, 0u);
+  EXPECT_EQ(stats_off.turn_matches, 0u);
+}
+
 TEST(ScanMatcher, FeaturelessCorridorKeepsOdometryAlongItsAxis) {
   // 200 m long, 2 m wide, nothing along it: the scan fixes y and heading but
   // says nothing about x.

@@ -297,6 +297,21 @@ bool ScanMatcher::match(const Pose2& guess, const Pose2& laser_step, ScanMatchRe
   return false;
 }
 
+bool ScanMatcher::match_turned(const Pose2& step, ScanMatchResult& result) {
+  for (int j = 0; j <= 8; ++j) {
+    ++stats_.velocity_retries;
+    const double turn = (j % 2 == 0 ? 1.0 : -1.0) * ((j + 1) / 2) * (10.0 * std::numbers::pi / 180.0);
+    const Pose2 turned(step.x, step.y, turn);
+    ScanMatchResult retry = result;
+    retry.laser_pose = previous_laser_pose_ * turned;
+    if (match(retry.laser_pose, turned, retry)) {
+      result = retry;
+      return true;
+    }
+  }
+  return false;
+}
+
 ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
   if (!is_finite(scan.odometry)) {
     throw Error("ScanMatcher::add_scan: scan at t=" + std::to_string(scan.timestamp) +
@@ -324,17 +339,9 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
     if (!map_points_.empty()) {
       thin_source(endpoints_);
       bool ok = match(result.laser_pose, velocity_step, result);
-      // Failing that, from standing still, turned by 0, -10, +10, ... +40
-      // degrees (a turn faster than the last step's: the prediction's error
-      // is mostly in heading): the smallest turn that fits.
-      for (int j = 0; !ok && j <= 8; ++j) {
-        ++stats_.velocity_retries;
-        const double turn = (j % 2 == 0 ? 1.0 : -1.0) * ((j + 1) / 2) * (10.0 * std::numbers::pi / 180.0);
-        const Pose2 step(0.0, 0.0, turn);
-        ScanMatchResult retry = result;
-        retry.laser_pose = previous_laser_pose_ * step;
-        if (match(retry.laser_pose, step, retry)) result = retry, ok = true;
-      }
+      // Failing that, from standing still, turned (a turn faster than the
+      // last step's: the prediction's error is mostly in heading).
+      if (!ok) ok = match_turned(Pose2::identity(), result);
       if (ok) {
         result.source = ScanMatchSource::kMatched;
         ++stats_.matched;
@@ -381,6 +388,10 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
               ok = true;
             }
           }
+        }
+        if (!ok && config_.turn_retries && match_turned(laser_step, result)) {
+          ++stats_.turn_matches;
+          ok = true;
         }
         if (ok) {
           result.source = ScanMatchSource::kMatched;

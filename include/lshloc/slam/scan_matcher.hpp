@@ -70,6 +70,12 @@ struct ScanMatcherConfig {
   /// odometry prediction by more than this (translation or rotation), the
   /// scan is matched from both and the fit with more inliers is kept.
   double velocity_guess_difference = 0.03;
+  /// With odometry, where neither the odometry nor the velocity guess
+  /// matches: match from the odometry's translation turned by 0, -10, +10,
+  /// ... +40 degrees as without odometry, before falling back to odometry.
+  /// A log whose scan stamps run backwards (intel) gives odometry steps of
+  /// tens of degrees the robot never turned.
+  bool turn_retries = false;
   /// Reject matches whose ICP did not converge within max_iterations: they
   /// oscillate between correspondence sets, and on sparse or cluttered scans
   /// such matches are where the heading jumps by degrees.
@@ -128,6 +134,7 @@ struct ScanMatcherStats {
   std::size_t odometry_fallbacks = 0;
   std::size_t velocity_retries = 0;  ///< scans also matched from the constant-velocity prediction
   std::size_t velocity_matches = 0;  ///< ... where that match was kept
+  std::size_t turn_matches = 0;      ///< scans with odometry matched by ScanMatcherConfig::turn_retries
   std::size_t stationary = 0;
   std::size_t degenerate = 0;  ///< matched scans with at least one degenerate direction
   std::size_t keyframes = 0;   ///< keyframes ever added
@@ -188,6 +195,9 @@ class ScanMatcher {
   /// ICP from `guess`; true (and `result` filled with the refined pose) when
   /// the match passes every acceptance test.
   bool match(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result);
+  /// match() from the previous pose moved by `step`'s translation and turned
+  /// by 0, -10, +10, ... +40 degrees: the smallest turn that fits.
+  bool match_turned(const Pose2& step, ScanMatchResult& result);
 
   ScanMatcherConfig config_;
   ScanMatcherStats stats_;
