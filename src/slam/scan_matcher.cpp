@@ -389,7 +389,8 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
             }
           }
         }
-        if (!ok && config_.turn_retries && match_turned(laser_step, result)) {
+        const bool stamp_ran_back = scan.timestamp <= previous_timestamp_;
+        if (!ok && config_.turn_retries && stamp_ran_back && match_turned(laser_step, result)) {
           ++stats_.turn_matches;
           ok = true;
         }

@@ -70,11 +70,12 @@ struct ScanMatcherConfig {
   /// odometry prediction by more than this (translation or rotation), the
   /// scan is matched from both and the fit with more inliers is kept.
   double velocity_guess_difference = 0.03;
-  /// With odometry, where neither the odometry nor the velocity guess
-  /// matches: match from the odometry's translation turned by 0, -10, +10,
-  /// ... +40 degrees as without odometry, before falling back to odometry.
-  /// A log whose scan stamps run backwards (intel) gives odometry steps of
-  /// tens of degrees the robot never turned.
+  /// With odometry, on a scan whose stamp is not after the previous one's
+  /// and which odometry's guess does not match: match from odometry's
+  /// translation turned by 0, -10, +10, ... +40 degrees as without odometry,
+  /// before falling back to odometry. Odometry read at a stamp that runs
+  /// back (intel's raw log, 631 of its scans) steps by tens of degrees the
+  /// robot never turned, and the velocity guess needs time to run forward.
   bool turn_retries = false;
   /// Reject matches whose ICP did not converge within max_iterations: they
   /// oscillate between correspondence sets, and on sparse or cluttered scans
