@@ -209,6 +209,37 @@ TEST(ScanMatcher, TurnRetriesRecoverAScanWhoseStampRunsBackwards) {
   EXPECT_EQ(stats_off.turn_matches, 0u);
 }
 
+TEST(ScanMatcher, PerScanVelocityWhereStampsBunch) {
+  // The robot spins in place, 12 degrees per scan, 0.2 s apart. Scan 5's
+  // stamp lies 1 ms after scan 4's, and scan 6's odometry steps -12 degrees
+  // (intel's raw log): the velocity guess scaled by the gaps (0.399 s after
+  // 0.001 s, clamped to 3x) turns 36 degrees, per scan 12.
+  std::vector<Pose2> truth;
+  for (int i = 0; i < 12; ++i) truth.push_back(Pose2(4.0, 4.0, 12.0 * kDeg * i));
+  const auto stamp_of = [](int i) { return i == 5 ? 0.801 : 0.2 * i; };
+  test::LaserSim sim(test::test_room());
+  const auto run = [&](bool per_scan) {
+    ScanMatcherConfig c;
+    c.per_scan_velocity_on_odd_stamps = per_scan;
+    ScanMatcher matcher(c);
+    Pose2 last;
+    for (int i = 0; i < static_cast<int>(truth.size()); ++i) {
+      const Pose2 odometry = truth[i] * Pose2(0.0, 0.0, i >= 6 ? -24.0 * kDeg : 0.0);
+      last = matcher.add_scan(sim.scan(truth[i], odometry, stamp_of(i))).laser_pose;
+    }
+    return std::make_pair(last, matcher.stats());
+  };
+  const Pose2 moved = truth.front().between(truth.back());
+  const auto [per_scan, stats] = run(true);
+  expect_pose_near(per_scan, moved, 0.02, 0.5 * kDeg, "final pose, per-scan velocity");
+  EXPECT_EQ(stats.odometry_fallbacks, 0u);
+  EXPECT_GT(stats.velocity_matches, 0u);
+  // Scaled by the gaps, neither guess matches and odometry's step stays.
+  const auto [scaled, stats_off] = run(false);
+  EXPECT_GT(angle_distance(scaled.theta, moved.theta), 15.0 * kDeg);
+  EXPECT_GT(stats_off.odometry_fallbacks, 0u);
+}
+
 TEST(ScanMatcher, FeaturelessCorridorKeepsOdometryAlongItsAxis) {
   // 200 m long, 2 m wide, nothing along it: the scan fixes y and heading but
   // says nothing about x.

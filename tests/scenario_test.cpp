@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <limits>
 #include <set>
 
 #include "lshloc/common/error.hpp"
@@ -33,6 +34,34 @@ BuildingRecording synthetic_building() {
     rec.truth.push_back({1000.0 + i + 0.0004, Pose2(i, 0, 0)});
   }
   return rec;
+}
+
+TEST(Scenario, GroundTruthJoinsTheScanWithItsRanges) {
+  // Four scans bunched 0.9 ms apart (intel's raw log): a pose stamped at the
+  // second scan's time belongs, by its ranges, to the third; each pose goes to
+  // one scan, and a pose without a scan of its ranges to the nearest free one.
+  std::vector<LaserScan> scans;
+  for (int i = 0; i < 4; ++i) scans.push_back(scan_at(10.0 + 0.0009 * i, static_cast<float>(i)));
+  scans.push_back(scan_at(20.0, 9.0f));
+  std::vector<StampedPose> truth = {
+      {10.0009, Pose2(1, 0, 0)}, {10.0009, Pose2(2, 0, 0)}, {20.0005, Pose2(3, 0, 0)}, {30.0, Pose2(4, 0, 0)}};
+  std::vector<LaserScan> truth_scans = {scan_at(0.0, 2.0f), scan_at(0.0, 7.0f), scan_at(0.0, 9.0f), scan_at(0.0, 5.0f)};
+  truth_scans[2].ranges[1] += 0.004f;  // printed with fewer decimals: still the same scan
+  const auto joined = join_truth_to_scans(scans, truth, truth_scans, 1e-3);
+  ASSERT_EQ(joined.size(), 4u);
+  EXPECT_EQ(joined[0], std::optional<std::size_t>(2));  // its ranges, not the nearest (scan 1)
+  EXPECT_EQ(joined[1], std::optional<std::size_t>(1));  // no scan of its ranges: the nearest free one
+  EXPECT_EQ(joined[2], std::optional<std::size_t>(4));
+  EXPECT_FALSE(joined[3].has_value());  // nothing within 1 ms
+  // Without ranges, by time alone, still one scan per pose.
+  const auto by_time = join_truth_to_scans(scans, truth, {}, 1e-3);
+  EXPECT_EQ(by_time[0], std::optional<std::size_t>(1));
+  EXPECT_TRUE(by_time[1] == std::optional<std::size_t>(0) || by_time[1] == std::optional<std::size_t>(2));
+  LaserScan nan_scan = scan_at(0.0, 1.0f), other = scan_at(0.0, 1.0f);
+  nan_scan.ranges[0] = other.ranges[0] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_TRUE(same_ranges(nan_scan, other));
+  other.ranges[0] = 1.0f;
+  EXPECT_FALSE(same_ranges(nan_scan, other));
 }
 
 void expect_disjoint(const Submap& map_side, const TargetRun& target) {

@@ -1,11 +1,12 @@
 #include "lshloc/eval/scenario.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <numeric>
 #include <random>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/slam/pose_graph_slam.hpp"
-#include "lshloc/geometry/time_join.hpp"
 
 namespace lshloc {
 
@@ -106,15 +107,49 @@ void split_target_building(const BuildingRecording& rec, const ScenarioConfig& c
   target.scans.assign(raw.begin() + static_cast<std::ptrdiff_t>(config.start),
                       raw.begin() + static_cast<std::ptrdiff_t>(config.start + config.length));
   target.truth.assign(target.scans.size(), std::nullopt);
-  if (!rec.truth.empty()) {
-    std::vector<double> query(target.scans.size()), reference(rec.truth.size());
-    for (std::size_t i = 0; i < query.size(); ++i) query[i] = target.scans[i].timestamp;
-    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] = rec.truth[k].timestamp;
-    const auto match = join_by_timestamp(query, reference, config.truth_tolerance_s);
-    for (std::size_t i = 0; i < match.size(); ++i) {
-      if (match[i]) target.truth[i] = rec.truth[*match[i]].pose;
-    }
+  const auto truth_scan = join_truth_to_scans(target.scans, rec.truth, rec.corrected_scans, config.truth_tolerance_s);
+  for (std::size_t k = 0; k < truth_scan.size(); ++k) {
+    if (truth_scan[k]) target.truth[*truth_scan[k]] = rec.truth[k].pose;
   }
+}
+
+bool same_ranges(const LaserScan& a, const LaserScan& b) {
+  if (a.ranges.size() != b.ranges.size()) return false;
+  for (std::size_t i = 0; i < a.ranges.size(); ++i) {
+    const float x = a.ranges[i], y = b.ranges[i];
+    if (std::isnan(x) != std::isnan(y) || (!std::isnan(x) && std::abs(x - y) > 0.006f)) return false;
+  }
+  return true;
+}
+
+std::vector<std::optional<std::size_t>> join_truth_to_scans(std::span<const LaserScan> scans,
+                                                            std::span<const StampedPose> truth,
+                                                            std::span<const LaserScan> truth_scans,
+                                                            double tolerance_s) {
+  std::vector<std::size_t> order(scans.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return scans[a].timestamp < scans[b].timestamp; });
+  const bool have_ranges = truth_scans.size() == truth.size();
+  std::vector<std::optional<std::size_t>> out(truth.size());
+  std::vector<bool> taken(scans.size(), false);
+  for (std::size_t k = 0; k < truth.size(); ++k) {
+    const double t = truth[k].timestamp;
+    auto it = std::lower_bound(order.begin(), order.end(), t - tolerance_s,
+                               [&](std::size_t i, double v) { return scans[i].timestamp < v; });
+    std::optional<std::size_t> nearest, identical;
+    for (; it != order.end() && scans[*it].timestamp <= t + tolerance_s; ++it) {
+      if (taken[*it]) continue;
+      const auto closer = [&](const std::optional<std::size_t>& best) {
+        return !best || std::abs(scans[*it].timestamp - t) < std::abs(scans[*best].timestamp - t);
+      };
+      if (closer(nearest)) nearest = *it;
+      if (have_ranges && same_ranges(scans[*it], truth_scans[k]) && closer(identical)) identical = *it;
+    }
+    out[k] = identical ? identical : nearest;
+    if (out[k]) taken[*out[k]] = true;
+  }
+  return out;
 }
 
 Submap whole_building_submap(const BuildingRecording& rec) {

@@ -80,8 +80,8 @@ LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_v
                    normal_min_points, max_line_flatness, coarse_correspondence, fine_correspondence, coarse_iterations,
                    max_iterations, robust_scale, converged_translation, converged_rotation, rotation_length,
                    degeneracy_threshold, inlier_distance, min_quality, min_correspondences, max_correction_translation,
-                   max_correction_rotation, velocity_guess_difference, turn_retries, experimental, reject_unconverged,
-                   odometry, stationary_translation, stationary_rotation)
+                   max_correction_rotation, velocity_guess_difference, turn_retries, per_scan_velocity_on_odd_stamps,
+                   experimental, reject_unconverged, odometry, stationary_translation, stationary_rotation)
 LSHLOC_JSON_FIELDS(PoseGraphConfig, max_iterations, converged_step, robust_scale)
 LSHLOC_JSON_FIELDS(CorrelativeMatcherConfig, cell, sigma, block, angle_step_deg, max_query_points, runner_up_distance)
 LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement, node_distance, node_angle, node_voxel,

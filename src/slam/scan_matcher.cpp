@@ -371,8 +371,12 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
         // then settles next to the wrong guess): where the constant-velocity
         // prediction disagrees, match from it too and keep the better fit.
         const double dt = scan.timestamp - previous_timestamp_;
-        if (previous_dt_ > 0.0 && dt > 0.0) {
-          const double k = std::clamp(dt / previous_dt_, 0.0, 3.0);
+        const bool gaps_credible =
+            previous_dt_ > 0.0 && dt > 0.0 && dt <= 3.0 * previous_dt_ && 3.0 * dt >= previous_dt_;
+        if (config_.per_scan_velocity_on_odd_stamps || (previous_dt_ > 0.0 && dt > 0.0)) {
+          const double k = gaps_credible                             ? dt / previous_dt_
+                           : config_.per_scan_velocity_on_odd_stamps ? 1.0
+                                                                     : std::clamp(dt / previous_dt_, 0.0, 3.0);
           const Pose2 velocity_step(k * previous_laser_step_.x, k * previous_laser_step_.y,
                                     k * previous_laser_step_.theta);
           const Pose2 d = laser_step.between(velocity_step);

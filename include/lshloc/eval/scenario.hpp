@@ -79,6 +79,19 @@ std::size_t default_window_start(const std::string& building);
 /// Names of the R-1 other buildings for a target, in the order config.seed gives.
 std::vector<std::string> other_buildings(const ScenarioConfig& config);
 
+/// Whether two scans hold the same ranges (to the 2 decimals logs print;
+/// invalid readings alike).
+bool same_ranges(const LaserScan& a, const LaserScan& b);
+
+/// For each ground-truth pose, the one scan it belongs to: among `scans`
+/// within tolerance_s of its stamp and not yet taken, the nearest whose ranges
+/// are truth_scans[k]'s (when truth_scans holds one scan per pose), else the
+/// nearest. intel's raw log bunches stamps 1 ms apart: a join of each scan to
+/// the nearest pose gave 208 scans a neighbour's pose.
+std::vector<std::optional<std::size_t>> join_truth_to_scans(std::span<const LaserScan> scans,
+                                                            std::span<const StampedPose> truth,
+                                                            std::span<const LaserScan> truth_scans, double tolerance_s);
+
 /// The target's window and its own submap, built from its recording: map scans
 /// are corrected scans whose raw time stamp lies more than guard_s outside the
 /// window (or, with no corrected log, raw scans outside it with poses from

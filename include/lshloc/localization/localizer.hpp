@@ -31,11 +31,15 @@ enum class HypothesisSource : std::uint8_t {
 };
 
 /// The scan matcher of the target's local map: denser points (5 cm) and line
-/// normals from 3 points, so that far walls' sparse returns still match.
+/// normals from 3 points, so that far walls' sparse returns still match; and
+/// turn retries where a stamp runs back, so that odometry read there does not
+/// leave a heading error of tens of degrees in the local map (intel).
 inline ScanMatcherConfig local_map_matcher() {
   ScanMatcherConfig c;
   c.scan_voxel = 0.05;
   c.normal_min_points = 3;
+  c.turn_retries = true;
+  c.per_scan_velocity_on_odd_stamps = true;
   return c;
 }
 

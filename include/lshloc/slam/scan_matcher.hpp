@@ -77,6 +77,13 @@ struct ScanMatcherConfig {
   /// back (intel's raw log, 631 of its scans) steps by tens of degrees the
   /// robot never turned, and the velocity guess needs time to run forward.
   bool turn_retries = false;
+  /// With odometry, where the gap before this scan is over 3x or under a
+  /// third of the gap before the previous scan, or either gap is not
+  /// positive: the constant-velocity prediction repeats the last step instead
+  /// of scaling it by the gaps. A laser runs at a fixed rate; intel's raw log
+  /// bunches stamps within a millisecond, and the scaled step was then 0 or
+  /// 3x the last one.
+  bool per_scan_velocity_on_odd_stamps = false;
   /// Reject matches whose ICP did not converge within max_iterations: they
   /// oscillate between correspondence sets, and on sparse or cluttered scans
   /// such matches are where the heading jumps by degrees.
