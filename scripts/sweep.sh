@@ -27,7 +27,8 @@
 # (a directory: each run also writes its per-scan trace there, `eval --trace`,
 # named after its arguments; scripts/confidence_fit.py reads them),
 # LSHLOC_SLAM_CACHE (a directory of SLAM poses kept across sweeps; default: one
-# for this sweep alone).
+# for this sweep alone), BUILDINGS (e.g. "intel mit-csail": only those
+# buildings' runs are redone; the part's other lines in results/ are kept).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 LSHLOC=${LSHLOC:-build/bin/lshloc}
@@ -115,7 +116,18 @@ jobs_for() {  # jobs_for PART: one line per eval to run
 }
 
 for p in "${parts[@]}"; do
-  rm -f "results/$p.jsonl"
-  jobs_for "$p" | xargs -P "$JOBS" -I{} bash -c 'run {}'
+  if [ -n "${BUILDINGS:-}" ]; then
+    pattern="--building ($(echo "$BUILDINGS" | tr ' ' '|')) "
+    [ -f "results/$p.jsonl" ] && python3 - "results/$p.jsonl" "$BUILDINGS" <<'PY'
+import json, sys
+path, buildings = sys.argv[1], sys.argv[2].split()
+kept = [l for l in open(path) if l.strip() and json.loads(l).get("building") not in buildings]
+open(path, "w").writelines(kept)
+PY
+    jobs_for "$p" | { grep -E -- "$pattern" || true; } | xargs -r -P "$JOBS" -I{} bash -c 'run {}'
+  else
+    rm -f "results/$p.jsonl"
+    jobs_for "$p" | xargs -P "$JOBS" -I{} bash -c 'run {}'
+  fi
   echo "$p: $(wc -l <"results/$p.jsonl") runs in results/$p.jsonl" >&2
 done

@@ -45,17 +45,27 @@ class Localizer::DataPointSample final : public SampleScorer {
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
     const HypothesisBatch batch = batch_.assign(hypotheses);
     const std::size_t m = hypotheses.size();
-    out_.resize(m);
     sums.assign(m, 0.0);
-    PairSums two;
+    // Every (data-point, hypothesis) pair in one batch: a few hypotheses
+    // scored one point at a time leave each grid lookup waiting alone.
     const std::span<const LocalPoint> points = ransac_.features();
+    pair_points_.clear(), pair_hypotheses_.clear();
     for (std::uint32_t i : sample_) {
-      scorer_(points[i], batch, out_.data());
-      for (std::size_t j = 0; j < m; ++j) sums[j] += out_[j];
+      for (std::size_t j = 0; j < m; ++j) {
+        pair_points_.push_back(points[i]);
+        pair_hypotheses_.push_back(static_cast<std::uint32_t>(j));
+      }
+    }
+    out_.resize(pair_points_.size());
+    if (!out_.empty()) scorer_.score_pairs(pair_points_, pair_hypotheses_, batch, out_.data());
+    PairSums two;
+    for (std::size_t k = 0; k < sample_.size(); ++k) {
+      const float* o = out_.data() + k * m;
+      for (std::size_t j = 0; j < m; ++j) sums[j] += o[j];
       if (pair != nullptr) {
-        const double d = double(out_[0]) - double(out_[1]);
+        const double d = double(o[0]) - double(o[1]);
         two.squared_difference += d * d;
-        two.second_absolute += std::abs(double(out_[1]));
+        two.second_absolute += std::abs(double(o[1]));
       }
     }
     if (pair != nullptr) *pair = two;
@@ -67,7 +77,9 @@ class Localizer::DataPointSample final : public SampleScorer {
   std::mt19937_64& rng_;
   std::vector<std::uint32_t> sample_;
   HypothesisBatchBuffer batch_;
-  std::vector<float> out_;
+  std::vector<LocalPoint> pair_points_;
+  std::vector<std::uint32_t> pair_hypotheses_;
+  std::vector<float> out_;  ///< the pairs' scores, data-point by data-point
 };
 
 void LocalizerConfig::validate() const {
