@@ -3,6 +3,7 @@
 // each checked on hypotheses whose scores the test sets.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <numbers>
@@ -98,6 +99,35 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
     EXPECT_FALSE(e.localized);
     EXPECT_NEAR(e.margin, 0.1, 1e-9);
   }
+}
+
+TEST(ReportPolicy, TheFlagRisesOnlyOnSupportThatLastsRiseSupportedScans) {
+  // A place held long without support (C/N 0.29, as a look-alike whose own
+  // building is not mapped yet) whose best hypothesis crosses the support
+  // test for fewer scans than rise_supported_scans: the flag stays down.
+  const ReportPolicyConfig config = plain();
+  const std::size_t run = config.confidence.rise_supported_scans;
+  ASSERT_GE(run, 2u);
+  const Hypothesis place = at(1, 7.0, 2.0, 0.1);
+  FakeSample sample;
+  sample.score_of = [](const Hypothesis&) { return 0.4; };  // the newest points fit the place
+  const auto replay = [&](std::size_t supported_scans) {
+    ReportPolicy policy(config, kPreference);
+    std::vector<bool> flags;
+    for (std::size_t i = 0; i < config.confidence.stable_scans + 5; ++i)
+      flags.push_back(step(policy, {scored(place, 0.29, 2500)}, sample).localized);
+    for (std::size_t i = 0; i < supported_scans; ++i)
+      flags.push_back(step(policy, {scored(place, 0.37, 500)}, sample).localized);
+    for (std::size_t i = 0; i < 5; ++i) flags.push_back(step(policy, {scored(place, 0.33, 700)}, sample).localized);
+    return flags;
+  };
+  const std::vector<bool> brief = replay(run - 1);
+  EXPECT_EQ(std::count(brief.begin(), brief.end(), true), 0);
+  // Support for rise_supported_scans scans in a row: up on the last of them,
+  // and held after it while the place is kept.
+  const std::vector<bool> lasting = replay(run);
+  const std::size_t first = config.confidence.stable_scans + 5 + run - 1;
+  for (std::size_t i = 0; i < lasting.size(); ++i) EXPECT_EQ(lasting[i], i >= first) << "scan " << i;
 }
 
 TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnContradiction) {

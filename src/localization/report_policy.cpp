@@ -32,6 +32,8 @@ std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P,
 
 void ReportPolicyConfig::validate() const {
   require(confidence.stable_scans >= 1, "ReportPolicyConfig.confidence.stable_scans", ">= 1", confidence.stable_scans);
+  require(confidence.rise_supported_scans >= 1, "ReportPolicyConfig.confidence.rise_supported_scans", ">= 1",
+          confidence.rise_supported_scans);
   require(confidence.newest_points <= 1000000, "ReportPolicyConfig.confidence.newest_points", "<= 1e6",
           confidence.newest_points);
   require(std::isfinite(confidence.rise_min_whole_map_lead), "ReportPolicyConfig.confidence.rise_min_whole_map_lead",
@@ -126,6 +128,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   if (recent_best_.size() > cc.stable_scans) recent_best_.pop_front();
   if (!best) {
     flag_ = false;
+    supported_run_ = 0;
     return e;
   }
   // Tracking: the reported place follows the local map's drift by a small
@@ -175,6 +178,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   }
   e.stable = stable;
   e.supported = supported(*best);
+  supported_run_ = e.supported ? supported_run_ + 1 : 0;
   e.place_supported = reported_supported_;
   e.kept_scans = kept_scans_;
   const std::array<double, 10> f{1.0,
@@ -206,9 +210,9 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       e.whole_map_lead = rival ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   }
-  const bool rises =
-      rise_but_support &&
-      (e.supported || (relative_support_decides && whole_map_known && e.whole_map_lead >= cc.rise_min_whole_map_lead));
+  const bool rises = rise_but_support &&
+                     ((e.supported && supported_run_ >= cc.rise_supported_scans) ||
+                      (relative_support_decides && whole_map_known && e.whole_map_lead >= cc.rise_min_whole_map_lead));
   // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
   const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;
   mean_contradiction_ =

@@ -32,8 +32,9 @@ enum class HypothesisSource : std::uint8_t {
 
 /// The scan matcher of the target's local map: denser points (5 cm) and line
 /// normals from 3 points, so that far walls' sparse returns still match; and
-/// turn retries where a stamp runs back, so that odometry read there does not
-/// leave a heading error of tens of degrees in the local map (intel).
+/// where stamps run back or bunch, a per-scan velocity guess and turn
+/// retries, so that odometry read at such stamps does not leave a heading
+/// error of tens of degrees in the local map (intel's raw log).
 inline ScanMatcherConfig local_map_matcher() {
   ScanMatcherConfig c;
   c.scan_voxel = 0.05;
