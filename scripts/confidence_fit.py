@@ -133,18 +133,21 @@ def value_flag(w, up, hold):
     return rule
 
 
-def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15):
+def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
-    hold_max_mean_contradiction, contradiction_smoothing) replayed from a trace's evidence columns."""
+    hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans) replayed from a
+    trace's evidence columns."""
     def rule(s, flag, state):
         x = s["x"]
         if x is None:
+            state["run"] = 0
             return False
         margin, place_supported, stable, supported, fit, evidence = x[2], x[5], x[6], x[7], x[8], x[9]
         kept = x[4] > 0.0
+        state["run"] = state.get("run", 0) + 1 if supported > 0 else 0
         penalty = 0.5 * (evidence - fit)
         state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
-        rises = stable > 0 and supported > 0 and margin >= min_margin and fit >= rise_fit
+        rises = (stable > 0 and state["run"] >= supported_scans and margin >= min_margin and fit >= rise_fit)
         held = flag and kept and place_supported > 0 and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
         return rises or held
     return rule
@@ -206,11 +209,13 @@ def main():
     ap.add_argument("--diagram")
     ap.add_argument("--flag", choices=["value", "evidence"], default="value",
                     help="the flag judged: the value above --up, held at --hold (value), or the localizer's rule "
-                         "from the evidence columns with --rise-fit, --hold-penalty, --hold-mean-penalty, --smoothing")
+                         "from the evidence columns with --rise-fit, --hold-penalty, --hold-mean-penalty, --smoothing, "
+                         "--rise-supported-scans")
     ap.add_argument("--rise-fit", type=float, default=0.1)
     ap.add_argument("--hold-penalty", type=float, default=0.13)
     ap.add_argument("--hold-mean-penalty", type=float, default=0.1)
     ap.add_argument("--smoothing", type=float, default=0.3)
+    ap.add_argument("--rise-supported-scans", type=int, default=3)
     a = ap.parse_args()
     runs = load(a.trace_dir)
     train = set(a.train.split(","))
@@ -225,7 +230,8 @@ def main():
         w = fit([(x, y, total / (len(rows) * len(r))) for r in rows.values() for x, y in r])
     print("weights (" + ", ".join(FEATURES) + "): " + ",".join(f"{v:.4f}" for v in w))
     flag_rule = (value_flag(w, a.up, a.hold) if a.flag == "value" else
-                 evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing))
+                 evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
+                               supported_scans=a.rise_supported_scans))
     buildings = sorted({b for b, _, _ in runs})
     everything = []
     for b in buildings:
