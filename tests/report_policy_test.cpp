@@ -101,10 +101,11 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
   }
 }
 
-TEST(ReportPolicy, TheFlagRisesOnlyOnSupportThatLastsRiseSupportedScans) {
+TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
   // A place held long without support (C/N 0.29, as a look-alike whose own
   // building is not mapped yet) whose best hypothesis crosses the support
   // test for fewer scans than rise_supported_scans: the flag stays down.
+  // (A place found fresh rises at once: the test above.)
   const ReportPolicyConfig config = plain();
   const std::size_t run = config.confidence.rise_supported_scans;
   ASSERT_GE(run, 2u);
@@ -114,7 +115,7 @@ TEST(ReportPolicy, TheFlagRisesOnlyOnSupportThatLastsRiseSupportedScans) {
   const auto replay = [&](std::size_t supported_scans) {
     ReportPolicy policy(config, kPreference);
     std::vector<bool> flags;
-    for (std::size_t i = 0; i < config.confidence.stable_scans + 5; ++i)
+    for (std::size_t i = 0; i < config.confidence.unsupported_hold_scans + 5; ++i)
       flags.push_back(step(policy, {scored(place, 0.29, 2500)}, sample).localized);
     for (std::size_t i = 0; i < supported_scans; ++i)
       flags.push_back(step(policy, {scored(place, 0.37, 500)}, sample).localized);
@@ -126,7 +127,7 @@ TEST(ReportPolicy, TheFlagRisesOnlyOnSupportThatLastsRiseSupportedScans) {
   // Support for rise_supported_scans scans in a row: up on the last of them,
   // and held after it while the place is kept.
   const std::vector<bool> lasting = replay(run);
-  const std::size_t first = config.confidence.stable_scans + 5 + run - 1;
+  const std::size_t first = config.confidence.unsupported_hold_scans + 5 + run - 1;
   for (std::size_t i = 0; i < lasting.size(); ++i) EXPECT_EQ(lasting[i], i >= first) << "scan " << i;
 }
 

@@ -93,10 +93,11 @@ LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, e
                    free_ray_margin, free_ray_max_range, free_ray_no_return_range, context_scans, context_spacing,
                    recent_keys)
 LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, stable_scans, rise_supported_scans,
-                   switch_margin, duel_points, duel_margin, duel_z, duel_recent_margin, duel_recent_min_evidence,
-                   challenger_needs_support, same_place_m, same_place_deg, newest_points, rise_min_newest_fit,
-                   hold_max_contradiction, hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,
-                   rise_min_whole_map_lead, whole_map_points, always_score_whole_map, value_weights)
+                   unsupported_hold_scans, switch_margin, duel_points, duel_margin, duel_z, duel_recent_margin,
+                   duel_recent_min_evidence, challenger_needs_support, same_place_m, same_place_deg, newest_points,
+                   rise_min_newest_fit, hold_max_contradiction, hold_max_mean_contradiction, contradiction_smoothing,
+                   rise_on_whole_map_lead, rise_min_whole_map_lead, whole_map_points, always_score_whole_map,
+                   value_weights)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty,

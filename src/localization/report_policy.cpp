@@ -129,6 +129,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   if (!best) {
     flag_ = false;
     supported_run_ = 0;
+    place_qualified_ = false;
     return e;
   }
   // Tracking: the reported place follows the local map's drift by a small
@@ -178,7 +179,17 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   }
   e.stable = stable;
   e.supported = supported(*best);
-  supported_run_ = e.supported ? supported_run_ + 1 : 0;
+  if (!kept) place_qualified_ = false;
+  if (e.supported) {
+    if (supported_run_ == 0) {
+      const bool long_unsupported = kept_scans_ >= cc.unsupported_hold_scans && !place_qualified_;
+      run_needs_ = long_unsupported ? static_cast<std::uint32_t>(cc.rise_supported_scans) : 1;
+    }
+    ++supported_run_;
+    place_qualified_ = place_qualified_ || supported_run_ >= run_needs_;
+  } else {
+    supported_run_ = 0;
+  }
   e.place_supported = reported_supported_;
   e.kept_scans = kept_scans_;
   const std::array<double, 10> f{1.0,
@@ -211,7 +222,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     }
   }
   const bool rises = rise_but_support &&
-                     ((e.supported && supported_run_ >= cc.rise_supported_scans) ||
+                     ((e.supported && supported_run_ >= run_needs_) ||
                       (relative_support_decides && whole_map_known && e.whole_map_lead >= cc.rise_min_whole_map_lead));
   // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
   const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;

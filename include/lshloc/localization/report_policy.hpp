@@ -25,12 +25,15 @@ struct ConfidenceConfig {
   double min_mean_score = 0.35;    ///< C/N of the best hypothesis at least this
   double min_margin = 0.15;        ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
   std::size_t stable_scans = 5;    ///< the best stayed in one place (1 m, 10 deg) this many scans
-  /// The flag rises only when the best was supported (min_scored, min_mean_score)
-  /// on this many scans in a row: a young hypothesis that has just crossed
-  /// the support test at a place held long without it (a look-alike in a
+  /// At a place held `unsupported_hold_scans` scans or more that never
+  /// passed the support test (min_scored, min_mean_score), the flag rises
+  /// only on support that lasts `rise_supported_scans` scans in a row: there
+  /// a young hypothesis that has just crossed the test (a look-alike in a
   /// building whose own place is not mapped yet, aces live) slips back under
-  /// it within a scan or two. docs/results/confidence.md.
+  /// it within a scan or two. A place found fresh rises at once.
+  /// docs/results/confidence.md.
   std::size_t rise_supported_scans = 3;
+  std::size_t unsupported_hold_scans = 20;
   /// Hysteresis of the reported estimate: the best hypothesis near the last
   /// reported one (within `same_place_m`, `same_place_deg`) stays reported
   /// unless a hypothesis elsewhere beats its C/N by more than this.
@@ -269,6 +272,8 @@ class ReportPolicy {
   bool reported_supported_ = false;
   std::uint32_t kept_scans_ = 0;     ///< scans in a row the reported place has been kept
   std::uint32_t supported_run_ = 0;  ///< scans in a row the best was supported
+  std::uint32_t run_needs_ = 1;      ///< scans of support the current run needs to raise the flag
+  bool place_qualified_ = false;     ///< the kept place had a run of support that could raise the flag
   bool flag_ = false;                ///< the confidence flag of the last report
   double mean_contradiction_ = 0.0;  ///< exponential mean of the newest points' penalty while flagged
   std::size_t last_drawn_ = 0;       ///< size of the sample last drawn
