@@ -133,21 +133,33 @@ def value_flag(w, up, hold):
     return rule
 
 
-def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3):
+def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
+                  unsupported_hold=20):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
-    hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans) replayed from a
-    trace's evidence columns."""
+    hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans)
+    replayed from a trace's evidence columns."""
     def rule(s, flag, state):
         x = s["x"]
         if x is None:
-            state["run"] = 0
+            state.clear()
             return False
         margin, place_supported, stable, supported, fit, evidence = x[2], x[5], x[6], x[7], x[8], x[9]
-        kept = x[4] > 0.0
-        state["run"] = state.get("run", 0) + 1 if supported > 0 else 0
+        kept_scans = round(math.expm1(x[4]))
+        kept = kept_scans > 0
+        if not kept:
+            state["qualified"] = False
+        if supported > 0:
+            if state.get("run", 0) == 0:
+                long_unsupported = kept_scans >= unsupported_hold and not state.get("qualified", False)
+                state["needs"] = supported_scans if long_unsupported else 1
+            state["run"] = state.get("run", 0) + 1
+            state["qualified"] = state.get("qualified", False) or state["run"] >= state["needs"]
+        else:
+            state["run"] = 0
         penalty = 0.5 * (evidence - fit)
         state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
-        rises = (stable > 0 and state["run"] >= supported_scans and margin >= min_margin and fit >= rise_fit)
+        rises = (stable > 0 and supported > 0 and state["run"] >= state["needs"] and margin >= min_margin
+                 and fit >= rise_fit)
         held = flag and kept and place_supported > 0 and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
         return rises or held
     return rule
@@ -210,12 +222,13 @@ def main():
     ap.add_argument("--flag", choices=["value", "evidence"], default="value",
                     help="the flag judged: the value above --up, held at --hold (value), or the localizer's rule "
                          "from the evidence columns with --rise-fit, --hold-penalty, --hold-mean-penalty, --smoothing, "
-                         "--rise-supported-scans")
+                         "--rise-supported-scans, --unsupported-hold-scans")
     ap.add_argument("--rise-fit", type=float, default=0.1)
     ap.add_argument("--hold-penalty", type=float, default=0.13)
     ap.add_argument("--hold-mean-penalty", type=float, default=0.1)
     ap.add_argument("--smoothing", type=float, default=0.3)
     ap.add_argument("--rise-supported-scans", type=int, default=3)
+    ap.add_argument("--unsupported-hold-scans", type=int, default=20)
     a = ap.parse_args()
     runs = load(a.trace_dir)
     train = set(a.train.split(","))
@@ -231,7 +244,7 @@ def main():
     print("weights (" + ", ".join(FEATURES) + "): " + ",".join(f"{v:.4f}" for v in w))
     flag_rule = (value_flag(w, a.up, a.hold) if a.flag == "value" else
                  evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
-                               supported_scans=a.rise_supported_scans))
+                               supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans))
     buildings = sorted({b for b, _, _ in runs})
     everything = []
     for b in buildings:
