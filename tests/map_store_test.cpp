@@ -424,7 +424,7 @@ TEST(MapStoreRealData, ASavedScenarioMapLocalizesExactlyAsTheBuiltOne) {
   ScenarioConfig config;
   config.building = "intel";
   config.start = 5000;
-  config.length = 130;  // the flag rises at scan 122
+  config.length = 130;  // the flag rises at scan 120
   config.submaps = 2;
   const Scenario sc = io::load_scenario(catalog, config);
   GlobalMap built;
