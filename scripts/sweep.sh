@@ -28,7 +28,8 @@
 # named after its arguments; scripts/confidence_fit.py reads them),
 # LSHLOC_SLAM_CACHE (a directory of SLAM poses kept across sweeps; default: one
 # for this sweep alone), BUILDINGS (e.g. "intel mit-csail": only those
-# buildings' runs are redone; the part's other lines in results/ are kept).
+# buildings' runs are redone; the part's other lines in results/ are kept),
+# SEEDS (starts_seeded only, e.g. "2": only those seeded orders are redone).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 LSHLOC=${LSHLOC:-build/bin/lshloc}
@@ -101,7 +102,7 @@ jobs_for() {  # jobs_for PART: one line per eval to run
       for b in fr079 fr101 intel; do for r in 1 4 15; do for h in database random; do
         echo "results/ablation.jsonl --building $b --submaps $r --hypotheses $h"; done; done; done ;;
     starts|starts_seeded)
-      local seeds=(0); [ "$1" = starts_seeded ] && seeds=(1 2)
+      local seeds=(0); [ "$1" = starts_seeded ] && read -r -a seeds <<<"${SEEDS:-1 2}"
       for seed in "${seeds[@]}"; do
         start_windows | while read -r b start len; do
           echo "results/$1.jsonl --building $b --submaps 15 --start $start --length $len --seed $seed"
@@ -116,12 +117,14 @@ jobs_for() {  # jobs_for PART: one line per eval to run
 }
 
 for p in "${parts[@]}"; do
-  if [ -n "${BUILDINGS:-}" ]; then
-    pattern="--building ($(echo "$BUILDINGS" | tr ' ' '|')) "
-    [ -f "results/$p.jsonl" ] && python3 - "results/$p.jsonl" "$BUILDINGS" <<'PY'
+  if [ -n "${BUILDINGS:-}" ] || { [ "$p" = starts_seeded ] && [ -n "${SEEDS:-}" ]; }; then
+    pattern="--building ($(echo "${BUILDINGS:-[a-z0-9-]+}" | tr ' ' '|')) "
+    [ -f "results/$p.jsonl" ] && python3 - "results/$p.jsonl" "${BUILDINGS:-}" "${SEEDS:-}" <<'PY'
 import json, sys
-path, buildings = sys.argv[1], sys.argv[2].split()
-kept = [l for l in open(path) if l.strip() and json.loads(l).get("building") not in buildings]
+path, buildings, seeds = sys.argv[1], sys.argv[2].split(), [int(s) for s in sys.argv[3].split()]
+def redone(r):  # a line the rerun replaces
+    return (not buildings or r.get("building") in buildings) and (not seeds or r.get("seed") in seeds)
+kept = [l for l in open(path) if l.strip() and not redone(json.loads(l))]
 open(path, "w").writelines(kept)
 PY
     jobs_for "$p" | { grep -E -- "$pattern" || true; } | xargs -r -P "$JOBS" -I{} bash -c 'run {}'

@@ -27,7 +27,7 @@ LaserScan half_blind_scan(double range) {
 }
 
 bool seen_free(const GlobalMap& map, double x, double y) {
-  return (map.free_space().probe(0, x, y, 0.0) & cell_flags::kFree) != 0;
+  return (map.free_space().probe(0, x, y) & cell_flags::kFree) != 0;
 }
 
 TEST(GlobalMap, MarksValidRaysFreeUpToTheirEndpoint) {
@@ -47,7 +47,7 @@ TEST(GlobalMap, OnlyAReturnsOwnCellHoldsTheReturn) {
   GlobalMap map;
   map.add_submap("room");
   map.add_scan(0, half_blind_scan(5.9), Pose2(1.1, 2.0, 0.0));
-  const auto flags = [&](double x, double y) { return map.free_space().probe(0, x, y, 0.0); };
+  const auto flags = [&](double x, double y) { return map.free_space().probe(0, x, y); };
   const double cell = map.config().free_space.cell_size;
   // The beam at bearing +90 degrees returns at (1.1, 7.9), the farthest
   // return from the x axis (all lie on a circle about the sensor).
@@ -67,7 +67,7 @@ TEST(GlobalMap, NotesWhereTheMapHasASurfaceNormal) {
   lone.ranges[45] = 5.0f;  // bearing -45 degrees
   map.add_scan(0, half_blind_scan(5.9), Pose2(1.1, 2.0, 0.0));
   map.add_scan(0, lone, Pose2(1.1, 2.0, 0.0));
-  const auto flags = [&](double x, double y) { return map.free_space().probe(0, x, y, 0.0); };
+  const auto flags = [&](double x, double y) { return map.free_space().probe(0, x, y); };
   EXPECT_NE(flags(1.1, 7.9) & cell_flags::kNormal, 0) << "the dense wall's return";
   const double d = 5.0 / std::numbers::sqrt2;
   EXPECT_NE(flags(1.1 + d, 2.0 - d) & cell_flags::kReturn, 0) << "the lone return";
@@ -123,7 +123,7 @@ TEST(GlobalMap, RaysAlongAWallDoNotMarkItFree) {
   map.add_submap("corridor");
   map.add_scan(0, wall_to_the_left(1.1), Pose2(0.0, 0.0, 0.0));
   for (double x = 1.0; x <= 10.0; x += 0.05) {
-    const CellFlags f = map.free_space().probe(0, x, 1.1, 0.0);
+    const CellFlags f = map.free_space().probe(0, x, 1.1);
     EXPECT_FALSE((f & cell_flags::kFree) != 0 && (f & cell_flags::kOccupied) == 0) << "wall cell at x = " << x;
   }
   // The open corridor in front of the wall still reads free.

@@ -229,10 +229,10 @@ TEST(GridSubmap, MarksWallsWithTheirNormalsAndTheRoomAsFree) {
   EXPECT_FALSE(map.occupancy().probe(0, 5.0, -0.02, -std::numbers::pi / 2) & cell_flags::kOccupied);
   EXPECT_TRUE(map.occupancy().probe(0, -0.02, 3.0, 0.0) & cell_flags::kOccupied);
   EXPECT_FALSE(map.occupancy().probe(0, -0.02, 3.0, std::numbers::pi) & cell_flags::kOccupied);
-  EXPECT_TRUE(map.free_space().probe(0, 5.0, 3.0, 0.0) & cell_flags::kFree);
-  EXPECT_FALSE(map.free_space().probe(0, 5.0, 3.0, 0.0) & cell_flags::kOccupied);
-  EXPECT_TRUE(map.free_space().probe(0, 5.0, -0.02, 0.0) & cell_flags::kReturn);
-  EXPECT_FALSE(map.free_space().probe(0, 5.0, -0.5, 0.0) & cell_flags::kFree);  // unknown behind the wall
+  EXPECT_TRUE(map.free_space().probe(0, 5.0, 3.0) & cell_flags::kFree);
+  EXPECT_FALSE(map.free_space().probe(0, 5.0, 3.0) & cell_flags::kOccupied);
+  EXPECT_TRUE(map.free_space().probe(0, 5.0, -0.02) & cell_flags::kReturn);
+  EXPECT_FALSE(map.free_space().probe(0, 5.0, -0.5) & cell_flags::kFree);  // unknown behind the wall
   // The submap has scans now: a second grid cannot go into it.
   EXPECT_THROW(add_grid_submap(map, 0, g), Error);
   EXPECT_THROW(add_grid_submap(map, 7, g), Error);

@@ -368,12 +368,11 @@ void check_score_pairs(ToleranceMode mode, int xy_tol, int theta_tol) {
   PoseGridConfig cfg;
   cfg.xy_tolerance = xy_tol, cfg.theta_tolerance = theta_tol, cfg.tolerance_mode = mode, cfg.cell_size = 0.5;
   PoseGridHashMap occupancy(cfg);
-  PoseGridHashMap free_space(
-      PoseGridConfig{.cell_size = 0.5, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
+  FreeSpaceGrid free_space(PoseGridConfig{.cell_size = 0.5, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
   const auto marks = random_marks(5000, 41);
   for (const auto& m : marks) {
     occupancy.mark(m.submap, m.x, m.y, m.theta, cell_flags::kOccupied);
-    free_space.mark(m.submap, m.x + 0.7, m.y, 0.0, m.flags | cell_flags::kReturn);
+    free_space.mark(m.submap, m.x + 0.7, m.y, m.flags | cell_flags::kReturn);
   }
   std::mt19937 rng(42);
   std::uniform_real_distribution<double> xy(-30.0, 30.0), th(-kPi, kPi), local(-3.0, 3.0);
@@ -425,22 +424,21 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   // holding returns and, as GlobalMap dilates, the cells beyond it occupied.
   PoseGridHashMap occupancy(
       PoseGridConfig{.cell_size = 0.2, .theta_bins = 36, .xy_tolerance = 0, .theta_tolerance = 0});
-  PoseGridHashMap free_space(
-      PoseGridConfig{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
+  FreeSpaceGrid free_space(PoseGridConfig{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0});
   for (double y = -2.0; y <= 2.0; y += 0.05) {
     occupancy.insert(0, 5.01, y, kPi);
-    free_space.mark(0, 5.01, y, 0.0, cell_flags::kOccupied | cell_flags::kReturn | cell_flags::kNormal);
-    free_space.mark(0, 5.26, y, 0.0, cell_flags::kOccupied);
-    for (double x = 0.01; x < 4.0; x += 0.1) free_space.mark(0, x, y, 0.0, cell_flags::kFree);
+    free_space.mark(0, 5.01, y, cell_flags::kOccupied | cell_flags::kReturn | cell_flags::kNormal);
+    free_space.mark(0, 5.26, y, cell_flags::kOccupied);
+    for (double x = 0.01; x < 4.0; x += 0.1) free_space.mark(0, x, y, cell_flags::kFree);
   }
   // A cell both free and occupied (a person walked there): neither evidence.
-  free_space.mark(0, 2.01, 0.01, 0.0, cell_flags::kOccupied);
+  free_space.mark(0, 2.01, 0.01, cell_flags::kOccupied);
   // A return that map rays crossed too (a door, or two passes of a SLAM map
   // that disagree): no surface evidence, milder ray evidence.
-  free_space.mark(0, 3.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
+  free_space.mark(0, 3.01, 1.01, cell_flags::kOccupied | cell_flags::kReturn);
   // A sparse return of a far wall: no normal, so not in `occupancy`.
-  free_space.mark(0, 7.01, 1.01, 0.0, cell_flags::kOccupied | cell_flags::kReturn);
-  free_space.mark(0, 7.26, 1.01, 0.0, cell_flags::kOccupied);
+  free_space.mark(0, 7.01, 1.01, cell_flags::kOccupied | cell_flags::kReturn);
+  free_space.mark(0, 7.26, 1.01, cell_flags::kOccupied);
   const PoseGridScorerConfig config = distinct_scores();
   PoseGridScorer scorer(occupancy, free_space, config);
   // Hypotheses: identity in submap 0, identity in submap 1 (nothing mapped).
@@ -462,12 +460,11 @@ TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   EXPECT_EQ(score({1.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), -1.0f);  // a surface in free space
   EXPECT_EQ(score({9.01f, 0.51f, static_cast<float>(kPi), K::kSurface}), 0.0f);   // beyond the map
   EXPECT_EQ(score({5.01f, 0.51f, 0.0f, K::kFreeSpace}), -2.0f);                   // a ray through the wall
-  EXPECT_EQ(score({5.26f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);        // beside the wall's returns: no evidence
-  EXPECT_EQ(score({1.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.5f);        // a ray where map rays passed
-  EXPECT_EQ(score({2.01f, 0.01f, 0.0f, K::kFreeSpace}), 0.0f);        // free and occupied: no evidence
-  EXPECT_EQ(score({3.01f, 1.01f, 0.0f, K::kFreeSpace}), -0.25f);      // a return map rays crossed: contested
-  EXPECT_EQ(score({9.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);        // beyond the map
-  EXPECT_THROW(PoseGridScorer(occupancy, occupancy, config), Error);  // the free-space grid must be 2-D
+  EXPECT_EQ(score({5.26f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);    // beside the wall's returns: no evidence
+  EXPECT_EQ(score({1.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.5f);    // a ray where map rays passed
+  EXPECT_EQ(score({2.01f, 0.01f, 0.0f, K::kFreeSpace}), 0.0f);    // free and occupied: no evidence
+  EXPECT_EQ(score({3.01f, 1.01f, 0.0f, K::kFreeSpace}), -0.25f);  // a return map rays crossed: contested
+  EXPECT_EQ(score({9.01f, 0.51f, 0.0f, K::kFreeSpace}), 0.0f);    // beyond the map
 }
 
 }  // namespace

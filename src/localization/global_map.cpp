@@ -16,6 +16,8 @@ void GlobalMapConfig::validate() const {
   occupancy.validate();
   free_space.validate();
   require(free_space.theta_bins == 1, "GlobalMapConfig.free_space.theta_bins", "1 (a 2-D grid)", free_space.theta_bins);
+  require(free_space.xy_tolerance == 0, "GlobalMapConfig.free_space.xy_tolerance", "0 (exact cells)",
+          free_space.xy_tolerance);
   require(endpoint_spacing >= 0.0, "GlobalMapConfig.endpoint_spacing", ">= 0 m", endpoint_spacing);
   require(free_ray_stride >= 1, "GlobalMapConfig.free_ray_stride", ">= 1 beam", free_ray_stride);
   require(free_ray_margin >= 0.0, "GlobalMapConfig.free_ray_margin", ">= 0 m", free_ray_margin);
@@ -138,7 +140,7 @@ inline bool GlobalMap::ScanMarks::seen(std::int32_t ix, std::int32_t iy, CellFla
 void GlobalMap::mark_free_space(std::uint32_t submap, const Point2& p, CellFlags flags) {
   if (!std::isfinite(p.x()) || !std::isfinite(p.y()))
     throw Error("GlobalMap: a non-finite point to mark in submap " + std::to_string(submap));
-  const PoseCell c = free_space_.cell_of(submap, p.x(), p.y(), 0.0);
+  const PoseCell c = free_space_.cell_of(submap, p.x(), p.y());
   if (scan_marks_.seen(c.ix, c.iy, flags)) return;
   free_space_.plan_mark(c, flags, free_space_plan_);
 }
@@ -155,7 +157,7 @@ void GlobalMap::plan_grids(std::uint32_t submap, const LaserScan& scan, const Po
   const Point2 sensor = laser_pose.translation();
   // Every mark lies within the longest range (returns and their neighbours) of
   // the sensor; a window wider than 1025 cells is not worth clearing per scan.
-  const PoseCell centre = free_space_.cell_of(submap, sensor.x(), sensor.y(), 0.0);
+  const PoseCell centre = free_space_.cell_of(submap, sensor.x(), sensor.y());
   const double longest = std::max(config_.features.max_range, config_.free_ray_max_range);
   scan_marks_.start(centre.ix, centre.iy,
                     static_cast<std::int32_t>(std::min(512.0, std::ceil(longest * free_space_.inv_cell_size()) + 2.0)));

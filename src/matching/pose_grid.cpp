@@ -78,13 +78,7 @@ void PoseGridHashMap::mark_planned(const MarkPlan& plan) {
   for (const PoseCell& c : plan.cells) {
     ++marks_;
     if (c.submap >= boxes_.size()) boxes_.resize(c.submap + 1);
-    Box& b = boxes_[c.submap];
-    if (b.x1 < b.x0) {
-      b = {c.ix, c.ix, c.iy, c.iy};
-    } else {
-      b.x0 = std::min(b.x0, c.ix), b.x1 = std::max(b.x1, c.ix);
-      b.y0 = std::min(b.y0, c.iy), b.y1 = std::max(b.y1, c.iy);
-    }
+    boxes_[c.submap].add(c.ix, c.iy);
   }
   // Far enough ahead that a slot's cache line arrives before its write, near
   // enough that the table rarely grows in between (a stale prefetch only wastes a load).
@@ -157,23 +151,14 @@ CellFlags PoseGridHashMap::probe(std::uint32_t submap, double x, double y, doubl
   return out;
 }
 
-// The counters, the per-submap boxes, then the cells: each key (submap, ix,
-// iy, itheta: the slot without its flags) as its difference to the previous
-// one, and its flags. Neighbouring cells differ little: about 3 bytes a cell
-// instead of the table's 8 / load.
-void PoseGridHashMap::write_snapshot(ByteWriter& out) const {
-  out.u8(static_cast<std::uint8_t>(std::countr_zero(slots_.size())));
-  out.varint(rehashes_);
-  out.varint(marks_);
-  out.varint(boxes_.size());
-  for (const Box& b : boxes_) {
+void GridSnapshot::write(ByteWriter& out) const {
+  out.u8(static_cast<std::uint8_t>(table_bits));
+  out.varint(rehashes);
+  out.varint(marks);
+  out.varint(boxes.size());
+  for (const CellBox& b : boxes) {
     for (const std::int32_t v : {b.x0, b.x1, b.y0, b.y1}) out.signed_varint(v);
   }
-  std::vector<std::uint64_t> cells;
-  cells.reserve(used_);
-  for (const std::uint64_t s : slots_)
-    if ((s & 0xff) != 0) cells.push_back(s);
-  std::sort(cells.begin(), cells.end());
   out.varint(cells.size());
   std::uint64_t previous = 0;
   for (const std::uint64_t s : cells) {
@@ -183,72 +168,97 @@ void PoseGridHashMap::write_snapshot(ByteWriter& out) const {
   }
 }
 
-void PoseGridHashMap::read_snapshot(ByteReader& in, std::uint32_t submap_limit) {
-  if (used_ != 0 || marks_ != 0) throw Error("PoseGridHashMap::read_snapshot: the grid is not empty");
-  const int bits = in.u8();
-  if (bits < std::countr_zero(slots_.size()) || bits > 32)
-    in.fail("a table of 2^" + std::to_string(std::countr_zero(slots_.size())) + "..2^32 slots, got 2^" +
-            std::to_string(bits));
-  const std::size_t initial = slots_.size(), size = std::size_t{1} << bits;
-  rehashes_ = static_cast<std::size_t>(in.varint_at_most(64, "a rehash count"));
-  marks_ = static_cast<std::size_t>(in.varint());
-  const auto boxes = static_cast<std::size_t>(in.varint_at_most(submap_limit, "a submap count"));
-  boxes_.resize(boxes);
-  for (Box& b : boxes_) {
+GridSnapshot GridSnapshot::read(ByteReader& in, const PoseGridConfig& config, int min_bits,
+                                std::uint32_t submap_limit) {
+  GridSnapshot g;
+  g.table_bits = in.u8();
+  if (g.table_bits < min_bits || g.table_bits > 32)
+    in.fail("a table of 2^" + std::to_string(min_bits) + "..2^32 slots, got 2^" + std::to_string(g.table_bits));
+  const std::size_t size = std::size_t{1} << g.table_bits;
+  g.rehashes = static_cast<std::size_t>(in.varint_at_most(64, "a rehash count"));
+  g.marks = static_cast<std::size_t>(in.varint());
+  g.boxes.resize(static_cast<std::size_t>(in.varint_at_most(submap_limit, "a submap count")));
+  for (CellBox& b : g.boxes) {
     for (std::int32_t* v : {&b.x0, &b.x1, &b.y0, &b.y1}) {
       const std::int64_t value = in.signed_varint();
-      if (value < -kCoordBias || value >= kCoordBias) in.fail("a cell index within +-65536");
+      if (value < -PoseGridHashMap::kCoordBias || value >= PoseGridHashMap::kCoordBias)
+        in.fail("a cell index within +-65536");
       *v = static_cast<std::int32_t>(value);
     }
   }
-  const auto max_cells = static_cast<std::size_t>(config_.max_load_factor * static_cast<double>(size));
+  const auto max_cells = static_cast<std::size_t>(config.max_load_factor * static_cast<double>(size));
   const auto count = static_cast<std::size_t>(
       in.varint_at_most(std::min(max_cells, in.remaining() / 2), "a cell count within the load bound"));
   // A grown table holds more than max_load / 2 of its capacity: a corrupt
   // size must not allocate gigabytes.
-  if (size > initial && static_cast<double>(count) < 0.5 * config_.max_load_factor * static_cast<double>(size) - 1.0)
-    in.fail("a table grown only past its load bound (" + std::to_string(count) + " cells in 2^" + std::to_string(bits) +
-            " slots)");
-  set_capacity(size);
+  if (g.table_bits > min_bits &&
+      static_cast<double>(count) < 0.5 * config.max_load_factor * static_cast<double>(size) - 1.0)
+    in.fail("a table grown only past its load bound (" + std::to_string(count) + " cells in 2^" +
+            std::to_string(g.table_bits) + " slots)");
+  g.cells.reserve(count);
   std::uint64_t key = 0;
-  const TableView table = table_view();
   for (std::size_t n = 0; n < count; ++n) {
     const std::uint64_t step = in.varint();
     if (n > 0 && step == 0) in.fail("cells in ascending order");
     key += step;
     const CellFlags flags = in.u8();
-    const std::uint64_t xy = key >> 8;
-    const auto itheta = static_cast<int>(key & 0xff);
-    if (key >= (std::uint64_t{1} << 56) || (xy >> 34) >= std::min(submap_limit, kMaxSubmaps) ||
-        itheta >= config_.theta_bins || flags == 0)
-      in.fail("a cell of a known submap with a heading bin below " + std::to_string(config_.theta_bins) +
+    if (key >= (std::uint64_t{1} << 56) || (key >> 42) >= std::min(submap_limit, PoseGridHashMap::kMaxSubmaps) ||
+        static_cast<int>(key & 0xff) >= config.theta_bins || flags == 0)
+      in.fail("a cell of a known submap with a heading bin below " + std::to_string(config.theta_bins) +
               " and non-zero flags");
-    std::size_t i = table.home(xy, itheta);
-    while (slots_[i] != 0) i = (i + 1) & mask_;
-    slots_[i] = (key << 8) | flags;
+    g.cells.push_back((key << 8) | flags);
   }
-  used_ = count;
+  return g;
 }
 
-PoseGridStats PoseGridHashMap::stats() const {
+void PoseGridHashMap::write_snapshot(ByteWriter& out) const {
+  GridSnapshot g{std::countr_zero(slots_.size()), rehashes_, marks_, boxes_, {}};
+  g.cells.reserve(used_);
+  for (const std::uint64_t s : slots_)
+    if ((s & 0xff) != 0) g.cells.push_back(s);
+  std::sort(g.cells.begin(), g.cells.end());
+  g.write(out);
+}
+
+void PoseGridHashMap::read_snapshot(ByteReader& in, std::uint32_t submap_limit) {
+  if (used_ != 0 || marks_ != 0) throw Error("PoseGridHashMap::read_snapshot: the grid is not empty");
+  GridSnapshot g = GridSnapshot::read(in, config_, std::countr_zero(slots_.size()), submap_limit);
+  rehashes_ = g.rehashes;
+  marks_ = g.marks;
+  boxes_ = std::move(g.boxes);
+  set_capacity(std::size_t{1} << g.table_bits);
+  const TableView table = table_view();
+  for (const std::uint64_t s : g.cells) {
+    std::size_t i = table.home(s >> 16, static_cast<int>((s >> 8) & 0xff));
+    while (slots_[i] != 0) i = (i + 1) & mask_;
+    slots_[i] = s;
+  }
+  used_ = g.cells.size();
+}
+
+PoseGridStats grid_stats(std::size_t bins_used, std::size_t capacity, std::size_t memory_bytes, std::size_t marks,
+                         std::size_t rehashes, std::span<const CellBox> boxes, int theta_bins) {
   PoseGridStats s;
-  s.bins_used = used_;
-  s.capacity = slots_.size();
-  s.load = static_cast<double>(used_) / static_cast<double>(slots_.size());
-  s.rehashes = rehashes_;
-  s.memory_bytes = slots_.size() * sizeof(std::uint64_t);
-  s.marks = marks_;
-  for (const Box& b : boxes_) {
-    if (b.x1 < b.x0) continue;
-    ++s.submaps;
-    s.dense_cells += static_cast<double>(b.x1 - b.x0 + 1) * static_cast<double>(b.y1 - b.y0 + 1) *
-                     static_cast<double>(config_.theta_bins);
+  s.bins_used = bins_used;
+  s.capacity = capacity;
+  s.load = static_cast<double>(bins_used) / static_cast<double>(capacity);
+  s.rehashes = rehashes;
+  s.memory_bytes = memory_bytes;
+  s.marks = marks;
+  for (const CellBox& b : boxes) {
+    s.submaps += b.empty() ? 0 : 1;
+    s.dense_cells += b.cells() * static_cast<double>(theta_bins);
   }
   if (s.dense_cells > 0.0) {
     s.grid_fraction = static_cast<double>(s.bins_used) / s.dense_cells;
     s.table_fraction = static_cast<double>(s.capacity) / s.dense_cells;
   }
   return s;
+}
+
+PoseGridStats PoseGridHashMap::stats() const {
+  return grid_stats(used_, slots_.size(), slots_.size() * sizeof(std::uint64_t), marks_, rehashes_, boxes_,
+                    config_.theta_bins);
 }
 
 }  // namespace lshloc

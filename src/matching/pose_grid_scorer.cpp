@@ -97,12 +97,9 @@ PoseCell PoseGridScorer::cell_of(const LocalPoint& x, const HypothesisBatch& v, 
   return {v.submap[j], floor_to_int(gx * inv), floor_to_int(gy * inv), it};
 }
 
-PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space,
+PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, const FreeSpaceGrid& free_space,
                                PoseGridScorerConfig config)
     : PoseGridScorer(grid, config) {
-  if (free_space.theta_bins() != 1 || free_space.probes_neighbours()) {
-    throw Error("PoseGridScorer: the free-space grid must be 2-D (theta_bins = 1) without probing tolerance");
-  }
   free_space_ = &free_space;
 }
 
@@ -110,22 +107,21 @@ template <class Points, class Select, class Value>
 void PoseGridScorer::lookup_free_space(const Points& x, const HypothesisBatch& v, float* scores, Select select,
                                        Value value) {
   const std::size_t n = v.size;
-  if (selected_.size() < n) selected_.resize(n);
-  const PoseGridHashMap::TableView table = free_space_->table_view();
+  if (selected_.size() < n) selected_.resize(n), offset_.resize(n);
+  const FreeSpaceGrid::View grid = free_space_->view();
   const float inv = static_cast<float>(free_space_->inv_cell_size());
   std::size_t m = 0;
   for (std::size_t j = 0; j < n; ++j) {
     if (!select(j)) continue;
     const float gx = v.tx[j] + v.cos[j] * x.x(j) - v.sin[j] * x.y(j);
     const float gy = v.ty[j] + v.sin[j] * x.x(j) + v.cos[j] * x.y(j);
-    xy_[m] = PoseGridHashMap::pack_xy(v.submap[j], floor_to_int(gx * inv), floor_to_int(gy * inv));
-    home_[m] = static_cast<std::uint32_t>(table.home(xy_[m], 0));
+    offset_[m] = grid.offset(v.submap[j], floor_to_int(gx * inv), floor_to_int(gy * inv));
     selected_[m++] = static_cast<std::uint32_t>(j);
   }
-  for (std::size_t k = 0; k < std::min(kAhead, m); ++k) table.prefetch(home_[k]);
+  for (std::size_t k = 0; k < std::min(kAhead, m); ++k) grid.prefetch(offset_[k]);
   for (std::size_t k = 0; k < m; ++k) {
-    if (k + kAhead < m) table.prefetch(home_[k + kAhead]);
-    scores[selected_[k]] = value(table.lookup_run(xy_[k], home_[k], 0, 1));
+    if (k + kAhead < m) grid.prefetch(offset_[k + kAhead]);
+    scores[selected_[k]] = value(grid.at(offset_[k]));
   }
   lookups_ += m;
 }

@@ -22,6 +22,7 @@
 #include "lshloc/geometry/laser_scan.hpp"
 #include "lshloc/appearance/location_store.hpp"
 #include "lshloc/appearance/lsh_database.hpp"
+#include "lshloc/matching/free_space_grid.hpp"
 #include "lshloc/matching/pose_grid.hpp"
 
 namespace lshloc {
@@ -159,7 +160,7 @@ class GlobalMap {
   std::optional<LshKeyView> recent_key(std::uint32_t id) const;
   const LocationStore& locations() const { return locations_; }
   const PoseGridHashMap& occupancy() const { return occupancy_; }
-  const PoseGridHashMap& free_space() const { return free_space_; }
+  const FreeSpaceGrid& free_space() const { return free_space_; }
 
   GlobalMapStats stats() const;
 
@@ -209,14 +210,15 @@ class GlobalMap {
   LshDatabase database_;
   LocationStore locations_;
   PoseGridHashMap occupancy_;
-  PoseGridHashMap free_space_;
+  FreeSpaceGrid free_space_;
   std::vector<SubmapState> submaps_;
   GlobalMapStats stats_;
-  BeamDirections beam_directions_;                              // scratch of add_scan
-  std::vector<Point2> beam_endpoints_;                          // scratch of plan_grids
-  ScanMarks scan_marks_;                                        // scratch of plan_grids
-  bool marking_scan_ = false;                                   // within add_scan: marks wait for its end
-  PoseGridHashMap::MarkPlan occupancy_plan_, free_space_plan_;  // planned, not yet made
+  BeamDirections beam_directions_;            // scratch of add_scan
+  std::vector<Point2> beam_endpoints_;        // scratch of plan_grids
+  ScanMarks scan_marks_;                      // scratch of plan_grids
+  bool marking_scan_ = false;                 // within add_scan: marks wait for its end
+  PoseGridHashMap::MarkPlan occupancy_plan_;  // planned, not yet made
+  FreeSpaceGrid::MarkPlan free_space_plan_;
   // A ring of the newest features' table tags: L per feature, slot id % recent_keys.
   std::vector<std::uint32_t> recent_tags_;
   std::uint32_t recent_first_ = 0;  ///< the first location id add_scan() added (a snapshot's come before)

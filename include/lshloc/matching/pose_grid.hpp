@@ -76,6 +76,16 @@ struct PoseGridStats {
   double table_fraction = 0.0;
 };
 
+/// floor(v) as a cell index, in double: truncation and a step down for
+/// negative non-integers (exactly floor, without the library call of
+/// baseline x86-64). Far-away or NaN values are clamped so the cast is
+/// defined; they land outside every grid's limits (pack_xy() rejects them).
+inline std::int32_t cell_index(double v) {
+  if (!(v > -1e9 && v < 1e9)) return std::int32_t{-(1 << 30)};
+  const auto truncated = static_cast<std::int32_t>(v);
+  return truncated - static_cast<std::int32_t>(v < static_cast<double>(truncated));
+}
+
 /// One cell index of the pose grid.
 struct PoseCell {
   std::uint32_t submap = 0;
@@ -83,6 +93,46 @@ struct PoseCell {
   friend bool operator==(const PoseCell&, const PoseCell&) = default;
   friend auto operator<=>(const PoseCell&, const PoseCell&) = default;
 };
+
+/// The cells marked in one submap as a box [x0, x1] x [y0, y1]; empty while x1 < x0.
+struct CellBox {
+  std::int32_t x0 = 0, x1 = -1, y0 = 0, y1 = -1;
+  bool empty() const { return x1 < x0; }
+  bool contains(std::int32_t ix, std::int32_t iy) const { return ix >= x0 && ix <= x1 && iy >= y0 && iy <= y1; }
+  void add(std::int32_t ix, std::int32_t iy) {
+    if (empty()) {
+      *this = {ix, ix, iy, iy};
+      return;
+    }
+    x0 = std::min(x0, ix), x1 = std::max(x1, ix), y0 = std::min(y0, iy), y1 = std::max(y1, iy);
+  }
+  double cells() const { return empty() ? 0.0 : double(x1 - x0 + 1) * double(y1 - y0 + 1); }
+};
+
+/// A grid's snapshot section as it is written (docs/map-format.md): the
+/// hash table's size and counters, each submap's box, then the cells by
+/// ascending key, each key (submap, ix, iy, itheta: pack_xy() << 8 | itheta)
+/// as its difference to the previous one, and its flags. Neighbouring cells
+/// differ little: about 3 bytes a cell instead of the table's 8 / load.
+struct GridSnapshot {
+  int table_bits = 0;  ///< log2 of the table's slots
+  std::size_t rehashes = 0, marks = 0;
+  std::vector<CellBox> boxes;
+  std::vector<std::uint64_t> cells;  ///< (key << 8) | flags, by ascending key
+
+  void write(ByteWriter& out) const;
+  /// Reads one, checked against `config`: a table of 2^min_bits..2^32 slots
+  /// holding at most max_load_factor of them (and, grown, more than half of
+  /// that), boxes within the limits, keys ascending with submaps below
+  /// `submap_limit` and heading bins below theta_bins, flags non-zero.
+  /// Throws lshloc::Error naming `in`'s source otherwise.
+  static GridSnapshot read(ByteReader& in, const PoseGridConfig& config, int min_bits, std::uint32_t submap_limit);
+};
+
+/// A grid's statistics from its counts and its submaps' boxes (dense_cells:
+/// their cells times theta_bins).
+PoseGridStats grid_stats(std::size_t bins_used, std::size_t capacity, std::size_t memory_bytes, std::size_t marks,
+                         std::size_t rehashes, std::span<const CellBox> boxes, int theta_bins);
 
 /// The universal-hash pose grid.
 ///
@@ -277,29 +327,16 @@ class PoseGridHashMap {
   std::size_t marks_ = 0;
   /// The cells below this many grow the table first: max_load_factor * capacity, rounded down.
   std::size_t grow_at_ = 0;
-  MarkPlan planned_;  ///< scratch of mark()
-  /// Per submap: bounding box of its cells (for the dense-grid comparison).
-  struct Box {
-    std::int32_t x0 = 0, x1 = -1, y0 = 0, y1 = -1;
-  };
-  std::vector<Box> boxes_;
+  MarkPlan planned_;            ///< scratch of mark()
+  std::vector<CellBox> boxes_;  ///< per submap: its cells' box (for the dense-grid comparison)
 };
 
 // Inline: a mapper scan asks it for every few centimetres of its rays.
 inline PoseCell PoseGridHashMap::cell_of(std::uint32_t submap, double x, double y, double theta) const {
   PoseCell c;
   c.submap = submap;
-  // floor() in double, as truncation and a step down for negative
-  // non-integers (exactly floor, without the library call of baseline x86-64):
-  // far-away or NaN coordinates are clamped so the cast is defined;
-  // pack_xy() then rejects them as outside the limits.
-  auto to_index = [](double v) {
-    if (!(v > -1e9 && v < 1e9)) return std::int32_t{-(1 << 30)};
-    const auto truncated = static_cast<std::int32_t>(v);
-    return truncated - static_cast<std::int32_t>(v < static_cast<double>(truncated));
-  };
-  c.ix = to_index(x * inv_cell_);
-  c.iy = to_index(y * inv_cell_);
+  c.ix = cell_index(x * inv_cell_);
+  c.iy = cell_index(y * inv_cell_);
   if (config_.theta_bins == 1) return c.itheta = 0, c;  // a 2-D grid: what the arithmetic below gives
   constexpr double two_pi = 2.0 * std::numbers::pi;
   // fmod(t, 2 pi) is t itself for |t| < 2 pi (exactly): skip its cost for wrapped angles.

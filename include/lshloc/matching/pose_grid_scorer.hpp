@@ -9,6 +9,7 @@
 #include <span>
 #include <vector>
 
+#include "lshloc/matching/free_space_grid.hpp"
 #include "lshloc/matching/incremental_ransac.hpp"
 #include "lshloc/matching/pose_grid.hpp"
 
@@ -51,15 +52,15 @@ struct PoseGridScorerConfig {
 class PoseGridScorer {
  public:
   explicit PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config = {});
-  /// With negative evidence from a separate 2-D grid (theta_bins = 1, exact
-  /// cells) of the space map rays saw free, where walls are marked occupied:
+  /// With negative evidence from the free-space grid of the space map rays
+  /// saw free, where walls are marked occupied:
   /// a kSurface point that misses `grid` scores `free` when its cell there
   /// holds kFree but not kOccupied, `surface_on_return` on a return without a
   /// normal never crossed by map rays, else `unknown`; a kFreeSpace point scores
   /// `ray_through_wall` on a cell holding kReturn but not kFree,
   /// `ray_through_free` on kFree without kOccupied, `ray_through_contested`
   /// on kReturn and kFree, else 0.
-  PoseGridScorer(const PoseGridHashMap& grid, const PoseGridHashMap& free_space, PoseGridScorerConfig config);
+  PoseGridScorer(const PoseGridHashMap& grid, const FreeSpaceGrid& free_space, PoseGridScorerConfig config);
 
   void operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores);
   /// scores[j] = the score of points[j] under hypothesis hypotheses[j] of v,
@@ -88,11 +89,12 @@ class PoseGridScorer {
   void lookup_free_space(const Points& x, const HypothesisBatch& v, float* scores, Select select, Value value);
 
   const PoseGridHashMap& grid_;
-  const PoseGridHashMap* free_space_ = nullptr;
+  const FreeSpaceGrid* free_space_ = nullptr;
   PoseGridScorerConfig config_;
   float value_[4];                   ///< score by (flags & 3)
   std::vector<std::uint64_t> xy_;    ///< (submap, ix, iy) key of each hypothesis' cell
   std::vector<std::uint32_t> home_;  ///< its home slot (tables stay below 2^32 slots)
+  std::vector<std::size_t> offset_;  ///< its free-space cell's offset (FreeSpaceGrid::View)
   std::vector<std::int32_t> ix_, iy_, it_;
   std::vector<CellFlags> flags_;
   std::vector<std::uint32_t> selected_;  ///< hypotheses looked up in the free-space grid
