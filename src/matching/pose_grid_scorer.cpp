@@ -83,6 +83,15 @@ PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig
   value_[cell_flags::kOccupied] = config_.hit;
   value_[cell_flags::kFree] = config_.free;
   value_[cell_flags::kOccupied | cell_flags::kFree] = config_.hit;  // a map point beats a ray through its cell
+  for (CellFlags f = 0; f < 16; ++f) {
+    ray_value_[f] = (f & kWallBits) == cell_flags::kReturn ? config_.ray_through_wall
+                    : (f & kFreeBits) == cell_flags::kFree ? config_.ray_through_free
+                    : (f & kWallBits) == kWallBits         ? config_.ray_through_contested
+                                                           : 0.0f;
+    surface_value_[f] = (f & kFreeBits) == cell_flags::kFree           ? config_.free
+                        : (f & kBareReturnBits) == cell_flags::kReturn ? config_.surface_on_return
+                                                                       : config_.unknown;
+  }
 }
 
 PoseCell PoseGridScorer::cell_of(const LocalPoint& x, const HypothesisBatch& v, std::size_t j) const {
@@ -103,27 +112,13 @@ PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, const FreeSpaceGrid&
   free_space_ = &free_space;
 }
 
-template <class Points, class Select, class Value>
-void PoseGridScorer::lookup_free_space(const Points& x, const HypothesisBatch& v, float* scores, Select select,
-                                       Value value) {
+template <class Points>
+void PoseGridScorer::free_space_offsets(const Points& x, const HypothesisBatch& v) {
   const std::size_t n = v.size;
-  if (selected_.size() < n) selected_.resize(n), offset_.resize(n);
   const FreeSpaceGrid::View grid = free_space_->view();
-  const float inv = static_cast<float>(free_space_->inv_cell_size());
-  std::size_t m = 0;
-  for (std::size_t j = 0; j < n; ++j) {
-    if (!select(j)) continue;
-    const float gx = v.tx[j] + v.cos[j] * x.x(j) - v.sin[j] * x.y(j);
-    const float gy = v.ty[j] + v.sin[j] * x.x(j) + v.cos[j] * x.y(j);
-    offset_[m] = grid.offset(v.submap[j], floor_to_int(gx * inv), floor_to_int(gy * inv));
-    selected_[m++] = static_cast<std::uint32_t>(j);
-  }
-  for (std::size_t k = 0; k < std::min(kAhead, m); ++k) grid.prefetch(offset_[k]);
-  for (std::size_t k = 0; k < m; ++k) {
-    if (k + kAhead < m) grid.prefetch(offset_[k + kAhead]);
-    scores[selected_[k]] = value(grid.at(offset_[k]));
-  }
-  lookups_ += m;
+  transform_cells<false>(x, v, static_cast<float>(free_space_->inv_cell_size()), 0.0f, 1, fx_.data(), fy_.data(),
+                         nullptr);
+  for (std::size_t j = 0; j < n; ++j) offset_[j] = grid.offset(v.submap[j], fx_[j], fy_[j]);
 }
 
 void PoseGridScorer::operator()(const LocalPoint& x, const HypothesisBatch& v, float* scores) {
@@ -165,84 +160,93 @@ void PoseGridScorer::score_pairs(std::span<const LocalPoint> points, std::span<c
 
 template <class Points>
 void PoseGridScorer::score(const Points& x, LocalPoint::Kind kind, const HypothesisBatch& v, float* scores) {
-  if (xy_.size() < v.size) xy_.resize(v.size), home_.resize(v.size);
-  if (kind == LocalPoint::Kind::kFreeSpace) {
-    if (free_space_ == nullptr) {
-      std::fill_n(scores, v.size, 0.0f);
-      return;
-    }
-    const float through_wall = config_.ray_through_wall, through_free = config_.ray_through_free,
-                through_contested = config_.ray_through_contested;
-    lookup_free_space(
-        x, v, scores, [](std::size_t) { return true; },
-        [through_wall, through_free, through_contested](CellFlags f) {
-          return (f & kWallBits) == cell_flags::kReturn ? through_wall
-                 : (f & kFreeBits) == cell_flags::kFree ? through_free
-                 : (f & kWallBits) == kWallBits         ? through_contested
-                                                        : 0.0f;
-        });
+  const std::size_t n = v.size;
+  if (xy_.size() < n) {
+    xy_.resize(n), home_.resize(n), ix_.resize(n), iy_.resize(n), it_.resize(n), flags_.resize(n);
+    fx_.resize(n), fy_.resize(n), offset_.resize(n);
+  }
+  if (free_space_ == nullptr) {
+    if (kind == LocalPoint::Kind::kFreeSpace)
+      std::fill_n(scores, n, 0.0f);
+    else
+      score_surface(x, v, scores);
     return;
   }
-  score_surface(x, v, scores);
-  if (free_space_ == nullptr) return;
-  const float hit = config_.hit, free = config_.free, unknown = config_.unknown, on_return = config_.surface_on_return;
-  lookup_free_space(
-      x, v, scores, [scores, hit](std::size_t j) { return scores[j] != hit; },
-      [free, unknown, on_return](CellFlags f) {
-        return (f & kFreeBits) == cell_flags::kFree           ? free
-               : (f & kBareReturnBits) == cell_flags::kReturn ? on_return
-                                                              : unknown;
-      });
+  free_space_offsets(x, v);
+  const FreeSpaceGrid::View grid = free_space_->view();
+  if (kind == LocalPoint::Kind::kFreeSpace) {
+    for (std::size_t j = 0; j < std::min(kAhead, n); ++j) grid.prefetch(offset_[j]);
+    for (std::size_t j = 0; j < n; ++j) {
+      if (j + kAhead < n) grid.prefetch(offset_[j + kAhead]);
+      scores[j] = ray_value_[grid.at(offset_[j]) & 15];
+    }
+    lookups_ += n;
+    return;
+  }
+  if (score_surface(x, v, scores)) return;  // it read the free-space grid too
+  const float hit = config_.hit;
+  std::size_t misses = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (scores[j] == hit) continue;
+    scores[j] = surface_value_[grid.at(offset_[j]) & 15];
+    ++misses;
+  }
+  lookups_ += misses;
+}
+
+template <bool WithTheta, class Points>
+void PoseGridScorer::transform_cells(const Points& x, const HypothesisBatch& v, float inv, float bpr, std::int32_t bins,
+                                     std::int32_t* __restrict ix, std::int32_t* __restrict iy,
+                                     std::int32_t* __restrict it) {
+  const std::size_t n = v.size;
+  const float* __restrict tx = v.tx;
+  const float* __restrict ty = v.ty;
+  const float* __restrict co = v.cos;
+  const float* __restrict si = v.sin;
+  const float* __restrict th = v.theta;
+  std::size_t j = 0;
+#if defined(__SSE2__)
+  // Four hypotheses at a time: the same float operations in the same order
+  // as the scalar loop below, so both give identical cells.
+  const __m128 vinv = _mm_set1_ps(inv), vbpr = _mm_set1_ps(bpr);
+  const __m128i vbins = _mm_set1_epi32(bins), vbins1 = _mm_set1_epi32(bins - 1), zero = _mm_setzero_si128();
+  for (; j + 4 <= n; j += 4) {
+    const __m128 vpx = x.x4(j), vpy = x.y4(j);
+    const __m128 c = _mm_loadu_ps(co + j), sn = _mm_loadu_ps(si + j);
+    const __m128 gx = _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(tx + j), _mm_mul_ps(c, vpx)), _mm_mul_ps(sn, vpy));
+    const __m128 gy = _mm_add_ps(_mm_add_ps(_mm_loadu_ps(ty + j), _mm_mul_ps(sn, vpx)), _mm_mul_ps(c, vpy));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(ix + j), floor_to_int4(_mm_mul_ps(gx, vinv)));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(iy + j), floor_to_int4(_mm_mul_ps(gy, vinv)));
+    if constexpr (WithTheta) {
+      __m128i t = floor_to_int4(_mm_mul_ps(_mm_add_ps(_mm_loadu_ps(th + j), x.theta4(j)), vbpr));
+      t = _mm_add_epi32(t, _mm_and_si128(_mm_cmplt_epi32(t, zero), vbins));
+      t = _mm_sub_epi32(t, _mm_and_si128(_mm_cmpgt_epi32(t, vbins1), vbins));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(it + j), t);
+    }
+  }
+#endif
+  for (; j < n; ++j) {
+    const float px = x.x(j), py = x.y(j);
+    const float gx = tx[j] + co[j] * px - si[j] * py;
+    const float gy = ty[j] + si[j] * px + co[j] * py;
+    ix[j] = floor_to_int(gx * inv), iy[j] = floor_to_int(gy * inv);
+    if constexpr (WithTheta) {
+      std::int32_t t = floor_to_int((th[j] + x.theta(j)) * bpr);
+      t += t < 0 ? bins : 0;
+      t -= t >= bins ? bins : 0;
+      it[j] = t;
+    }
+  }
 }
 
 template <class Points>
-void PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, float* scores) {
+bool PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, float* scores) {
   const std::size_t n = v.size;
-  if (ix_.size() < n) xy_.resize(n), home_.resize(n), ix_.resize(n), iy_.resize(n), it_.resize(n), flags_.resize(n);
   const PoseGridHashMap::TableView table = grid_.table_view();
   // 1. Transform x by every hypothesis and find its cell: float arithmetic
-  //    only, which the compiler vectorizes.
-  {
-    const float inv = static_cast<float>(grid_.inv_cell_size());
-    const float bpr = static_cast<float>(grid_.bins_per_radian());
-    const std::int32_t bins = grid_.theta_bins();
-    const float* __restrict tx = v.tx;
-    const float* __restrict ty = v.ty;
-    const float* __restrict co = v.cos;
-    const float* __restrict si = v.sin;
-    const float* __restrict th = v.theta;
-    std::int32_t* __restrict ix = ix_.data();
-    std::int32_t* __restrict iy = iy_.data();
-    std::int32_t* __restrict it = it_.data();
-    std::size_t j = 0;
-#if defined(__SSE2__)
-    // Four hypotheses at a time: the same float operations in the same order
-    // as the scalar loop below, so both give identical cells.
-    const __m128 vinv = _mm_set1_ps(inv), vbpr = _mm_set1_ps(bpr);
-    const __m128i vbins = _mm_set1_epi32(bins), vbins1 = _mm_set1_epi32(bins - 1), zero = _mm_setzero_si128();
-    for (; j + 4 <= n; j += 4) {
-      const __m128 vpx = x.x4(j), vpy = x.y4(j), vpt = x.theta4(j);
-      const __m128 c = _mm_loadu_ps(co + j), sn = _mm_loadu_ps(si + j);
-      const __m128 gx = _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(tx + j), _mm_mul_ps(c, vpx)), _mm_mul_ps(sn, vpy));
-      const __m128 gy = _mm_add_ps(_mm_add_ps(_mm_loadu_ps(ty + j), _mm_mul_ps(sn, vpx)), _mm_mul_ps(c, vpy));
-      __m128i t = floor_to_int4(_mm_mul_ps(_mm_add_ps(_mm_loadu_ps(th + j), vpt), vbpr));
-      t = _mm_add_epi32(t, _mm_and_si128(_mm_cmplt_epi32(t, zero), vbins));
-      t = _mm_sub_epi32(t, _mm_and_si128(_mm_cmpgt_epi32(t, vbins1), vbins));
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(ix + j), floor_to_int4(_mm_mul_ps(gx, vinv)));
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(iy + j), floor_to_int4(_mm_mul_ps(gy, vinv)));
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(it + j), t);
-    }
-#endif
-    for (; j < n; ++j) {
-      const float px = x.x(j), py = x.y(j), pt = x.theta(j);
-      const float gx = tx[j] + co[j] * px - si[j] * py;
-      const float gy = ty[j] + si[j] * px + co[j] * py;
-      std::int32_t t = floor_to_int((th[j] + pt) * bpr);
-      t += t < 0 ? bins : 0;
-      t -= t >= bins ? bins : 0;
-      ix[j] = floor_to_int(gx * inv), iy[j] = floor_to_int(gy * inv), it[j] = t;
-    }
-  }
+  //    only, four hypotheses at a time.
+  transform_cells<true>(x, v, static_cast<float>(grid_.inv_cell_size()), static_cast<float>(grid_.bins_per_radian()),
+                        grid_.theta_bins(), ix_.data(), iy_.data(), it_.data());
   // 2. For each (x, y) offset of the tolerance window (only (0, 0) unless
   //    the grid probes neighbours): pack and hash the (submap, ix, iy) keys,
   //    then look up the heading run of each, prefetching kAhead hypotheses
@@ -269,14 +273,32 @@ void PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
       const std::size_t mask = table.mask;
       auto slot_of = [&](std::size_t j) { return theta_window ? (home[j] + it[j]) & mask : home[j]; };
       for (std::size_t j = 0; j < std::min(kAhead, n); ++j) table.prefetch(slot_of(j));
+      if (!theta_window && xy_tol == 0 && free_space_ != nullptr) {
+        // The common case, one cell per hypothesis, and a miss's free-space
+        // cell read in the same pass (its offset is known, its line prefetched).
+        const FreeSpaceGrid::View free = free_space_->view();
+        const std::size_t* __restrict offset = offset_.data();
+        const float hit = config_.hit;
+        for (std::size_t j = 0; j < std::min(kAhead, n); ++j) free.prefetch(offset[j]);
+        std::size_t misses = 0;
+        for (std::size_t j = 0; j < n; ++j) {
+          if (j + kAhead < n) table.prefetch(home[j + kAhead]), free.prefetch(offset[j + kAhead]);
+          const float s = lut[table.lookup_run(xy[j], home[j], it[j], 1) & 3];
+          const bool miss = s != hit;
+          scores[j] = miss ? surface_value_[free.at(offset[j]) & 15] : s;
+          misses += miss;
+        }
+        lookups_ += n + misses;
+        return true;
+      }
       if (!theta_window && xy_tol == 0) {
-        // The common case, one cell per hypothesis: straight to scores.
+        // The common case without a free-space grid: straight to scores.
         for (std::size_t j = 0; j < n; ++j) {
           if (j + kAhead < n) table.prefetch(home[j + kAhead]);
           scores[j] = lut[table.lookup_run(xy[j], home[j], it[j], 1) & 3];
         }
         lookups_ += n;
-        return;
+        return false;
       }
       if (theta_window && xy_tol == 0) {
         // One heading window per hypothesis: straight to scores; a window
@@ -297,7 +319,7 @@ void PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
           scores[j] = lut[f & 3];
         }
         lookups_ += n;
-        return;
+        return false;
       }
       for (std::size_t j = 0; j < n; ++j) {
         if (j + kAhead < n) table.prefetch(slot_of(j + kAhead));
@@ -316,6 +338,7 @@ void PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
     }
   // 3. Flags to scores.
   for (std::size_t j = 0; j < n; ++j) scores[j] = lut[flags[j] & 3];
+  return false;
 }
 
 }  // namespace lshloc

@@ -81,24 +81,32 @@ class PoseGridScorer {
   struct PointEach;  ///< ... or one of its own
   template <class Points>
   void score(const Points& x, LocalPoint::Kind kind, const HypothesisBatch& v, float* scores);
+  /// The scores of x as a surface point against `grid_`; true when it also
+  /// read the free-space grid for the misses (from offset_).
   template <class Points>
-  void score_surface(const Points& x, const HypothesisBatch& v, float* scores);
-  /// Looks up x under every hypothesis j with `select(j)` in the free-space
-  /// grid and sets scores[j] = value(flags).
-  template <class Points, class Select, class Value>
-  void lookup_free_space(const Points& x, const HypothesisBatch& v, float* scores, Select select, Value value);
+  bool score_surface(const Points& x, const HypothesisBatch& v, float* scores);
+  /// offset_[j]: the free-space cell of x under hypothesis j.
+  template <class Points>
+  void free_space_offsets(const Points& x, const HypothesisBatch& v);
+  /// The cell (ix, iy and, WithTheta, it) of x under every hypothesis of v,
+  /// in float arithmetic, four hypotheses at a time.
+  template <bool WithTheta, class Points>
+  static void transform_cells(const Points& x, const HypothesisBatch& v, float inv, float bpr, std::int32_t bins,
+                              std::int32_t* ix, std::int32_t* iy, std::int32_t* it);
 
   const PoseGridHashMap& grid_;
   const FreeSpaceGrid* free_space_ = nullptr;
   PoseGridScorerConfig config_;
-  float value_[4];                   ///< score by (flags & 3)
-  std::vector<std::uint64_t> xy_;    ///< (submap, ix, iy) key of each hypothesis' cell
-  std::vector<std::uint32_t> home_;  ///< its home slot (tables stay below 2^32 slots)
-  std::vector<std::size_t> offset_;  ///< its free-space cell's offset (FreeSpaceGrid::View)
+  float value_[4];                     ///< score by (flags & 3)
+  float ray_value_[16];                ///< a free-space point's score by its free-space cell's flags
+  float surface_value_[16];            ///< a surface point's that misses grid_, by the same
+  std::vector<std::uint64_t> xy_;      ///< (submap, ix, iy) key of each hypothesis' cell
+  std::vector<std::uint32_t> home_;    ///< its home slot (tables stay below 2^32 slots)
+  std::vector<std::int32_t> fx_, fy_;  ///< its free-space cell
+  std::vector<std::size_t> offset_;    ///< ... and that cell's offset (FreeSpaceGrid::View)
   std::vector<std::int32_t> ix_, iy_, it_;
   std::vector<CellFlags> flags_;
-  std::vector<std::uint32_t> selected_;  ///< hypotheses looked up in the free-space grid
-  struct Gathered {                      ///< score_pairs()' batch of one kind, and where it came from
+  struct Gathered {  ///< score_pairs()' batch of one kind, and where it came from
     std::vector<std::uint32_t> index, submap;
     std::vector<float> tx, ty, cos, sin, theta, px, py, pt, scores;
   } gathered_;
