@@ -91,6 +91,40 @@ TEST(ScanMatcher, RecoversKnownMotionInARoom) {
   EXPECT_LE(matcher.keyframe_poses().size(), matcher.config().window_keyframes);
 }
 
+/// ICP's correspondences are the nearest map points, as brute force finds
+/// them (ties to the lowest index), at both the coarse and the fine distance.
+TEST(ScanMatcher, NearestMapPointEqualsBruteForce) {
+  const auto truth = room_path();
+  test::LaserSim sim(test::test_room());
+  ScanMatcher matcher;
+  for (std::size_t i = 0; i < 12; ++i) matcher.add_scan(sim.scan(truth[i], truth[i], 0.1 * static_cast<double>(i)));
+  const std::vector<MapPoint>& map = matcher.local_map_points();
+  ASSERT_GT(map.size(), 100u);
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<std::size_t> pick(0, map.size() - 1);
+  std::normal_distribution<double> off(0.0, 0.4);
+  std::size_t found = 0, far = 0;
+  for (int k = 0; k < 4000; ++k) {
+    // Near map points, on them exactly (distance 0), and far from everything.
+    const Point2 base = map[pick(rng)].position;
+    const Point2 p = k % 10 == 0   ? base
+                     : k % 10 == 1 ? Point2(base.x() + 30.0, base.y())
+                                   : Point2(base.x() + off(rng), base.y() + off(rng));
+    for (const double max_dist : {1.0, 0.3}) {
+      std::int32_t expected = -1;
+      double best = max_dist * max_dist;
+      for (std::size_t j = 0; j < map.size(); ++j) {
+        const double d = (map[j].position - p).squaredNorm();
+        if (d < best) best = d, expected = static_cast<std::int32_t>(j);
+      }
+      ASSERT_EQ(matcher.nearest(p, max_dist), expected) << "point " << k << ", max_dist " << max_dist;
+      found += expected >= 0, far += expected < 0;
+    }
+  }
+  EXPECT_GT(found, 4000u);
+  EXPECT_GT(far, 400u);
+}
+
 TEST(ScanMatcher, WithoutOdometryEveryScanIsMatchedFromTheMotionSoFar) {
   // A laser alone: its odometry fields never change. With the odometry the
   // matcher would take every scan as standing still.

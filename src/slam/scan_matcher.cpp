@@ -5,6 +5,7 @@
 #include <numbers>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include <Eigen/Eigenvalues>
 
@@ -179,21 +180,32 @@ std::int32_t ScanMatcher::nearest(const Point2& p, double max_dist) const {
   const double lo_x = std::floor(fx), lo_y = std::floor(fy);
   if (lo_x + reach < 0 || lo_y + reach < 0 || lo_x - reach >= grid_w_ || lo_y - reach >= grid_h_) return -1;
   const auto cx = static_cast<std::int32_t>(lo_x), cy = static_cast<std::int32_t>(lo_y);
-  const std::int32_t x_begin = std::max(0, cx - reach), x_end = std::min(grid_w_ - 1, cx + reach);
-  const std::int32_t y_begin = std::max(0, cy - reach), y_end = std::min(grid_h_ - 1, cy + reach);
-  double best = max_dist * max_dist;
-  std::int32_t best_index = -1;
-  for (std::int32_t y = y_begin; y <= y_end; ++y) {
-    const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(grid_w_);
-    const std::uint32_t begin = cell_start_[row + static_cast<std::size_t>(x_begin)];
-    const std::uint32_t end = cell_start_[row + static_cast<std::size_t>(x_end) + 1];
-    // Cells of one row are contiguous in map_points_.
-    for (std::uint32_t j = begin; j < end; ++j) {
-      const double d = (map_points_[j].position - p).squaredNorm();
-      if (d < best) best = d, best_index = static_cast<std::int32_t>(j);
+  // The nearest point within max_dist of the cells `r` around p's; of equal
+  // distances the lowest index (the scan below meets indices in ascending order).
+  const auto search = [&](std::int32_t r) {
+    const std::int32_t x_begin = std::max(0, cx - r), x_end = std::min(grid_w_ - 1, cx + r);
+    const std::int32_t y_begin = std::max(0, cy - r), y_end = std::min(grid_h_ - 1, cy + r);
+    std::pair<double, std::int32_t> best{max_dist * max_dist, -1};
+    for (std::int32_t y = y_begin; y <= y_end; ++y) {
+      const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(grid_w_);
+      const std::uint32_t begin = cell_start_[row + static_cast<std::size_t>(x_begin)];
+      const std::uint32_t end = cell_start_[row + static_cast<std::size_t>(x_end) + 1];
+      // Cells of one row are contiguous in map_points_.
+      for (std::uint32_t j = begin; j < end; ++j) {
+        const double d = (map_points_[j].position - p).squaredNorm();
+        if (d < best.first) best = {d, static_cast<std::int32_t>(j)};
+      }
     }
+    return best;
+  };
+  if (reach > 1) {
+    // The 3 x 3 cells around p first (the coarse iterations' window is 9 x 9):
+    // a point there nearer than any cell beyond them is the whole window's answer.
+    const auto [d, j] = search(1);
+    const double margin = grid_cell_ * std::min({fx - lo_x + 1.0, lo_x + 2.0 - fx, fy - lo_y + 1.0, lo_y + 2.0 - fy});
+    if (j >= 0 && d < margin * margin * (1.0 - 1e-9)) return j;
   }
-  return best_index;
+  return search(reach).second;
 }
 
 Pose2 ScanMatcher::align(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result) const {

@@ -178,6 +178,9 @@ class ScanMatcher {
 
   /// The points of the current local map (local frame) with their normals.
   const std::vector<MapPoint>& local_map_points() const { return map_points_; }
+  /// Index into local_map_points() of the point nearest to p within max_dist
+  /// [m] (of equal distances the lowest index), or -1: ICP's correspondence.
+  std::int32_t nearest(const Point2& p, double max_dist) const;
   /// Laser poses of the keyframes now in the window, oldest first.
   std::vector<StampedPose> keyframe_poses() const;
 
@@ -195,8 +198,6 @@ class ScanMatcher {
   void add_keyframe(double timestamp, const Pose2& laser_pose, const std::vector<Point2>& endpoints,
                     double angle_increment);
   void rebuild_map();
-  /// Index of the map point nearest to p within max_dist, or -1.
-  std::int32_t nearest(const Point2& p, double max_dist) const;
   /// ICP from `guess` (the odometry prediction, `laser_step` the odometry
   /// step of the laser); fills result fields, returns the refined pose.
   Pose2 align(const Pose2& guess, const Pose2& laser_step, ScanMatchResult& result) const;
