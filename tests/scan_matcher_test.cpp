@@ -103,12 +103,20 @@ TEST(ScanMatcher, NearestMapPointEqualsBruteForce) {
   std::mt19937 rng(17);
   std::uniform_int_distribution<std::size_t> pick(0, map.size() - 1);
   std::normal_distribution<double> off(0.0, 0.4);
+  double x0 = map[0].position.x(), x1 = x0, y0 = map[0].position.y(), y1 = y0;
+  for (const MapPoint& m : map) {
+    x0 = std::min(x0, m.position.x()), x1 = std::max(x1, m.position.x());
+    y0 = std::min(y0, m.position.y()), y1 = std::max(y1, m.position.y());
+  }
+  // Anywhere in the map's box and up to 1.5 m beyond it (beside the lookup grid).
+  std::uniform_real_distribution<double> box_x(x0 - 1.5, x1 + 1.5), box_y(y0 - 1.5, y1 + 1.5);
   std::size_t found = 0, far = 0;
-  for (int k = 0; k < 4000; ++k) {
+  for (int k = 0; k < 6000; ++k) {
     // Near map points, on them exactly (distance 0), and far from everything.
     const Point2 base = map[pick(rng)].position;
     const Point2 p = k % 10 == 0   ? base
                      : k % 10 == 1 ? Point2(base.x() + 30.0, base.y())
+                     : k % 3 == 0  ? Point2(box_x(rng), box_y(rng))
                                    : Point2(base.x() + off(rng), base.y() + off(rng));
     for (const double max_dist : {1.0, 0.3}) {
       std::int32_t expected = -1;
@@ -121,8 +129,8 @@ TEST(ScanMatcher, NearestMapPointEqualsBruteForce) {
       found += expected >= 0, far += expected < 0;
     }
   }
-  EXPECT_GT(found, 4000u);
-  EXPECT_GT(far, 400u);
+  EXPECT_GT(found, 6000u);
+  EXPECT_GT(far, 1000u);
 }
 
 TEST(ScanMatcher, WithoutOdometryEveryScanIsMatchedFromTheMotionSoFar) {

@@ -186,6 +186,7 @@ std::int32_t ScanMatcher::nearest(const Point2& p, double max_dist) const {
     const std::int32_t x_begin = std::max(0, cx - r), x_end = std::min(grid_w_ - 1, cx + r);
     const std::int32_t y_begin = std::max(0, cy - r), y_end = std::min(grid_h_ - 1, cy + r);
     std::pair<double, std::int32_t> best{max_dist * max_dist, -1};
+    if (x_begin > x_end) return best;  // p's cells lie beside the grid (rows need no check: the loop skips them)
     for (std::int32_t y = y_begin; y <= y_end; ++y) {
       const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(grid_w_);
       const std::uint32_t begin = cell_start_[row + static_cast<std::size_t>(x_begin)];
