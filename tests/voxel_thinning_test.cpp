@@ -34,7 +34,8 @@ TEST(VoxelThinning, KeepsTheFirstPointOfEachCellInInputOrder) {
 
 TEST(VoxelThinning, NegativeCoordinatesAndNonPositiveVoxel) {
   // Cells straddling zero must not merge: -0.01 and +0.01 lie in cells -1 and 0.
-  std::vector<Point2> points{{-0.01, 0.5}, {0.01, 0.5}, {0.02, 0.6}, {-0.02, -0.5}};
+  // Cell (-1, -1), twice: its key is all ones, which the thinning's set tracks apart.
+  std::vector<Point2> points{{-0.01, 0.5}, {0.01, 0.5}, {0.02, 0.6}, {-0.02, -0.5}, {-0.5, -0.9}};
   std::vector<Point2> thinned = points;
   thin_to_voxels(thinned, 1.0);
   ASSERT_EQ(thinned.size(), 3u);

@@ -126,8 +126,10 @@ void ScanMatcher::rebuild_map() {
   const auto append = [&all](const Keyframe& k) {
     const double c = std::cos(k.laser_pose.theta), s = std::sin(k.laser_pose.theta);
     for (const auto& m : k.points) {
-      all.push_back({k.laser_pose.transform(m.position),
-                     Point2(c * m.normal.x() - s * m.normal.y(), s * m.normal.x() + c * m.normal.y())});
+      // k.laser_pose.transform(m.position), with the keyframe's cos and sin computed once.
+      const Point2 p(k.laser_pose.x + c * m.position.x() - s * m.position.y(),
+                     k.laser_pose.y + s * m.position.x() + c * m.position.y());
+      all.push_back({p, Point2(c * m.normal.x() - s * m.normal.y(), s * m.normal.x() + c * m.normal.y())});
     }
   };
   // A map_voxel cell keeps the oldest keyframe's point: a stable reference,

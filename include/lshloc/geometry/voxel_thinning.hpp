@@ -33,23 +33,33 @@ inline std::uint64_t voxel_key(const Point2& p, double inv_voxel) {
 /// Keeps, in each cell of side `voxel` [m], the first of `points` in their
 /// order, and keeps the survivors in that order (so callers choose which
 /// point a cell keeps by ordering the input). `position_of(point)` gives a
-/// point's Point2. Deterministic; O(n log n). voxel <= 0 keeps everything.
+/// point's Point2. Deterministic; O(n): the cells seen so far live in an
+/// open-addressing set (the scan matcher rebuilds its local map of ~20,000
+/// points this way at every keyframe). voxel <= 0 keeps everything.
 template <typename T, typename PositionOf>
 void thin_to_voxels(std::vector<T>& points, double voxel, PositionOf position_of) {
   if (points.size() < 2 || !(voxel > 0.0)) return;
   const double inv = 1.0 / voxel;
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    keys[i] = {voxel_key(position_of(points[i]), inv), static_cast<std::uint32_t>(i)};
-  }
-  std::sort(keys.begin(), keys.end());  // within a cell, by index: the first point leads
-  std::vector<std::uint8_t> keep(points.size(), 0);
-  for (std::size_t k = 0; k < keys.size(); ++k) {
-    if (k == 0 || keys[k].first != keys[k - 1].first) keep[keys[k].second] = 1;
-  }
+  // A power of two at least twice the points: probes stay short. ~0 marks
+  // an empty slot, so cell (-1, -1), whose key it is, is tracked apart.
+  std::size_t capacity = 16;
+  while (capacity < 2 * points.size()) capacity *= 2;
+  const std::size_t mask = capacity - 1;
+  constexpr std::uint64_t kEmpty = ~std::uint64_t{0};
+  std::vector<std::uint64_t> seen(capacity, kEmpty);
+  bool seen_minus_one = false;
   std::size_t kept = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!keep[i]) continue;
+    const std::uint64_t key = voxel_key(position_of(points[i]), inv);
+    if (key == kEmpty) {
+      if (seen_minus_one) continue;
+      seen_minus_one = true;
+    } else {
+      std::size_t slot = static_cast<std::size_t>((key * 0x9e3779b97f4a7c15ull) >> 32) & mask;
+      while (seen[slot] != kEmpty && seen[slot] != key) slot = (slot + 1) & mask;
+      if (seen[slot] == key) continue;
+      seen[slot] = key;
+    }
     if (kept != i) points[kept] = std::move(points[i]);
     ++kept;
   }
