@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lshloc/common/byte_codec.hpp"
+#include "lshloc/common/huge_page_allocator.hpp"
 #include "lshloc/matching/pose_grid.hpp"
 
 namespace lshloc {
@@ -131,7 +132,9 @@ class FreeSpaceGrid {
 
   PoseGridConfig config_;
   double inv_cell_ = 4.0;
-  std::vector<CellFlags> cells_;        ///< the arena: tile k is [k * kTileCells, (k + 1) * kTileCells)
+  /// The arena, on huge pages (iRANSAC reads it anywhere): tile k is
+  /// [k * kTileCells, (k + 1) * kTileCells).
+  std::vector<CellFlags, HugePageAllocator<CellFlags>> cells_;
   std::vector<Directory> directories_;  ///< per submap
   std::vector<View::Directory> views_;  ///< the same, as View reads them
   std::vector<CellBox> boxes_;          ///< per submap: its marked cells' box
