@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "lshloc/common/byte_codec.hpp"
-#include "lshloc/common/huge_page_allocator.hpp"
 #include "lshloc/matching/pose_grid.hpp"
 
 namespace lshloc {
@@ -132,9 +131,7 @@ class FreeSpaceGrid {
 
   PoseGridConfig config_;
   double inv_cell_ = 4.0;
-  /// The arena, on huge pages (iRANSAC reads it anywhere): tile k is
-  /// [k * kTileCells, (k + 1) * kTileCells).
-  std::vector<CellFlags, HugePageAllocator<CellFlags>> cells_;
+  std::vector<CellFlags> cells_;        ///< the arena: tile k is [k * kTileCells, (k + 1) * kTileCells)
   std::vector<Directory> directories_;  ///< per submap
   std::vector<View::Directory> views_;  ///< the same, as View reads them
   std::vector<CellBox> boxes_;          ///< per submap: its marked cells' box
