@@ -201,11 +201,13 @@ std::int32_t ScanMatcher::nearest(const Point2& p, double max_dist) const {
     }
     return best;
   };
-  if (reach > 1) {
-    // The 3 x 3 cells around p first (the coarse iterations' window is 9 x 9):
-    // a point there nearer than any cell beyond them is the whole window's answer.
-    const auto [d, j] = search(1);
-    const double margin = grid_cell_ * std::min({fx - lo_x + 1.0, lo_x + 2.0 - fx, fy - lo_y + 1.0, lo_y + 2.0 - fy});
+  // p's own cell first, then the 3 x 3 cells around it (the fine
+  // iterations' window is 3 x 3, the coarse ones' 9 x 9): a point found
+  // nearer than any cell beyond the block is the whole window's answer.
+  for (std::int32_t r = 0; r < std::min(reach, 2); ++r) {
+    const auto [d, j] = search(r);
+    const double margin =
+        grid_cell_ * std::min({fx - lo_x + r, lo_x + 1.0 + r - fx, fy - lo_y + r, lo_y + 1.0 + r - fy});
     if (j >= 0 && d < margin * margin * (1.0 - 1e-9)) return j;
   }
   return search(reach).second;
