@@ -47,8 +47,8 @@ struct PoseGridScorerConfig {
 /// kProbeNeighbours, one heading run per (x, y) offset (one or two cache
 /// lines, see PoseGridHashMap::TableView).
 ///
-/// Holds a reference to the grid (which must outlive it) and its own scratch
-/// space: one scorer per thread. The grid must not change during a call.
+/// Holds references to the grids (which must outlive it) and its own scratch
+/// space: one scorer per thread. The grids must not change during a call.
 class PoseGridScorer {
  public:
   explicit PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config = {});
