@@ -59,8 +59,9 @@ void FreeSpaceGrid::mark(std::uint32_t submap, double x, double y, CellFlags fla
 CellFlags& FreeSpaceGrid::cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy) {
   const std::int32_t tx = ix >> kTileShift, ty = iy >> kTileShift;
   cover(submap, tx, tx, ty, ty);
-  Directory& d = directories_[submap];
-  std::uint32_t& tile = d.tiles[static_cast<std::size_t>(ty - d.tile_y0) * d.width + (tx - d.tile_x0)];
+  const View::Directory& d = directories_[submap];
+  std::uint32_t& tile =
+      tile_ids_[submap][static_cast<std::size_t>(ty - d.tile_y0) * d.width + static_cast<std::size_t>(tx - d.tile_x0)];
   if (tile == 0) {
     tile = static_cast<std::uint32_t>(cells_.size() / kTileCells);
     cells_.resize(cells_.size() + kTileCells, 0);
@@ -70,12 +71,12 @@ CellFlags& FreeSpaceGrid::cell(std::uint32_t submap, std::int32_t ix, std::int32
 }
 
 void FreeSpaceGrid::cover(std::uint32_t submap, std::int32_t x0, std::int32_t x1, std::int32_t y0, std::int32_t y1) {
-  if (submap >= directories_.size()) directories_.resize(submap + 1), views_.resize(submap + 1);
-  Directory& d = directories_[submap];
+  if (submap >= directories_.size()) directories_.resize(submap + 1), tile_ids_.resize(submap + 1);
+  View::Directory& d = directories_[submap];
   const std::int32_t dx1 = d.tile_x0 + static_cast<std::int32_t>(d.width) - 1;
   const std::int32_t dy1 = d.tile_y0 + static_cast<std::int32_t>(d.height) - 1;
   if (d.width > 0 && x0 >= d.tile_x0 && x1 <= dx1 && y0 >= d.tile_y0 && y1 <= dy1) return;
-  Directory grown;
+  View::Directory grown;
   if (d.width == 0) {
     grown.tile_x0 = x0, grown.tile_y0 = y0;
     grown.width = static_cast<std::uint32_t>(x1 - x0 + 1), grown.height = static_cast<std::uint32_t>(y1 - y0 + 1);
@@ -84,25 +85,26 @@ void FreeSpaceGrid::cover(std::uint32_t submap, std::int32_t x0, std::int32_t x1
     // submap mapped outwards copies its directory O(log) times.
     const std::int32_t mx = 2 + static_cast<std::int32_t>(d.width) / 4,
                        my = 2 + static_cast<std::int32_t>(d.height) / 4;
-    const std::int32_t nx0 = x0 < d.tile_x0 ? x0 - mx : d.tile_x0, nx1 = x1 > dx1 ? x1 + mx : dx1;
-    const std::int32_t ny0 = y0 < d.tile_y0 ? y0 - my : d.tile_y0, ny1 = y1 > dy1 ? y1 + my : dy1;
-    grown.tile_x0 = nx0, grown.tile_y0 = ny0;
-    grown.width = static_cast<std::uint32_t>(nx1 - nx0 + 1), grown.height = static_cast<std::uint32_t>(ny1 - ny0 + 1);
+    grown.tile_x0 = x0 < d.tile_x0 ? x0 - mx : d.tile_x0, grown.tile_y0 = y0 < d.tile_y0 ? y0 - my : d.tile_y0;
+    grown.width = static_cast<std::uint32_t>((x1 > dx1 ? x1 + mx : dx1) - grown.tile_x0 + 1);
+    grown.height = static_cast<std::uint32_t>((y1 > dy1 ? y1 + my : dy1) - grown.tile_y0 + 1);
   }
-  grown.tiles.assign(std::size_t{grown.width} * grown.height, 0);
+  std::vector<std::uint32_t> tiles(std::size_t{grown.width} * grown.height, 0);
+  const std::vector<std::uint32_t>& old = tile_ids_[submap];
   for (std::uint32_t r = 0; r < d.height; ++r)
     std::copy_n(
-        d.tiles.begin() + static_cast<std::ptrdiff_t>(std::size_t{r} * d.width), d.width,
-        grown.tiles.begin() + static_cast<std::ptrdiff_t>(
-                                  std::size_t(d.tile_y0 - grown.tile_y0 + static_cast<std::int32_t>(r)) * grown.width +
-                                  std::size_t(d.tile_x0 - grown.tile_x0)));
-  d = std::move(grown);
-  views_[submap] = {d.tile_x0, d.tile_y0, d.width, d.height, d.tiles.data()};
+        old.begin() + static_cast<std::ptrdiff_t>(std::size_t{r} * d.width), d.width,
+        tiles.begin() + static_cast<std::ptrdiff_t>(
+                            std::size_t(d.tile_y0 - grown.tile_y0 + static_cast<std::int32_t>(r)) * grown.width +
+                            std::size_t(d.tile_x0 - grown.tile_x0)));
+  tile_ids_[submap] = std::move(tiles);
+  grown.tiles = tile_ids_[submap].data();
+  d = grown;
 }
 
 PoseGridStats FreeSpaceGrid::stats() const {
-  std::size_t bytes = cells_.size() * sizeof(CellFlags) + views_.size() * sizeof(View::Directory);
-  for (const Directory& d : directories_) bytes += d.tiles.size() * sizeof(std::uint32_t);
+  std::size_t bytes = cells_.size() * sizeof(CellFlags) + directories_.size() * sizeof(View::Directory);
+  for (const auto& ids : tile_ids_) bytes += ids.size() * sizeof(std::uint32_t);
   return grid_stats(used_, cells_.size(), bytes, marks_, table_rehashes_, boxes_, 1);
 }
 
@@ -110,7 +112,7 @@ void FreeSpaceGrid::write_snapshot(ByteWriter& out) const {
   GridSnapshot g{std::countr_zero(table_capacity_), table_rehashes_, marks_, boxes_, {}};
   g.cells.reserve(used_);
   for (std::uint32_t submap = 0; submap < directories_.size(); ++submap) {
-    const Directory& d = directories_[submap];
+    const View::Directory& d = directories_[submap];
     for (std::uint32_t r = 0; r < d.height; ++r)
       for (std::uint32_t q = 0; q < d.width; ++q) {
         const std::uint32_t tile = d.tiles[std::size_t{r} * d.width + q];

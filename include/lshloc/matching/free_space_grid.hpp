@@ -102,7 +102,7 @@ class FreeSpaceGrid {
     void prefetch(std::size_t offset) const { __builtin_prefetch(cells + offset); }
     CellFlags at(std::size_t offset) const { return cells[offset]; }
   };
-  View view() const { return {views_.data(), views_.size(), cells_.data()}; }
+  View view() const { return {directories_.data(), directories_.size(), cells_.data()}; }
 
   /// bins_used: marked cells; capacity: the cells the tiles hold;
   /// memory_bytes: tiles and directories; rehashes: the replayed hash table's.
@@ -118,11 +118,6 @@ class FreeSpaceGrid {
   void read_snapshot(ByteReader& in, std::uint32_t submap_limit);
 
  private:
-  struct Directory {
-    std::int32_t tile_x0 = 0, tile_y0 = 0;
-    std::uint32_t width = 0, height = 0;
-    std::vector<std::uint32_t> tiles;  ///< tile ids, row-major; 0: none
-  };
   /// The byte of the cell, its tile allocated (and its directory grown) if need be.
   CellFlags& cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy);
   /// Makes the directory of `submap` cover tiles [x0, x1] x [y0, y1] as well.
@@ -131,12 +126,14 @@ class FreeSpaceGrid {
 
   PoseGridConfig config_;
   double inv_cell_ = 4.0;
-  std::vector<CellFlags> cells_;        ///< the arena: tile k is [k * kTileCells, (k + 1) * kTileCells)
-  std::vector<Directory> directories_;  ///< per submap
-  std::vector<View::Directory> views_;  ///< the same, as View reads them
-  std::vector<CellBox> boxes_;          ///< per submap: its marked cells' box
-  std::size_t used_ = 0;                ///< marked cells
-  std::size_t marks_ = 0;               ///< cell marks made
+  std::vector<CellFlags> cells_;  ///< the arena: tile k is [k * kTileCells, (k + 1) * kTileCells)
+  /// Per submap: its directory's box of tiles (and where its tile ids are) ...
+  std::vector<View::Directory> directories_;
+  /// ... and the tile ids themselves, row-major; 0: none.
+  std::vector<std::vector<std::uint32_t>> tile_ids_;
+  std::vector<CellBox> boxes_;  ///< per submap: its marked cells' box
+  std::size_t used_ = 0;        ///< marked cells
+  std::size_t marks_ = 0;       ///< cell marks made
   // The hash table this grid replaced, replayed for the snapshot: its slot
   // count, doublings and growth threshold (it grew before any write that
   // would pass max_load_factor, even one to a cell it held).
