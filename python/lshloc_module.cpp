@@ -378,6 +378,8 @@ PYBIND11_MODULE(lshloc, m) {
             d["has_estimate"] = e.has_estimate;
             d["localized"] = e.localized;
             d["confidence"] = e.confidence;
+            d["stamp_clash"] = e.stamp_clash;
+            d["confident"] = e.confident();
             d["submap"] = e.has_estimate ? py::cast(e.submap) : py::none();
             d["submap_name"] = e.has_estimate ? py::cast(submap_name) : py::none();
             d["pose"] = e.has_estimate ? py::cast(to_tuple(e.pose)) : py::none();
@@ -387,6 +389,7 @@ PYBIND11_MODULE(lshloc, m) {
           },
           py::arg("scan"),
           "Localizes one target scan (odometry in scan.odometry); returns a dict: has_estimate, localized "
-          "(the confidence flag), confidence (the calibrated value in [0, 1]), submap, submap_name, pose (x, y, theta "
-          "of the laser in the submap), mean_score, margin");
+          "(the confidence flag), confidence (the calibrated value in [0, 1]), stamp_clash (an earlier scan stamped "
+          "within 5 ms is estimated elsewhere), confident (localized and no stamp clash: the pose can be used by "
+          "its time stamp), submap, submap_name, pose (x, y, theta of the laser in the submap), mean_score, margin");
 }

@@ -5,7 +5,7 @@
 # before the run, a raw log as a map gets its warning, a TUM trajectory is
 # read as robot poses, maps from ROS occupancy grids localize, two targets
 # localized at once on one map equal their lone runs, --print-config needs no
-# inputs, and --version answers.
+# inputs, --version answers, and scans stamped together at different poses are never confident.
 # Usage: cli_localize_test.sh LSHLOC
 set -euo pipefail
 LSHLOC=$1
@@ -56,7 +56,7 @@ python3 - "$d/n.tum.csv" "$d/n.tum" <<'PY' || fail "CSV fields or TUM robot pose
 import csv, math, sys
 text = open(sys.argv[1]).read().splitlines()
 rows = list(csv.reader(text))
-assert all(len(r) == len(rows[0]) == 19 for r in rows), {len(r) for r in rows}
+assert all(len(r) == len(rows[0]) == 21 for r in rows), {len(r) for r in rows}
 head = rows[0]
 confident = [dict(zip(head, r)) for r in rows[1:] if r[head.index("confident")] == "1"]
 assert confident and {r["submap"] for r in confident} <= {'west, "A"', 'east, "B"'}, confident[:1]
@@ -94,6 +94,53 @@ for s, r in zip(stream, rows):
     assert s == r, (s, r)  # the same columns and values, row for row
 PY
 grep -q "^Localized in" "$d/stream.err" || fail "no answer after the stream: $(cat "$d/stream.err")"
+
+# Bunched stamps: one scan of the target is given the stamp of a scan a few before it (1 ms later), as
+# drivers that stamp buffered scans on arrival do. Both are estimated metres apart, so neither row may be
+# confident (localized keeps the flag); every row marked stamp_clash has such a partner and every such
+# pair is marked; the stdin stream, which sees only the scans before, marks the later scan alone.
+python3 - "$d/t.tum.csv" "$b/sim-3-001.log.gz" "$d/bunched.log" <<'PY' || fail "could not write the bunched log"
+import csv, gzip, math, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+pose = lambda r: (float(r["x"]), float(r["y"]))
+pairs = [(i, j) for i in range(len(rows)) for j in range(i + 8, min(i + 16, len(rows)))
+         if rows[i]["confident"] == rows[j]["confident"] == "1" and math.dist(pose(rows[i]), pose(rows[j])) > 0.9]
+assert pairs, "no two confident scans 0.9 m apart within 8-15 scans"
+i, j = (int(rows[k]["log_scan"]) for k in pairs[len(pairs) // 2])
+lines = gzip.open(sys.argv[2], "rt").read().splitlines()
+flaser = [k for k, l in enumerate(lines) if l.startswith("FLASER")]
+stamp_at = lambda k: lines[flaser[k]].split()
+f = stamp_at(i); n = int(f[1]); t = float(f[8 + n]) + 0.001
+g = stamp_at(j); g[8 + n] = f"{t:.6f}"; g[10 + n] = f"{t:.6f}"
+lines[flaser[j]] = " ".join(g)
+open(sys.argv[3], "w").write("\n".join(lines) + "\n")
+open(sys.argv[3] + ".pair", "w").write(f"{i - 300} {j - 300}\n")
+PY
+"$LSHLOC" localize "${maps[@]}" --target "$d/bunched.log" --start 300 --length 150 --out "$d/c.tum" --json \
+  >"$d/c.json" 2>/dev/null || fail "localize on the bunched log"
+"$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 150 <"$d/bunched.log" >"$d/cstream.csv" \
+  2>/dev/null || fail "the bunched log from stdin"
+python3 - "$d/c.tum.csv" "$d/cstream.csv" "$d/c.json" "$d/bunched.log.pair" <<'PY' || fail "stamp clashes"
+import csv, json, math, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+stream = list(csv.DictReader(open(sys.argv[2])))
+i, j = map(int, open(sys.argv[4]).read().split())
+def disagree(a, b):
+    if a["submap"] != b["submap"]: return True
+    dh = abs(math.remainder(math.radians(float(a["heading_deg"]) - float(b["heading_deg"])), 2 * math.pi))
+    return math.hypot(float(a["x"]) - float(b["x"]), float(a["y"]) - float(b["y"])) > 0.5 or dh > math.radians(5)
+def clash(k, others):
+    return rows[k]["x"] != "" and any(rows[m]["x"] != "" and abs(float(rows[m]["time"]) - float(rows[k]["time"])) < 0.005
+                                      and disagree(rows[k], rows[m]) for m in others if m != k)
+assert rows[i]["stamp_clash"] == rows[j]["stamp_clash"] == "1", (rows[i], rows[j])
+assert rows[i]["confident"] == rows[j]["confident"] == "0" and rows[i]["localized"] == rows[j]["localized"] == "1"
+for k in range(len(rows)):
+    assert (rows[k]["stamp_clash"] == "1") == clash(k, range(max(0, k - 16), min(len(rows), k + 17))), k
+    assert rows[k]["confident"] == ("1" if rows[k]["localized"] == "1" and rows[k]["stamp_clash"] == "0" else "0"), k
+    assert (stream[k]["stamp_clash"] == "1") == clash(k, range(max(0, k - 16), k)), k
+assert stream[j]["stamp_clash"] == "1" and stream[i]["stamp_clash"] == "0"
+assert json.load(open(sys.argv[3]))["stamp_clash_scans"] == sum(r["stamp_clash"] == "1" for r in rows) >= 2
+PY
 
 # Two robots at once on two threads, one map: each robot's per-scan CSV equals its lone run's.
 "$LSHLOC" localize "${maps[@]}" --target "$a/sim-3-000.log.gz" --target "$b/sim-3-001.log.gz" --start 300 \

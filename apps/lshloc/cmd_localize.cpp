@@ -103,7 +103,7 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
 constexpr const char* kCsvHeader =
     "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,confidence,score,scored,margin,stable,supported,"
     "place_supported,"
-    "kept_scans,newest_fit,newest_evidence\n";
+    "kept_scans,newest_fit,newest_evidence,localized,stamp_clash\n";
 /// A CSV field as RFC 4180 quotes it: submap names may hold commas or quotes.
 std::string csv_field(const std::string& text) {
   if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
@@ -115,13 +115,13 @@ std::string csv_field(const std::string& text) {
 void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, double time, const GlobalMap& map,
                     const LocalizationEstimate& e) {
   if (e.has_estimate) {
-    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f\n", scan,
+    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%d,%d\n", scan,
                       log_scan, time, csv_field(map.submap_name(e.submap)).c_str(), e.submap, e.pose.x, e.pose.y,
-                      degrees(e.pose.theta), e.localized ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin,
+                      degrees(e.pose.theta), e.confident() ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin,
                       e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit,
-                      e.newest_evidence);
+                      e.newest_evidence, e.localized ? 1 : 0, e.stamp_clash ? 1 : 0);
   } else {
-    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,\n", scan, log_scan, time);
+    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,,0,0\n", scan, log_scan, time);
   }
 }
 
@@ -152,7 +152,7 @@ void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun
     const auto& e = run.estimates[i];
     const double t = target.scans[i].timestamp;
     append_csv_row(csv, i, target.start + i, t, map, e);
-    if (e.has_estimate && e.localized) confident[e.submap].push_back({t, e.pose * robot_from_laser});
+    if (e.has_estimate && e.confident()) confident[e.submap].push_back({t, e.pose * robot_from_laser});
   }
   const auto& last = run.estimates.back();
   const std::uint32_t main = last.has_estimate ? last.submap : (confident.empty() ? 0 : confident.begin()->first);
@@ -200,9 +200,9 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
     const auto& e = run.estimates[i];
     confidence.scan.push_back(static_cast<double>(i));
     confidence.mean_score.push_back(e.has_estimate ? e.mean_score : 0.0);
-    confidence.confident.push_back(e.localized);
+    confidence.confident.push_back(e.confident());
     if (e.has_estimate && e.submap == submap)
-      (e.localized ? fig.estimated_trajectory : fig.guesses).push_back(e.pose.translation());
+      (e.confident() ? fig.estimated_trajectory : fig.guesses).push_back(e.pose.translation());
   }
   for (const char* ext : {".png", ".svg"}) {
     io::plot_map_figure(stem + "-map" + ext, fig);
@@ -250,8 +250,10 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
       nlohmann::json j = {{"scan", done},
                           {"log_scan", index - 1},
                           {"time", rec.scan.timestamp},
-                          {"confident", e.localized},
-                          {"confidence", e.confidence}};
+                          {"confident", e.confident()},
+                          {"confidence", e.confidence},
+                          {"localized", e.localized},
+                          {"stamp_clash", e.stamp_clash}};
       if (e.has_estimate)
         j.update({{"submap", submap},
                   {"pose", {e.pose.x, e.pose.y, e.pose.theta}},
@@ -264,15 +266,15 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
       std::fputs(row.c_str(), stdout);
     }
     std::fflush(stdout);
-    if (e.localized && !first_confident) first_confident = done;
-    confident += e.localized;
+    if (e.confident() && !first_confident) first_confident = done;
+    confident += e.confident();
     last = e;
     ++done;
   }
   if (done == 0)
     throw Error("stdin: no laser scan (FLASER / ROBOTLASER1) after the first " + std::to_string(opt.start));
   print_warnings(reader.warnings());
-  if (last.localized)
+  if (last.localized && first_confident)
     std::fprintf(stderr,
                  "Localized in %s: x %.3f m, y %.3f m, heading %.1f deg; confident since scan %zu, at %zu of %zu\n",
                  map.submap_name(last.submap).c_str(), last.pose.x, last.pose.y, degrees(last.pose.theta),
@@ -378,7 +380,7 @@ nlohmann::json answer_json(const std::string& path, const TargetRun& target, con
   std::optional<std::size_t> first_localized;
   std::size_t confident = 0;
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
-    if (!run.estimates[i].localized) continue;
+    if (!run.estimates[i].confident()) continue;
     ++confident;
     if (!first_localized) first_localized = i;
   }
@@ -393,6 +395,8 @@ nlohmann::json answer_json(const std::string& path, const TargetRun& target, con
   j["localized"] = last.localized;
   j["confidence"] = last.confidence;
   j["confident_scans"] = confident;
+  j["stamp_clash_scans"] = run.stamp_clash.clashing_scans;
+  j["stamp_clash_flags_withheld"] = run.stamp_clash.flags_withheld;
   j["first_localized_at"] = first_localized ? nlohmann::json(*first_localized) : nlohmann::json();
   j["first_localized_time_s"] =
       first_localized ? nlohmann::json(target.scans[*first_localized].timestamp - t_first) : nlohmann::json();
@@ -427,7 +431,10 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "what it cost; --json prints the same as one JSON line. --out T.tum writes T.tum.csv (one row per\n"
       "target scan, laser poses) and T.tum: the confident robot poses (the laser mount taken off) in\n"
       "the final answer's submap, in time order (those in other submaps, if any, in T.tum.<submap>.tum),\n"
-      "all or none of them.");
+      "all or none of them. A scan stamped within 5 ms of another scan estimated elsewhere (0.5 m or\n"
+      "5 deg apart; drivers that stamp buffered scans on arrival) is never confident, its pose being\n"
+      "of no use by time: its CSV row has stamp_clash 1, and localized keeps the localizer's flag.\n"
+      "A stdin stream checks each scan against the scans before it only.");
   const CLI::Option* map_option =
       cmd->add_option("--map", opt->maps,
                       "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "

@@ -40,6 +40,8 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["first_confident_at"] = m.first_confident_at ? nlohmann::json(*m.first_confident_at) : nlohmann::json();
   j["confident_share_after"] = optional_json(m.confident_share_after);
   j["flag_changes"] = m.flag_changes;
+  j["stamp_clash_scans"] = run.stamp_clash.clashing_scans;
+  j["stamp_clash_flags_withheld"] = run.stamp_clash.flags_withheld;
   add_localizer_cost(j, run);
   j["ms_per_scan_p99"] = ms_per_scan_p99(run.cpu_s);
   j["us_update_per_feature"] = run.map.us_update_per_feature();

@@ -121,6 +121,14 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
   }
   run.map = map.stats();
   run.localizer = localizer.stats();
+  // The localizer compared each scan with those before it; a whole run can
+  // also compare it with those after.
+  std::vector<double> stamps(scans.size());
+  for (std::size_t i = 0; i < scans.size(); ++i) stamps[i] = scans[i].timestamp;
+  const StampClashStats later = mark_stamp_clashes(stamps, run.estimates, config.stamp_clash);
+  run.stamp_clash = run.localizer.stamp_clash;
+  run.stamp_clash.clashing_scans += later.clashing_scans;
+  run.stamp_clash.flags_withheld += later.flags_withheld;
   return run;
 }
 

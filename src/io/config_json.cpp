@@ -100,11 +100,12 @@ LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, sta
                    value_weights)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
+LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_heading_rad, window_scans)
 LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty,
                    return_support, contested_penalty, context_scans, context_spacing, data_point_spacing,
                    free_points_per_surface_point, free_point_fraction, free_point_margin, hypothesis_source,
                    newly_mapped_candidates, newly_mapped_per_scan, newly_mapped_share, newly_mapped_scan_window,
-                   newly_mapped_points, newly_mapped_reach_scans, seen_features_kept, report, seed)
+                   newly_mapped_points, newly_mapped_reach_scans, seen_features_kept, report, stamp_clash, seed)
 
 }  // namespace lshloc
 

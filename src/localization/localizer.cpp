@@ -87,6 +87,7 @@ void LocalizerConfig::validate() const {
   features.validate();
   ransac.validate();
   report.validate();
+  stamp_clash.validate();
   require(candidates_per_feature >= 1, "LocalizerConfig.candidates_per_feature", ">= 1", candidates_per_feature);
   require(free_space_penalty >= 0.0, "LocalizerConfig.free_space_penalty", ">= 0", free_space_penalty);
   require(return_support >= 0.0, "LocalizerConfig.return_support", ">= 0", return_support);
@@ -107,6 +108,7 @@ Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
       policy_(config_.report, {.preference_z = config_.ransac.preference_z,
                                .min_score = config_.ransac.min_score,
                                .recent_window = config_.ransac.recent_window}),
+      stamp_clash_(config_.stamp_clash),
       context_(config_.context_scans, config_.context_spacing),
       rng_(config_.seed),
       sample_(std::make_unique<DataPointSample>(ransac_, scorer_, rng_)),
@@ -139,7 +141,9 @@ LocalizationEstimate Localizer::add_scan(const LaserScan& scan) {
   last_local_pose_ = local_pose;
   const std::optional<ScoredHypothesis> best = ransac_.best();
   const std::vector<ScoredHypothesis> active = best ? ransac_.active() : std::vector<ScoredHypothesis>{};
-  return policy_.report(best, active, local_pose, *sample_);
+  LocalizationEstimate estimate = policy_.report(best, active, local_pose, *sample_);
+  stamp_clash_.check(scan.timestamp, estimate);
+  return estimate;
 }
 
 Pose2 Localizer::update_local_map(const LaserScan& scan) {
@@ -448,6 +452,7 @@ LocalizerStats Localizer::stats() const {
   s.ransac = ransac_.stats();
   s.scan_matcher = matcher_.stats();
   s.report = policy_.stats();
+  s.stamp_clash = stamp_clash_.stats();
   return s;
 }
 

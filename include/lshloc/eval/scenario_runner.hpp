@@ -40,6 +40,9 @@ struct ScenarioRun {
   double log_duration_s = 0.0;  ///< [s] time the target's scans span in the log
   GlobalMapStats map;
   LocalizerStats localizer;
+  /// Scans stamped together with another at a different pose, over the
+  /// whole run (those after each scan too), and how many of them were flagged.
+  StampClashStats stamp_clash;
   /// The newest surface data-points of iRANSAC placed by the final estimate,
   /// split by whether they hit the map (for the paper's Fig. 6 style figure).
   std::vector<Point2> final_inliers, final_outliers;
@@ -89,7 +92,8 @@ LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& ta
 /// The localizer's cost is the calling thread's CPU time. With `map_mutex`,
 /// other threads may write the map meanwhile: each target scan (and the
 /// observer's look) holds it shared, so writers must hold it exclusively.
-/// map_build_s stays 0.
+/// At the end each estimate stamped together with a later scan elsewhere is
+/// marked `stamp_clash` (the observer saw it unmarked). map_build_s stays 0.
 ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
                             const Progress& progress = {}, const LocalizerObserver& observer = {},
                             const BeforeScan& before_scan = {}, std::shared_mutex* map_mutex = nullptr);

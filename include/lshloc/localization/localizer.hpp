@@ -21,6 +21,7 @@
 #include "lshloc/slam/scan_matcher.hpp"
 #include "lshloc/localization/global_map.hpp"
 #include "lshloc/localization/report_policy.hpp"
+#include "lshloc/localization/stamp_clash.hpp"
 
 namespace lshloc {
 
@@ -104,6 +105,8 @@ struct LocalizerConfig {
   /// What is reported: the confidence test, the hysteresis and duels, and
   /// how the reported place follows the local map's drift.
   ReportPolicyConfig report;
+  /// Not confident() where scans stamped together disagree (bunched driver stamps).
+  StampClashConfig stamp_clash;
   std::uint64_t seed = 0x10ca112e;  ///< the random control's choices
 
   void validate() const;
@@ -124,6 +127,7 @@ struct LocalizerStats {
   std::size_t newly_mapped_missed = 0;    ///< ... not looked up (over the per-scan cap, or gone from the map's ring)
   std::size_t newly_mapped_pairs = 0;     ///< (map feature, target feature) candidates they gave
   ReportPolicyStats report;
+  StampClashStats stamp_clash;  ///< scans that clash with the scans before them
   IncrementalRansacStats ransac;
   ScanMatcherStats scan_matcher;
   double us_query_per_feature() const { return features ? 1e6 * query_s / static_cast<double>(features) : 0.0; }
@@ -184,6 +188,7 @@ class Localizer {
   LshQuery query_;
   PoseGridScorer scorer_;
   ReportPolicy policy_;
+  StampClashGuard stamp_clash_;
   ScanContext context_;
   Pose2 last_local_pose_;
   LocalizerStats stats_;

@@ -175,6 +175,13 @@ struct LocalizationEstimate {
   /// means over different points; this one does not.
   double whole_map_fit = 0.0;
   double whole_map_lead = 0.0;
+  /// Another scan stamped at the same time has an estimate elsewhere
+  /// (localization/stamp_clash.hpp): this pose cannot be looked up by time.
+  bool stamp_clash = false;
+  /// What outputs read by time stamp mark as confident: the flag, except at
+  /// a stamp clash. The flag itself is the localizer's state and does not
+  /// flicker with the stamps.
+  bool confident() const { return localized && !stamp_clash; }
 };
 
 /// What the report policy needs of the localizer's data-points: the scores
