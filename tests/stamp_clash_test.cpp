@@ -18,7 +18,7 @@ namespace {
 
 constexpr double kOneDegree = std::numbers::pi / 180.0;
 
-LocalizationEstimate at(double x, double y, double theta, std::uint32_t submap = 0, bool flag = true) {
+LocalizationEstimate estimate_at(double x, double y, double theta, std::uint32_t submap = 0, bool flag = true) {
   LocalizationEstimate e;
   e.has_estimate = true;
   e.localized = flag;
@@ -40,7 +40,7 @@ void random_run(std::mt19937_64& rng, std::size_t n, std::vector<double>& stamps
     y += 0.6 * (u(rng) - 0.5);
     th = std::remainder(th + 12.0 * kOneDegree * (u(rng) - 0.5), 2.0 * std::numbers::pi);
     stamps.push_back(t);
-    LocalizationEstimate e = at(x, y, th, u(rng) < 0.05 ? 1 : 0, u(rng) < 0.7);
+    LocalizationEstimate e = estimate_at(x, y, th, u(rng) < 0.05 ? 1 : 0, u(rng) < 0.7);
     if (u(rng) < 0.05) e = LocalizationEstimate{};
     estimates.push_back(e);
   }
@@ -126,39 +126,41 @@ TEST(StampClash, TheRuleOnHandPickedScans) {
   const StampClashConfig c;  // 5 ms, 0.5 m, 5 deg
   // A burst at one pose (a robot standing still): no clash.
   std::vector<double> stamps{10.0, 10.001, 10.002};
-  std::vector<LocalizationEstimate> e{at(1, 2, 0.1), at(1.2, 2.1, 0.1 + 3 * kOneDegree), at(1.1, 2, 0.1)};
+  std::vector<LocalizationEstimate> e{estimate_at(1, 2, 0.1), estimate_at(1.2, 2.1, 0.1 + 3 * kOneDegree),
+                                      estimate_at(1.1, 2, 0.1)};
   EXPECT_EQ(mark_stamp_clashes(stamps, e, c).clashing_scans, 0u);
   EXPECT_TRUE(e[0].confident() && e[1].confident() && e[2].confident());
   // A turn of 6 deg within a burst: both ends.
-  e = {at(1, 2, 0.0), at(1, 2, 6 * kOneDegree), at(1, 2, 0.0)};
+  e = {estimate_at(1, 2, 0.0), estimate_at(1, 2, 6 * kOneDegree), estimate_at(1, 2, 0.0)};
   stamps = {10.0, 10.001, 10.2};
   mark_stamp_clashes(stamps, e, c);
   EXPECT_TRUE(e[0].stamp_clash && e[1].stamp_clash && !e[2].stamp_clash);
   EXPECT_FALSE(e[0].confident() || e[1].confident());
   EXPECT_TRUE(e[0].localized && e[1].localized && e[2].confident());
   // The same scans 0.2 s apart: a turn, not a clash.
-  e = {at(1, 2, 0.0), at(1, 2, 6 * kOneDegree)};
+  e = {estimate_at(1, 2, 0.0), estimate_at(1, 2, 6 * kOneDegree)};
   stamps = {10.0, 10.2};
   EXPECT_EQ(mark_stamp_clashes(stamps, e, c).clashing_scans, 0u);
   // Headings either side of +-pi are 2 deg apart; another submap always clashes.
-  e = {at(0, 0, std::numbers::pi - kOneDegree), at(0, 0, -std::numbers::pi + kOneDegree), at(0, 0, 0, 3)};
+  e = {estimate_at(0, 0, std::numbers::pi - kOneDegree), estimate_at(0, 0, -std::numbers::pi + kOneDegree),
+       estimate_at(0, 0, 0, 3)};
   stamps = {5.0, 5.001, 7.0};
   EXPECT_EQ(mark_stamp_clashes(stamps, e, c).clashing_scans, 0u);
-  e = {at(0, 0, 0.0, 0), at(0, 0, 0.0, 1)};
+  e = {estimate_at(0, 0, 0.0, 0), estimate_at(0, 0, 0.0, 1)};
   stamps = {5.0, 5.001};
   EXPECT_EQ(mark_stamp_clashes(stamps, e, c).clashing_scans, 2u);
   // A stamp that runs back onto an earlier scan's, three scans later.
-  e = {at(0, 0, 0), at(3, 0, 0), at(4, 0, 0), at(5, 0, 0)};
+  e = {estimate_at(0, 0, 0), estimate_at(3, 0, 0), estimate_at(4, 0, 0), estimate_at(5, 0, 0)};
   stamps = {20.0, 20.8, 20.5, 20.002};
   mark_stamp_clashes(stamps, e, c);
   EXPECT_TRUE(e[0].stamp_clash && e[3].stamp_clash && !e[1].stamp_clash && !e[2].stamp_clash);
   // A scan without an estimate never clashes; neither does anything when off.
-  e = {at(0, 0, 0), LocalizationEstimate{}};
+  e = {estimate_at(0, 0, 0), LocalizationEstimate{}};
   stamps = {1.0, 1.0};
   EXPECT_EQ(mark_stamp_clashes(stamps, e, c).clashing_scans, 0u);
   StampClashConfig off;
   off.enabled = false;
-  e = {at(0, 0, 0, 0), at(0, 0, 0, 1)};
+  e = {estimate_at(0, 0, 0, 0), estimate_at(0, 0, 0, 1)};
   EXPECT_EQ(mark_stamp_clashes(stamps, e, off).clashing_scans, 0u);
   EXPECT_TRUE(e[0].confident() && e[1].confident());
 }

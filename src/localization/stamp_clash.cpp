@@ -38,9 +38,8 @@ void mark(LocalizationEstimate& e, StampClashStats& stats) {
 
 }  // namespace
 
-StampClashStats mark_stamp_clashes(std::span<const double> stamps,
-                                                std::span<LocalizationEstimate> estimates,
-                                                const StampClashConfig& config) {
+StampClashStats mark_stamp_clashes(std::span<const double> stamps, std::span<LocalizationEstimate> estimates,
+                                   const StampClashConfig& config) {
   if (stamps.size() != estimates.size())
     throw Error("mark_stamp_clashes: " + std::to_string(stamps.size()) + " stamps for " +
                 std::to_string(estimates.size()) + " estimates; expected one each");

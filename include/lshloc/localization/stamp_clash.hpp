@@ -52,9 +52,8 @@ bool estimates_disagree(const LocalizationEstimate& a, const LocalizationEstimat
 /// side stamped within tolerance_s of it that disagrees with it. Estimates
 /// without a pose never clash. Throws lshloc::Error when the two spans differ
 /// in length.
-StampClashStats mark_stamp_clashes(std::span<const double> stamps,
-                                                std::span<LocalizationEstimate> estimates,
-                                                const StampClashConfig& config);
+StampClashStats mark_stamp_clashes(std::span<const double> stamps, std::span<LocalizationEstimate> estimates,
+                                   const StampClashConfig& config);
 
 /// The same test as a scan arrives, against the window_scans scans before it
 /// only (a live robot cannot wait for the scans after): what the Localizer
