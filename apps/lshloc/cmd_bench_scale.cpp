@@ -42,7 +42,7 @@ struct ScaleOptions {
 struct Outcomes {
   std::size_t localized = 0;
   std::vector<double> localized_at;  ///< of the targets that succeeded
-  double query_s = 0, features = 0, score_s = 0, scores = 0;
+  double query_s = 0, features = 0, score_s = 0, scores = 0, touched = 0, distinct = 0;
   nlohmann::json per_target = nlohmann::json::array();
 };
 
@@ -56,6 +56,8 @@ void localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
     o.localized += m.success;
     if (m.success && m.localized_at) o.localized_at.push_back(static_cast<double>(*m.localized_at));
     o.query_s += run.localizer.query_s, o.features += static_cast<double>(run.localizer.features);
+    o.touched += static_cast<double>(run.localizer.candidates_touched);
+    o.distinct += static_cast<double>(run.localizer.distinct_candidates);
     o.score_s += run.localizer.ransac_s, o.scores += static_cast<double>(run.localizer.ransac.scores);
     o.per_target.push_back(target_outcome_json(targets[t].building, m));
   }
@@ -182,6 +184,9 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
   j["us_insert_per_feature"] = 1e6 * totals.per_feature(totals.insert_s);
   j["us_query_per_feature"] = lsh.features > 0 ? 1e6 * lsh.query_s / lsh.features : 0.0;
   j["ns_per_score"] = lsh.scores > 0 ? 1e9 * lsh.score_s / lsh.scores : 0.0;
+  // Retrieval's work per feature: what its cost follows until the buckets fill.
+  j["candidates_touched_per_feature"] = lsh.features > 0 ? lsh.touched / lsh.features : 0.0;
+  j["distinct_candidates_per_feature"] = lsh.features > 0 ? lsh.distinct / lsh.features : 0.0;
   j["targets"] = opt.targets;
   j["targets_localized"] = lsh.localized;
   j["median_localized_at"] = median_localized_at(lsh.localized_at);

@@ -453,6 +453,8 @@ LocalizerStats Localizer::stats() const {
   s.scan_matcher = matcher_.stats();
   s.report = policy_.stats();
   s.stamp_clash = stamp_clash_.stats();
+  s.candidates_touched = query_.candidates_touched;
+  s.distinct_candidates = query_.distinct_candidates;
   return s;
 }
 

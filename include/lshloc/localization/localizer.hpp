@@ -126,6 +126,8 @@ struct LocalizerStats {
   std::size_t newly_mapped_features = 0;  ///< map features added during the run, looked up among the target's
   std::size_t newly_mapped_missed = 0;    ///< ... not looked up (over the per-scan cap, or gone from the map's ring)
   std::size_t newly_mapped_pairs = 0;     ///< (map feature, target feature) candidates they gave
+  std::size_t candidates_touched = 0;     ///< database bucket entries the features' queries read
+  std::size_t distinct_candidates = 0;    ///< ... distinct map features among them (each sketch-ranked)
   ReportPolicyStats report;
   StampClashStats stamp_clash;  ///< scans that clash with the scans before them
   IncrementalRansacStats ransac;
