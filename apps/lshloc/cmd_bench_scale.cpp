@@ -69,7 +69,8 @@ struct MapTotals {
   std::size_t maps = 0, features = 0, scans = 0;
   double update_s = 0, insert_s = 0;
   double bytes = 0, database_bytes = 0, grid_bytes = 0, grid_fraction = 0;
-  double rss_mb = 0;  ///< the largest, each map measured when its targets are done
+  double rss_mb = 0;         ///< the largest, each map measured when its targets are done
+  double huge_pages_mb = 0;  ///< ... of it on transparent huge pages, the largest
 
   void add(const GlobalMapStats& ms, std::size_t map_scans) {
     const auto n = static_cast<double>(ms.features);
@@ -173,6 +174,7 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
     }
     totals.add(map.stats(), map_scans);
     totals.rss_mb = std::max(totals.rss_mb, rss_mb());
+    totals.huge_pages_mb = std::max(totals.huge_pages_mb, huge_pages_mb());
   }
   const double n_maps = static_cast<double>(totals.maps);
   nlohmann::json j;
@@ -202,6 +204,7 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
     j["exact_recall_at_100"] = exact_hits / covered;
   }
   j["rss_mb"] = totals.rss_mb;
+  j["huge_pages_mb"] = totals.huge_pages_mb;
   j["bytes_per_feature"] = totals.per_feature(totals.bytes);
   j["bytes_database_per_feature"] = totals.per_feature(totals.database_bytes);
   j["bytes_grids_per_feature"] = totals.per_feature(totals.grid_bytes);

@@ -6,14 +6,13 @@
 
 namespace lshloc::app {
 
-/// Resident set size of this process [MB] (Linux /proc/self/status), or -1
-/// where it cannot be read.
-inline double rss_mb() {
-  std::ifstream status("/proc/self/status");
+/// A "Name:  N kB" field of a /proc file [MB], or -1 where it cannot be read.
+inline double proc_field_mb(const char* path, const std::string& name) {
+  std::ifstream file(path);
   std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) {
-      std::istringstream in(line.substr(6));
+  while (std::getline(file, line)) {
+    if (line.rfind(name, 0) == 0) {
+      std::istringstream in(line.substr(name.size()));
       double kb = 0;
       in >> kb;
       return kb / 1024.0;
@@ -21,5 +20,14 @@ inline double rss_mb() {
   }
   return -1.0;
 }
+
+/// Resident set size of this process [MB] (Linux /proc/self/status), or -1
+/// where it cannot be read.
+inline double rss_mb() { return proc_field_mb("/proc/self/status", "VmRSS:"); }
+
+/// Of it, anonymous memory on transparent huge pages [MB]: the map's tables
+/// are allocated for them (common/huge_page_allocator.hpp), and random reads
+/// slow down where the kernel did not give them.
+inline double huge_pages_mb() { return proc_field_mb("/proc/self/smaps_rollup", "AnonHugePages:"); }
 
 }  // namespace lshloc::app

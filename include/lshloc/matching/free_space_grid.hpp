@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lshloc/common/byte_codec.hpp"
+#include "lshloc/common/huge_page_allocator.hpp"
 #include "lshloc/matching/pose_grid.hpp"
 
 namespace lshloc {
@@ -126,7 +127,8 @@ class FreeSpaceGrid {
 
   PoseGridConfig config_;
   double inv_cell_ = 4.0;
-  std::vector<CellFlags> cells_;  ///< the arena: tile k is [k * kTileCells, (k + 1) * kTileCells)
+  std::vector<CellFlags, HugePageAllocator<CellFlags>>
+      cells_;  ///< the arena: tile k is [k * kTileCells, (k + 1) * kTileCells)
   /// Per submap: its directory's box of tiles (and where its tile ids are) ...
   std::vector<View::Directory> directories_;
   /// ... and the tile ids themselves, row-major; 0: none.
