@@ -304,6 +304,11 @@ void print_answer(const nlohmann::json& j) {
   } else {
     std::printf("Not localized: no hypothesis in %.0f scans (is this building in the map?)\n", scans);
   }
+  if (const auto clashes = j["stamp_clash_scans"].get<std::size_t>(); clashes > 0)
+    std::printf(
+        "  %zu scans were stamped within %.0f ms of a scan estimated elsewhere (bunched time stamps): their poses "
+        "are not marked confident (stamp_clash in the CSV)\n",
+        clashes, 1e3 * j["stamp_clash_tolerance_s"].get<double>());
   std::printf(
       "  confidence at the last scan: mean score %.3f over %u points, lead %.3f over the best place elsewhere\n",
       j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(), j["final_margin"].get<double>());
@@ -581,6 +586,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
       if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, paths[k], *map, sources, runs[k]);
       nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
+      j["stamp_clash_tolerance_s"] = config.localizer.stamp_clash.tolerance_s;
       if (follower) {
         j["map_log"] = fleet_map_json(fleet_map, *map);
       }
