@@ -5,6 +5,7 @@
 #include <string>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/geometry/pose2.hpp"
 
 namespace lshloc {
 
@@ -18,9 +19,8 @@ void StampClashConfig::validate() const {
 
 bool estimates_disagree(const LocalizationEstimate& a, const LocalizationEstimate& b, const StampClashConfig& config) {
   if (a.submap != b.submap) return true;
-  const double heading = std::abs(std::remainder(a.pose.theta - b.pose.theta, 2.0 * std::numbers::pi));
   return std::hypot(a.pose.x - b.pose.x, a.pose.y - b.pose.y) > config.max_position_m ||
-         heading > config.max_heading_rad;
+         angle_distance(a.pose.theta, b.pose.theta) > config.max_heading_rad;
 }
 
 namespace {

@@ -15,7 +15,6 @@
 #include <deque>
 #include <numbers>
 #include <span>
-#include <vector>
 
 #include "lshloc/localization/report_policy.hpp"
 
