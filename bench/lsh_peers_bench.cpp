@@ -16,8 +16,10 @@
 // every `--query-every` inserts (interleaved; timed with the inserts' own
 // clock kept apart). At each checkpoint size all queries run: query time and
 // place recall@100 (a returned location within 0.5 m and 20 degrees of the
-// truth, in the right submap), and heap bytes per entry (malloc statistics,
-// so it includes each index's copy of the vectors where it keeps one).
+// truth, in the right submap), and bytes per entry: the heap's growth (malloc
+// statistics, so it includes each index's copy of the vectors where it keeps
+// one), lshloc's own count for its rows (its big tables are mapped outside
+// malloc).
 //
 // Indexes: lshloc (its defaults), lshloc-fine (K = 20, 2000 candidates: the
 // setting for maps of 1e6 entries and more), hnswlib, faiss-hnsw, faiss-lsh, flann.
@@ -93,6 +95,9 @@ class Index {
   /// Makes every added entry searchable; the caller times it as insert time.
   virtual void flush() {}
   virtual void search(const Descriptor& q, std::size_t k, std::vector<std::uint32_t>& out) = 0;
+  /// Bytes the index holds, where it counts them itself (0: use the heap's
+  /// growth, which misses blocks mapped outside malloc).
+  virtual std::size_t own_bytes() const { return 0; }
 };
 
 class LshlocIndex : public Index {
@@ -110,6 +115,9 @@ class LshlocIndex : public Index {
   void search(const Descriptor& q, std::size_t k, std::vector<std::uint32_t>& out) override {
     db_.query(q, k, out, q_);
   }
+  // The database maps its big tables itself (HugePageAllocator), out of
+  // malloc's sight: its own count is the one that sees them.
+  std::size_t own_bytes() const override { return db_.stats().bytes; }
   double mean_candidates() const {
     return q_.queries ? static_cast<double>(q_.candidates_touched) / static_cast<double>(q_.queries) : 0.0;
   }
@@ -295,6 +303,8 @@ int main(int argc, char** argv) try {
       opt.lsh.bucket_capacity = std::stoul(next());
     else if (a == "--lsh-max-candidates")
       opt.lsh.max_candidates = std::stoul(next());
+    else if (a == "--lsh-rarest-first")
+      opt.lsh.rarest_buckets_first = true;
     else if (a == "--lsh-sketch")
       opt.lsh.sketch_bits = std::stoul(next());
     else if (a == "--lsh-sketch-weight")
@@ -303,7 +313,7 @@ int main(int argc, char** argv) try {
       throw lshloc::Error("unknown option " + a +
                           " (known: --sizes, --only, --query-every, --hnsw-ef, --hnsw-ef-construction, "
                           "--flann-checks, --data, --lsh-k, --lsh-l, --lsh-w, --lsh-cap, --lsh-max-candidates, "
-                          "--lsh-sketch, --lsh-sketch-weight)");
+                          "--lsh-rarest-first, --lsh-sketch, --lsh-sketch-weight)");
   }
   std::sort(opt.sizes.begin(), opt.sizes.end());
   const std::size_t total = opt.sizes.back();
@@ -461,7 +471,8 @@ int main(int argc, char** argv) try {
         ++queried_since;
         hits += hit(q, out);
       }
-      const double bytes = static_cast<double>(heap_bytes() - heap0) / static_cast<double>(size);
+      const std::size_t held = index->own_bytes() > 0 ? index->own_bytes() : heap_bytes() - heap0;
+      const double bytes = static_cast<double>(held) / static_cast<double>(size);
       std::string params = index->params();
       if (auto* l = dynamic_cast<LshlocIndex*>(index.get())) {
         params += " cand=" + std::to_string(static_cast<long>(l->mean_candidates()));

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 #include <set>
 
@@ -250,6 +251,87 @@ TEST(LocationStore, IdsAreIndicesAndUnknownIdsThrow) {
   EXPECT_EQ(store.at(1).submap, 3u);
   EXPECT_FLOAT_EQ(store.at(0).y, 2.0f);
   EXPECT_THROW(store.at(2), Error);
+}
+
+/// The candidates a query reads, by brute force: the query's buckets in
+/// the given table order, each read from its first id (at most `capacity`),
+/// until the budget.
+std::set<std::uint32_t> candidates_read_in_order(const std::vector<std::vector<std::uint32_t>>& bucket_ids,
+                                                 const std::vector<std::size_t>& order, std::size_t capacity,
+                                                 std::size_t budget) {
+  std::set<std::uint32_t> read;
+  for (std::size_t t : order)
+    for (std::size_t i = 0; i < std::min(capacity, bucket_ids[t].size()); ++i) {
+      if (budget == 0) return read;
+      read.insert(bucket_ids[t][i]), --budget;
+    }
+  return read;
+}
+
+TEST(LshDatabase, TheBudgetReadsTheLeastFilledBucketsFirst) {
+  // Keys put known ids into the query's bucket of each table: random fills up
+  // to the capacity, one table's bucket given far more ids than it keeps.
+  // The ids read must be those of the buckets in ascending fill (ties: table
+  // order), or in table order without rarest_buckets_first.
+  std::mt19937_64 rng(31);
+  for (int trial = 0; trial < 40; ++trial) {
+    LshConfig cfg;
+    cfg.L = 6;
+    cfg.sketch_bits = 0;
+    cfg.bucket_capacity = 16;
+    cfg.rarest_buckets_first = trial % 2 == 0;
+    const std::size_t hot = rng() % cfg.L;
+    std::vector<std::size_t> given(cfg.L);
+    for (std::size_t t = 0; t < cfg.L; ++t) given[t] = t == hot ? 200 : rng() % 17;
+    std::size_t kept_outside_hot = 0;
+    for (std::size_t t = 0; t < cfg.L; ++t) kept_outside_hot += t == hot ? 0 : given[t];
+    cfg.max_candidates = 1 + rng() % std::max<std::size_t>(kept_outside_hot, 1);
+    LshDatabase db(cfg);
+    std::vector<std::uint32_t> query_tags(cfg.L), tags(cfg.L);
+    for (std::size_t t = 0; t < cfg.L; ++t) query_tags[t] = 1000 + static_cast<std::uint32_t>(t);
+    std::vector<std::vector<std::uint32_t>> bucket_ids(cfg.L);
+    std::uint32_t id = 0;
+    for (std::size_t t = 0; t < cfg.L; ++t)
+      for (std::size_t i = 0; i < given[t]; ++i, ++id) {
+        // The query's tag in table t, a tag of its own everywhere else.
+        for (std::size_t u = 0; u < cfg.L; ++u) tags[u] = u == t ? query_tags[t] : 1u << 20 | id;
+        db.insert(LshKeyView{tags, {}}, id);
+        bucket_ids[t].push_back(id);
+      }
+    std::vector<std::size_t> order(cfg.L);
+    std::iota(order.begin(), order.end(), 0);
+    if (cfg.rarest_buckets_first)
+      std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return given[a] < given[b]; });
+    const std::set<std::uint32_t> expected = candidates_read_in_order(bucket_ids, order, 16, cfg.max_candidates);
+    LshQuery q(db);
+    std::vector<std::uint32_t> got;
+    std::vector<std::uint16_t> counts;
+    db.query_counts(LshKeyView{query_tags, {}}, 10000, got, counts, q);
+    // Reading up to the hot bucket (table order only: the budget never reaches
+    // it least-filled first) takes a sample of its 200 ids, not its first 16.
+    std::size_t budget = cfg.max_candidates, hot_read = 0;
+    for (std::size_t t : order) {
+      const std::size_t n = std::min({budget, given[t], std::size_t{16}});
+      if (t == hot) hot_read = n;
+      budget -= n;
+    }
+    if (hot_read > 0) {
+      ASSERT_FALSE(cfg.rarest_buckets_first);
+      std::size_t from_hot = 0;
+      for (std::uint32_t g : got) {
+        const bool in_hot = std::find(bucket_ids[hot].begin(), bucket_ids[hot].end(), g) != bucket_ids[hot].end();
+        from_hot += in_hot;
+        if (!in_hot) {
+          EXPECT_TRUE(expected.count(g)) << "trial " << trial << ": id " << g;
+        }
+      }
+      EXPECT_EQ(from_hot, hot_read) << "trial " << trial;
+      EXPECT_EQ(got.size(), cfg.max_candidates) << "trial " << trial;
+      continue;
+    }
+    EXPECT_EQ(std::set<std::uint32_t>(got.begin(), got.end()), expected) << "trial " << trial;
+    EXPECT_EQ(q.candidates_touched, expected.size());
+  }
 }
 
 TEST(LshDatabase, AKeyInsertsAndQueriesAsItsDescriptorDoes) {

@@ -19,6 +19,7 @@
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/eval/place_recall.hpp"
 #include "lshloc/eval/run_config_json.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "option_checks.hpp"
 
 namespace lshloc::app {
@@ -58,15 +59,7 @@ nlohmann::json run_recall(const GlobalOptions& global, const RecallOptions& opt)
       {"mean_distinct_candidates", r.mean_distinct_candidates},
       {"lsh_buckets", r.lsh.buckets},
       {"lsh_bytes_per_entry", r.lsh.bytes_per_entry()},
-      {"lsh",
-       {{"K", opt.lsh.K},
-        {"L", opt.lsh.L},
-        {"w", opt.lsh.w},
-        {"bucket_capacity", opt.lsh.bucket_capacity},
-        {"max_candidates", opt.lsh.max_candidates},
-        {"seed", opt.lsh.seed},
-        {"sketch_bits", opt.lsh.sketch_bits},
-        {"sketch_collision_weight", opt.lsh.sketch_collision_weight}}},
+      {"lsh", nlohmann::json(opt.lsh)},
   };
   if (opt.exact) {
     out["exact_recall_at_1"] = r.exact_recall_at_1;

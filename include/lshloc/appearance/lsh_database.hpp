@@ -33,6 +33,11 @@ struct LshConfig {
   std::size_t bucket_capacity = 64;
   /// A query counts at most this many bucket entries over all tables.
   std::size_t max_candidates = 600;
+  /// Read the query's buckets least-filled first (by ids ever given), not in
+  /// table order: when max_candidates stops the reading, the buckets left
+  /// unread are the crowded ones, where a full bucket's sample is least
+  /// likely to hold the true place.
+  bool rarest_buckets_first = true;
   /// 0: candidates are ranked by collision count alone (buckets hold ids
   /// only). Else each entry also keeps a sign sketch of this many bits
   /// (multiple of 64; random Gaussian hyperplanes, seeded) under its id, and
@@ -197,7 +202,7 @@ class LshDatabase {
   struct Slot {
     std::uint32_t tag = 0;         ///< 32-bit hash of the K-tuple
     std::uint32_t offset = 0;      ///< first id of the bucket's block in the table's pool
-    std::uint32_t inserted = 0;    ///< ids ever pushed (0: empty slot); kept in [cap, 2 cap) once full
+    std::uint32_t inserted = 0;    ///< ids ever pushed (0: empty slot), saturating at 2^32 - 1
     std::uint32_t size_class = 0;  ///< the block holds 2^size_class ids
   };
   struct Table {
