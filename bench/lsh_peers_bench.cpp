@@ -128,13 +128,15 @@ class LshlocIndex : public Index {
   std::string name_;
 };
 
-/// lshloc's settings for a map of a million features or more: finer buckets
-/// (K = 20 instead of 12) overflow far less, so a place's entries survive in
-/// them, and a larger candidate budget reads them (docs/results/appearance.md
-/// "Recall at a million entries").
+/// lshloc's settings for a map of a million features or more
+/// (examples/config/large-map.json): finer buckets (K = 20 instead of 12)
+/// overflow far less, so a place's entries survive in them, a larger
+/// candidate budget reads them, and a finer sketch ranks them
+/// (docs/results/appearance.md "Recall at a million entries").
 lshloc::LshConfig fine_buckets(lshloc::LshConfig c) {
   c.K = 20;
   c.max_candidates = 2000;
+  c.sketch_bits = 256;
   return c;
 }
 

@@ -82,16 +82,18 @@ TEST(ConfigJson, MistakesNameTheSourceAndTheKey) {
             std::string::npos);
 }
 
-TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndNothingElse) {
+TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndSketchAndNothingElse) {
   ScenarioRunConfig c;
   const std::string path = std::string(LSHLOC_SOURCE_DIR) + "/examples/config/large-map.json";
   io::apply_config_patch(io::read_json_file(path), c, path);
   EXPECT_EQ(c.map.database.K, 20u);
   EXPECT_EQ(c.map.database.max_candidates, 2000u);
+  EXPECT_EQ(c.map.database.sketch_bits, 256u);
   EXPECT_NO_THROW(c.map.database.validate());
   nlohmann::json expected = ScenarioRunConfig{};
   expected["map"]["database"]["K"] = 20;
   expected["map"]["database"]["max_candidates"] = 2000;
+  expected["map"]["database"]["sketch_bits"] = 256;
   EXPECT_EQ(nlohmann::json(c), expected);
 }
 

@@ -235,6 +235,7 @@ class LshDatabase {
   void rerank_by_sketch(std::span<const std::uint64_t> query_sketch, LshQuery& q) const;
 
   LshConfig config_;
+  bool hardware_popcount_ = false;  ///< the sketch distances use the popcnt instruction
   /// (K L x 120) Gaussian projections, already divided by w.
   Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> a_;
   Eigen::VectorXf b_;  ///< offsets / w, uniform in [0, 1)
