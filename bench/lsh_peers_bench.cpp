@@ -21,7 +21,7 @@
 // one), lshloc's own count for its rows (its big tables are mapped outside
 // malloc).
 //
-// Indexes: lshloc (its defaults), lshloc-fine (K = 20, 2000 candidates: the
+// Indexes: lshloc (its defaults), lshloc-fine (K = 20, 2000 candidates, 256-bit sketch: the
 // setting for maps of 1e6 entries and more), hnswlib, faiss-hnsw, faiss-lsh, flann.
 //
 //   lsh_peers_bench [--sizes 10000,100000,1000000] [--only lshloc,lshloc-fine,hnswlib,...]
