@@ -350,13 +350,15 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     q.blocks_.emplace_back(static_cast<std::uint32_t>(t), static_cast<std::uint32_t>(i));
   }
   if (config_.rarest_buckets_first) {
-    // At most L blocks: an insertion sort, stable, so ties keep table order.
+    // At most L blocks: an insertion sort (stable, so ties keep table order;
+    // no allocation, unlike std::stable_sort).
+    const auto given = [&](std::pair<std::uint32_t, std::uint32_t> block) {
+      return tables_[block.first].slots[block.second].inserted;
+    };
     for (std::size_t a = 1; a < q.blocks_.size(); ++a) {
       const auto block = q.blocks_[a];
-      const std::uint32_t given = tables_[block.first].slots[block.second].inserted;
       std::size_t b = a;
-      for (; b > 0 && tables_[q.blocks_[b - 1].first].slots[q.blocks_[b - 1].second].inserted > given; --b)
-        q.blocks_[b] = q.blocks_[b - 1];
+      for (; b > 0 && given(q.blocks_[b - 1]) > given(block); --b) q.blocks_[b] = q.blocks_[b - 1];
       q.blocks_[b] = block;
     }
   }
