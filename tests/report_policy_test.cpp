@@ -311,18 +311,24 @@ TEST(ReportPolicy, AChallengerThatLosesTheDuelDoesNotMoveTheEstimate) {
   EXPECT_NEAR(e.mean_score, 0.6, 1e-9);
 }
 
-TEST(ReportPolicy, AWellSupportedPlaceYieldsOnlyToASupportedChallenger) {
-  FakeSample sample;
+TEST(ReportPolicy, AWellSupportedPlaceYieldsToAnUnsupportedChallengerOnlyOnALargeLead) {
+  // b wins the duel, but iRANSAC has scored it on 100 points only: with the
+  // rule it needs a lead of unsupported_challenger_margin (0.1), not
+  // duel_margin (0.03), to move the estimate; without it any win moves it.
   const Hypothesis a = at(0, 0.0), b = at(1, 0.0);
-  sample.score_of = [&](const Hypothesis& h) { return h.submap == 1 ? 0.9 : 0.1; };
-  for (const bool rule : {true, false}) {
-    ReportPolicyConfig config = plain();
-    config.confidence.challenger_needs_support = rule;
-    ReportPolicy policy(config, kPreference);
-    step(policy, {scored(a, 0.5, 1000)}, sample);  // a is well supported
-    // b wins the duel by far but iRANSAC has scored it on 100 points only.
-    const LocalizationEstimate e = step(policy, {scored(b, 0.9, 100)}, sample);
-    EXPECT_EQ(e.submap, rule ? 0u : 1u) << "challenger_needs_support " << rule;
+  for (const double lead : {0.08, 0.3}) {
+    for (const bool rule : {true, false}) {
+      FakeSample sample;
+      sample.score_of = [&](const Hypothesis& h) { return h.submap == 1 ? 0.2 + lead : 0.2; };
+      ReportPolicyConfig config = plain();
+      config.confidence.challenger_needs_support = rule;
+      ASSERT_EQ(config.confidence.unsupported_challenger_margin, 0.1);
+      ReportPolicy policy(config, kPreference);
+      step(policy, {scored(a, 0.5, 1000)}, sample);  // a is well supported
+      const LocalizationEstimate e = step(policy, {scored(b, 0.9, 100)}, sample);
+      const bool moves = !rule || lead > 0.1;
+      EXPECT_EQ(e.submap, moves ? 1u : 0u) << "challenger_needs_support " << rule << ", lead " << lead;
+    }
   }
 }
 

@@ -36,6 +36,9 @@ void ReportPolicyConfig::validate() const {
           confidence.rise_supported_scans);
   require(confidence.newest_points <= 1000000, "ReportPolicyConfig.confidence.newest_points", "<= 1e6",
           confidence.newest_points);
+  require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
+          "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
+          confidence.unsupported_challenger_margin);
   require(std::isfinite(confidence.rise_min_whole_map_lead), "ReportPolicyConfig.confidence.rise_min_whole_map_lead",
           "a finite number", confidence.rise_min_whole_map_lead);
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
@@ -96,7 +99,7 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
   };
   const bool may_win = !reported_supported_ || !cc.challenger_needs_support || supported(*best);
   const Duel d = duel(best->hypothesis, incumbents, 0, sample);
-  bool won = may_win && wins(d, cc.duel_margin);
+  bool won = wins(d, may_win ? cc.duel_margin : std::max(cc.duel_margin, cc.unsupported_challenger_margin));
   if (!won && may_win && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
     // iRANSAC dropped every hypothesis at the reported place: only the duel
     // holds it there, on old scans that the local map's drift may have bent.

@@ -72,6 +72,13 @@ struct ConfidenceConfig {
   /// where the mappers barely went) otherwise takes over on a small lead
   /// without ever being well supported itself (RESULTS.md, design choices).
   bool challenger_needs_support = true;
+  /// ... or for one that leads it by this much in the whole-map duel (same
+  /// points): a place whose fit has decayed (a 180-degree look-alike the
+  /// robot drove out of) otherwise holds against a true place that scores
+  /// below min_mean_score in a building mapped that thinly (fr079 start
+  /// 414). The look-alike this rule stops led by 0.044 (RESULTS.md). Above 2
+  /// (scores lie in [-1, 1]): never.
+  double unsupported_challenger_margin = 0.1;
   double same_place_m = 1.0;     ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
   /// The newest-scan fit: the reported place scored on this many of the
