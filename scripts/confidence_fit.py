@@ -49,7 +49,8 @@ def load(trace_dir):
                 truth = r["error_m"] != ""
                 err = float(r["error_m"]) if truth else math.nan
                 head = float(r["heading_error_deg"]) if truth and r["heading_error_deg"] != "" else math.nan
-                scans.append({"x": features(r) if has else None, "truth": truth, "err": err,
+                scans.append({"lead": float(r.get("whole_map_lead") or 0.0) if has else 0.0,
+                              "x": features(r) if has else None, "truth": truth, "err": err,
                               "right": truth and has and err <= 2.0 and head <= 10.0,
                               "correct": truth and has and err < 1.0})
         runs.append((building, path, scans))
@@ -134,10 +135,11 @@ def value_flag(w, up, hold):
 
 
 def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
-                  unsupported_hold=20):
+                  unsupported_hold=20, rise_lead=math.inf):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
-    hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans)
-    replayed from a trace's evidence columns."""
+    hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans,
+    rise_margin_whole_map_lead) replayed from a trace's evidence columns (a trace scores the whole-map
+    lead on every scan)."""
     def rule(s, flag, state):
         x = s["x"]
         if x is None:
@@ -158,8 +160,8 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
             state["run"] = 0
         penalty = 0.5 * (evidence - fit)
         state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
-        rises = (stable > 0 and supported > 0 and state["run"] >= state["needs"] and margin >= min_margin
-                 and fit >= rise_fit)
+        rises = (stable > 0 and supported > 0 and state["run"] >= state["needs"]
+                 and (margin >= min_margin or s["lead"] >= rise_lead) and fit >= rise_fit)
         held = flag and kept and place_supported > 0 and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
         return rises or held
     return rule
@@ -229,6 +231,8 @@ def main():
     ap.add_argument("--smoothing", type=float, default=0.3)
     ap.add_argument("--rise-supported-scans", type=int, default=3)
     ap.add_argument("--unsupported-hold-scans", type=int, default=20)
+    ap.add_argument("--rise-lead", type=float, default=0.25,
+                    help="the whole-map lead that also passes the rise's margin test (inf: off)")
     a = ap.parse_args()
     runs = load(a.trace_dir)
     train = set(a.train.split(","))
@@ -244,7 +248,8 @@ def main():
     print("weights (" + ", ".join(FEATURES) + "): " + ",".join(f"{v:.4f}" for v in w))
     flag_rule = (value_flag(w, a.up, a.hold) if a.flag == "value" else
                  evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
-                               supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans))
+                               supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans,
+                               rise_lead=a.rise_lead))
     buildings = sorted({b for b, _, _ in runs})
     everything = []
     for b in buildings:

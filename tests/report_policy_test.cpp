@@ -243,6 +243,33 @@ TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresEveryPlaceWeakl
   EXPECT_FALSE(e.localized);
 }
 
+TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
+  // A supported place whose C/N leads a rival elsewhere by 0.05 only (under
+  // min_margin, 0.15): the flag rises once the place leads the rival by
+  // rise_margin_whole_map_lead (0.25) on the same whole-map points.
+  const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
+  const std::vector<ScoredHypothesis> active{scored(place, 0.5, 1000), scored(rival, 0.45, 1000)};
+  const auto flag_after = [&](ReportPolicyConfig config, double rival_score) {
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.5 : rival_score; };
+    LocalizationEstimate e;
+    for (std::size_t i = 0; i < config.confidence.stable_scans + 2; ++i) e = step(policy, active, sample);
+    EXPECT_TRUE(e.supported);
+    EXPECT_NEAR(e.margin, 0.05, 1e-9);
+    return e;
+  };
+  ASSERT_EQ(plain().confidence.rise_margin_whole_map_lead, 0.25);
+  // Risen on the lead, then held (the hold does not need the comparison).
+  EXPECT_TRUE(flag_after(plain(), 0.2).localized);
+  const LocalizationEstimate e = flag_after(plain(), 0.3);  // a lead of 0.2, compared on every scan
+  EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
+  EXPECT_FALSE(e.localized);
+  ReportPolicyConfig never = plain();
+  never.confidence.rise_margin_whole_map_lead = 3.0;
+  EXPECT_FALSE(flag_after(never, 0.2).localized);
+}
+
 TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {
   // Weights on the bias, C/N and the newest-scan fit only: the value is
   // 1 / (1 + exp(-(w0 + w1 C/N + w8 newest_fit))).

@@ -39,6 +39,9 @@ void ReportPolicyConfig::validate() const {
   require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
           "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
           confidence.unsupported_challenger_margin);
+  require(std::isfinite(confidence.rise_margin_whole_map_lead),
+          "ReportPolicyConfig.confidence.rise_margin_whole_map_lead", "a finite number",
+          confidence.rise_margin_whole_map_lead);
   require(std::isfinite(confidence.rise_min_whole_map_lead), "ReportPolicyConfig.confidence.rise_min_whole_map_lead",
           "a finite number", confidence.rise_min_whole_map_lead);
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
@@ -209,12 +212,23 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   for (std::size_t i = 0; i < f.size(); ++i) z += cc.value_weights[i] * f[i];
   e.confidence = 1.0 / (1.0 + std::exp(-z));
   const bool newest_known = cc.newest_points > 0 && sample_has_newest;
-  const bool rise_but_support =
-      stable && e.margin >= cc.min_margin && (!newest_known || e.newest_fit >= cc.rise_min_newest_fit);
+  // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
+  const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;
+  mean_contradiction_ =
+      flag_ ? (1.0 - cc.contradiction_smoothing) * mean_contradiction_ + cc.contradiction_smoothing * contradiction
+            : contradiction;
+  const bool held = flag_ && kept && reported_supported_ && contradiction <= cc.hold_max_contradiction &&
+                    mean_contradiction_ <= cc.hold_max_mean_contradiction;
+  const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit;
+  const bool rise_but_support = stable && e.margin >= cc.min_margin && newest_fits;
   const bool relative_support_decides = rise_but_support && !e.supported && cc.rise_on_whole_map_lead &&
                                         best->scored >= cc.min_scored && cc.whole_map_points > 0;
+  const bool support_holds = e.supported && supported_run_ >= run_needs_;
+  // Only where it decides the flag: a held flag needs no rise.
+  const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.margin < cc.min_margin &&
+                                   cc.whole_map_points > 0 && cc.rise_margin_whole_map_lead <= 2.0;
   bool whole_map_known = false;
-  if (cc.whole_map_points > 0 && (cc.always_score_whole_map || relative_support_decides)) {
+  if (cc.whole_map_points > 0 && (cc.always_score_whole_map || relative_support_decides || lead_decides_margin)) {
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
     whole_map_known = taken > 0;
     if (taken > 0) {
@@ -224,16 +238,9 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       e.whole_map_lead = rival ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   }
-  const bool rises = rise_but_support &&
-                     ((e.supported && supported_run_ >= run_needs_) ||
-                      (relative_support_decides && whole_map_known && e.whole_map_lead >= cc.rise_min_whole_map_lead));
-  // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
-  const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;
-  mean_contradiction_ =
-      flag_ ? (1.0 - cc.contradiction_smoothing) * mean_contradiction_ + cc.contradiction_smoothing * contradiction
-            : contradiction;
-  const bool held = flag_ && kept && reported_supported_ && contradiction <= cc.hold_max_contradiction &&
-                    mean_contradiction_ <= cc.hold_max_mean_contradiction;
+  const bool rises = (rise_but_support && (support_holds || (relative_support_decides && whole_map_known &&
+                                                             e.whole_map_lead >= cc.rise_min_whole_map_lead))) ||
+                     (lead_decides_margin && whole_map_known && e.whole_map_lead >= cc.rise_margin_whole_map_lead);
   flag_ = rises || held;
   e.localized = flag_;
   return e;
