@@ -211,17 +211,25 @@ TEST(ReportPolicy, TheWholeMapLeadComparesTheReportedPlaceAndItsRivalOnTheSamePo
   EXPECT_EQ(e.whole_map_lead, 0.0);
 }
 
+/// The estimate after stable_scans + 2 scans of `active`, the sample scoring
+/// every hypothesis in `place_submap` `place_score` and any other `other_score`.
+LocalizationEstimate after_steady_scans(const ReportPolicyConfig& config, const std::vector<ScoredHypothesis>& active,
+                                        std::uint32_t place_submap, double place_score, double other_score) {
+  ReportPolicy policy(config, kPreference);
+  FakeSample sample;
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == place_submap ? place_score : other_score; };
+  LocalizationEstimate e;
+  for (std::size_t i = 0; i < config.confidence.stable_scans + 2; ++i) e = step(policy, active, sample);
+  return e;
+}
+
 TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresEveryPlaceWeakly) {
   // C/N 0.3 is under min_mean_score (0.35): only a clear lead over the rival
   // on the same whole-map points lets the flag rise.
   const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
   const std::vector<ScoredHypothesis> active{scored(place, 0.3, 1000), scored(rival, 0.1, 1000)};
-  const auto flag_after = [&](ReportPolicyConfig config, double rival_score) {
-    ReportPolicy policy(config, kPreference);
-    FakeSample sample;
-    sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.3 : rival_score; };
-    LocalizationEstimate e;
-    for (std::size_t i = 0; i < config.confidence.stable_scans + 2; ++i) e = step(policy, active, sample);
+  const auto flag_after = [&](const ReportPolicyConfig& config, double rival_score) {
+    const LocalizationEstimate e = after_steady_scans(config, active, place.submap, 0.3, rival_score);
     EXPECT_FALSE(e.supported);
     EXPECT_FALSE(e.place_supported);
     return e;
@@ -249,12 +257,8 @@ TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
   // rise_margin_whole_map_lead (0.25) on the same whole-map points.
   const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
   const std::vector<ScoredHypothesis> active{scored(place, 0.5, 1000), scored(rival, 0.45, 1000)};
-  const auto flag_after = [&](ReportPolicyConfig config, double rival_score) {
-    ReportPolicy policy(config, kPreference);
-    FakeSample sample;
-    sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.5 : rival_score; };
-    LocalizationEstimate e;
-    for (std::size_t i = 0; i < config.confidence.stable_scans + 2; ++i) e = step(policy, active, sample);
+  const auto flag_after = [&](const ReportPolicyConfig& config, double rival_score) {
+    const LocalizationEstimate e = after_steady_scans(config, active, place.submap, 0.5, rival_score);
     EXPECT_TRUE(e.supported);
     EXPECT_NEAR(e.margin, 0.05, 1e-9);
     return e;
