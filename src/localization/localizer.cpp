@@ -204,12 +204,14 @@ void Localizer::retrieve_hypotheses(const std::vector<Feature>& features) {
   // ahead so that their cache misses overlap.
   constexpr std::size_t kAhead = 16;
   for (std::size_t i = 0; i < std::min(kAhead, budget); ++i) __builtin_prefetch(&store[candidates_[i].id]);
+  feature_inverses_.clear();
+  for (const Feature& feature : features) feature_inverses_.push_back(feature.pose.inverse());
   for (std::size_t i = 0; i < budget; ++i) {
     if (i + kAhead < budget) __builtin_prefetch(&store[candidates_[i + kAhead].id]);
     const MapLocation& loc = store[candidates_[i].id];
     const std::uint32_t f = candidates_[i].feature;
     if (f < features.size()) {
-      hypotheses_.push_back(hypothesis_from_correspondence(loc.submap, loc.pose(), features[f].pose));
+      hypotheses_.push_back(hypothesis_from_inverse(loc.submap, loc.pose(), feature_inverses_[f]));
     } else {
       const SeenFeature& seen = newly_mapped_seen_[f - features.size()];
       newly_mapped_hypotheses_.push_back(

@@ -14,10 +14,14 @@ double radians(double deg) { return deg * std::numbers::pi / 180.0; }
 
 }  // namespace
 
-bool same_place(const Hypothesis& a, const Hypothesis& b, const Pose2& local, double dist_m, double angle_rad) {
+bool same_place(const Hypothesis& a, const RobotPlace& b, const Pose2& local, double dist_m, double angle_rad) {
   if (a.submap != b.submap) return false;
-  const Pose2 pa = a.T_submap_local * local, pb = b.T_submap_local * local;
-  return translation_distance(pa, pb) <= dist_m && angle_distance(pa.theta, pb.theta) <= angle_rad;
+  const Pose2 pa = a.T_submap_local * local;
+  return translation_distance(pa, b.robot) <= dist_m && angle_distance(pa.theta, b.robot.theta) <= angle_rad;
+}
+
+bool same_place(const Hypothesis& a, const Hypothesis& b, const Pose2& local, double dist_m, double angle_rad) {
+  return a.submap == b.submap && same_place(a, RobotPlace(b, local), local, dist_m, angle_rad);
 }
 
 std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P, double step_m, double step_rad) {
@@ -79,9 +83,10 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
   // Hysteresis: keep reporting the place of the last estimate while its best
   // hypothesis is within switch_margin of the overall best.
   const ScoredHypothesis* incumbent = nullptr;
+  const RobotPlace reported_place(*reported_, local_pose);
   for (const ScoredHypothesis& h : active) {
     if (h.score < ransac_.min_score || h.scored == 0) continue;
-    if (!same_place(h.hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) continue;
+    if (!same_place(h.hypothesis, reported_place, local_pose, cc.same_place_m, same_angle)) continue;
     if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
   }
   if (incumbent != nullptr) anchor_ = incumbent->hypothesis;
@@ -160,9 +165,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   // The best competitor elsewhere: another submap, or more than 2 m away.
   // Only a positive mean score counts as a rival.
   const ScoredHypothesis* rival = nullptr;
+  const RobotPlace best_place(best->hypothesis, local_pose);
   for (const ScoredHypothesis& h : active) {
     if (h.score < ransac_.min_score || h.scored == 0) continue;
-    if (same_place(h.hypothesis, best->hypothesis, local_pose, 2.0, std::numbers::pi)) continue;
+    if (same_place(h.hypothesis, best_place, local_pose, 2.0, std::numbers::pi)) continue;
     if (h.mean_score() > (rival ? rival->mean_score() : 0.0)) rival = &h;
   }
   e.margin = e.mean_score - (rival ? rival->mean_score() : 0.0);

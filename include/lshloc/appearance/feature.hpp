@@ -40,9 +40,14 @@ struct Hypothesis {
 
 /// The hypothesis one correspondence defines: a local feature pose matched to
 /// a global feature pose, T_submap_local = pose_global * inverse(pose_local).
+/// With pose_local.inverse() given: a local feature matched to many global
+/// ones inverts its pose once.
+inline Hypothesis hypothesis_from_inverse(std::uint32_t submap, const Pose2& pose_global, const Pose2& local_inverse) {
+  return {submap, pose_global * local_inverse};
+}
 inline Hypothesis hypothesis_from_correspondence(std::uint32_t submap, const Pose2& pose_global,
                                                  const Pose2& pose_local) {
-  return {submap, pose_global * pose_local.inverse()};
+  return hypothesis_from_inverse(submap, pose_global, pose_local.inverse());
 }
 
 }  // namespace lshloc

@@ -198,6 +198,7 @@ class Localizer {
   std::unique_ptr<DataPointSample> sample_;
   // Scratch reused between scans.
   std::vector<std::uint32_t> ids_;
+  std::vector<Pose2> feature_inverses_;  ///< the current scan's feature poses, inverted
   std::vector<std::uint16_t> counts_;
   struct Candidate {
     std::uint16_t count;

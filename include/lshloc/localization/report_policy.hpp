@@ -316,4 +316,13 @@ std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P,
 /// large translations.
 bool same_place(const Hypothesis& a, const Hypothesis& b, const Pose2& local, double dist_m, double angle_rad);
 
+/// b of same_place() as it compares it: the robot's pose under b. A loop
+/// that compares every active hypothesis with one place computes it once.
+struct RobotPlace {
+  std::uint32_t submap = 0;
+  Pose2 robot;  ///< b.T_submap_local * local
+  RobotPlace(const Hypothesis& b, const Pose2& local) : submap(b.submap), robot(b.T_submap_local * local) {}
+};
+bool same_place(const Hypothesis& a, const RobotPlace& b, const Pose2& local, double dist_m, double angle_rad);
+
 }  // namespace lshloc
