@@ -38,13 +38,13 @@ struct Hypothesis {
   Pose2 T_submap_local;
 };
 
-/// The hypothesis one correspondence defines: a local feature pose matched to
-/// a global feature pose, T_submap_local = pose_global * inverse(pose_local).
-/// With pose_local.inverse() given: a local feature matched to many global
-/// ones inverts its pose once.
+/// hypothesis_from_correspondence() with pose_local.inverse() given: a local
+/// feature matched to many global ones inverts its pose once.
 inline Hypothesis hypothesis_from_inverse(std::uint32_t submap, const Pose2& pose_global, const Pose2& local_inverse) {
   return {submap, pose_global * local_inverse};
 }
+/// The hypothesis one correspondence defines: a local feature pose matched to
+/// a global feature pose, T_submap_local = pose_global * inverse(pose_local).
 inline Hypothesis hypothesis_from_correspondence(std::uint32_t submap, const Pose2& pose_global,
                                                  const Pose2& pose_local) {
   return hypothesis_from_inverse(submap, pose_global, pose_local.inverse());
