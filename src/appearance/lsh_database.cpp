@@ -346,7 +346,12 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     std::size_t i = home(tag, table.bits);
     while (table.slots[i].inserted != 0 && table.slots[i].tag != tag) i = (i + 1) & mask;
     if (table.slots[i].inserted == 0) continue;
-    __builtin_prefetch(table.pool.data() + table.slots[i].offset);
+    // Every cache line of the ids the query will read, not only the first:
+    // in a big map the block is in memory, and the lines after it miss too.
+    const Slot& slot = table.slots[i];
+    const std::size_t ids =
+        std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, config_.max_candidates});
+    for (std::size_t n = 0; n < ids; n += 16) __builtin_prefetch(table.pool.data() + slot.offset + n);
     q.blocks_.emplace_back(static_cast<std::uint32_t>(t), static_cast<std::uint32_t>(i));
   }
   if (config_.rarest_buckets_first) {
@@ -381,6 +386,8 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
         q.slot_id_[s] = id;
         q.slot_count_[s] = 0;
         q.found_.push_back(s);
+        // Its sketch is read when ranking: asked for now, the miss overlaps the counting.
+        if (id < sketch_ids_) __builtin_prefetch(sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
       }
       ++q.slot_count_[s];
     }
@@ -430,10 +437,6 @@ void LshDatabase::rerank_by_sketch(std::span<const std::uint64_t> query_sketch, 
   // descriptors (unit vectors: monotone in L2). A stable counting sort by it
   // keeps the collision-count order among equal distances.
   const std::size_t n = q.ranked_.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t id = q.slot_id_[q.ranked_[i]];
-    if (id < sketch_ids_) __builtin_prefetch(sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
-  }
   q.hamming_.resize(n);
   const std::size_t weight = config_.sketch_collision_weight;
   const std::size_t max_distance = 64 * sketch_words_ + weight * config_.L;
