@@ -130,6 +130,61 @@ TEST(FreeSpaceGrid, SnapshotsReloadBitIdenticalEitherWay) {
   EXPECT_EQ(from_grid.probe(2, -400.0, 500.0), cell_flags::kFree);
 }
 
+TEST(FreeSpaceGrid, APoseCellHintCoversEveryPointOfItsPoseCell) {
+  // A pose grid of 0.2 m cells over this grid's 0.25 m: whatever point a
+  // scorer puts in pose cell (ix, iy) (float arithmetic, as PoseGridScorer),
+  // the cell it finds here carries the hint, out to the grid's limits.
+  FreeSpaceGrid grid(kConfig);
+  EXPECT_THROW(grid.note_pose_cell(0, 0, 0), Error);
+  EXPECT_FALSE(FreeSpaceGrid(kConfig).track_pose_cells(0.3)) << "pose cells larger than ours";
+  ASSERT_TRUE(grid.track_pose_cells(0.2));
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coordinate(-13100.0, 13100.0), unit(0.0, 1.0);
+  std::size_t checked = 0;
+  for (int i = 0; i < 4000; ++i) {
+    const std::uint32_t submap = static_cast<std::uint32_t>(i % 3);
+    const auto ix = static_cast<std::int32_t>(std::floor(coordinate(rng) / 0.2));
+    const auto iy = static_cast<std::int32_t>(std::floor((i % 2 == 0 ? coordinate(rng) : 50.0 * unit(rng)) / 0.2));
+    grid.note_pose_cell(submap, ix, iy);
+    // Points at both ends of the cell's float span, and inside it.
+    for (const double u : {0.0, 1e-7, 0.5, 1.0 - 1e-7, unit(rng)}) {
+      const float x = static_cast<float>((ix + u) * 0.2), y = static_cast<float>((iy + 1.0 - u) * 0.2);
+      const auto pose_cell = [](float v) { return static_cast<std::int32_t>(std::floor(v * 5.0f)); };
+      if (pose_cell(x) != ix || pose_cell(y) != iy) continue;  // float put it in the next pose cell
+      const auto own = [](float v) { return static_cast<std::int32_t>(std::floor(v * 4.0f)); };
+      ASSERT_NE(grid.lookup({submap, own(x), own(y), 0}) & cell_flags::kPoseCell, 0)
+          << "pose cell (" << ix << ", " << iy << ") point (" << x << ", " << y << ")";
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 8000u);
+}
+
+TEST(FreeSpaceGrid, PoseCellHintsAreNeitherSavedNorCounted) {
+  FreeSpaceGrid plain(kConfig), hinted(kConfig);
+  ASSERT_TRUE(hinted.track_pose_cells(0.2));
+  std::int32_t i = 0;
+  for (const Mark& m : walks(20000, 12)) {
+    plain.mark(m.submap, m.x, m.y, m.flags);
+    hinted.mark(m.submap, m.x, m.y, m.flags);
+    // Hints on marked cells, and far from any mark (tiles of hints only).
+    hinted.note_pose_cell(m.submap, static_cast<std::int32_t>(m.x / 0.2), static_cast<std::int32_t>(m.y / 0.2));
+    hinted.note_pose_cell(m.submap, 20000 + i % 50, -20000 - i / 50), ++i;
+  }
+  EXPECT_EQ(snapshot_of(hinted), snapshot_of(plain));
+  EXPECT_EQ(hinted.stats().bins_used, plain.stats().bins_used);
+  EXPECT_EQ(hinted.stats().marks, plain.stats().marks);
+  const auto bytes = snapshot_of(hinted);
+  FreeSpaceGrid back(kConfig);
+  ByteReader in(bytes, "hinted");
+  back.read_snapshot(in, 4);
+  EXPECT_FALSE(back.tracks_pose_cells());
+  EXPECT_NE(hinted.lookup({0, 16000, -16000, 0}) & cell_flags::kPoseCell, 0);  // pose cell (20000, -20000)
+  EXPECT_EQ(back.lookup({0, 16000, -16000, 0}), 0) << "a hint only: not saved";
+  for (const Mark& m : walks(2000, 12))
+    EXPECT_EQ(back.probe(m.submap, m.x, m.y), hinted.probe(m.submap, m.x, m.y) & ~cell_flags::kPoseCell);
+}
+
 TEST(FreeSpaceGrid, RejectsWhatItCannotHold) {
   FreeSpaceGrid grid(kConfig);
   EXPECT_THROW(grid.mark(0, 0.25 * 70000, 0.0, cell_flags::kFree), Error);  // beyond +-65536 cells

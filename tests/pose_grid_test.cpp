@@ -418,6 +418,67 @@ TEST(PoseGridScorer, ScorePairsEqualsOneCallPerPairProbing) {
   check_score_pairs(ToleranceMode::kProbeNeighbours, 1, 1);
 }
 
+/// A free-space grid with pose-cell hints must score exactly as one without:
+/// the hints only skip pose-grid lookups that would have found nothing.
+void check_pose_cell_hints(int xy_tol, double origin) {
+  PoseGridConfig cfg;
+  cfg.xy_tolerance = xy_tol;
+  PoseGridHashMap occupancy(cfg);
+  const PoseGridConfig free_cfg{.cell_size = 0.25, .theta_bins = 1, .xy_tolerance = 0, .theta_tolerance = 0};
+  FreeSpaceGrid plain(free_cfg), hinted(free_cfg);
+  ASSERT_TRUE(hinted.track_pose_cells(cfg.cell_size));
+  auto marks = random_marks(4000, 51);
+  for (auto& m : marks) m.x += origin, m.y -= origin;
+  PoseGridHashMap::MarkPlan plan;
+  for (const auto& m : marks) {
+    plan.clear();
+    occupancy.plan_mark(occupancy.cell_of(m.submap, m.x, m.y, m.theta), cell_flags::kOccupied, plan);
+    occupancy.mark_planned(plan);
+    for (const auto& w : plan.writes) {
+      const PoseCell c = PoseGridHashMap::unpack_xy(w.xy);
+      hinted.note_pose_cell(c.submap, c.ix, c.iy);
+    }
+    for (FreeSpaceGrid* g : {&plain, &hinted}) {
+      g->mark(m.submap, m.x, m.y, cell_flags::kReturn | cell_flags::kNormal);
+      g->mark(m.submap, m.x + 0.9, m.y - 0.4, m.flags);
+      g->mark(m.submap, m.x - 0.6, m.y + 0.5, cell_flags::kReturn);  // a bare return
+    }
+  }
+  std::mt19937 rng(52);
+  std::uniform_real_distribution<double> th(-kPi, kPi), local(-2.0, 2.0);
+  std::vector<Hypothesis> hypotheses;
+  for (std::size_t j = 0; j < 203; ++j) {  // on marks (hits), beside them and anywhere
+    const auto& m = marks[j];
+    const double off = j % 3 == 0 ? 0.0 : local(rng);
+    hypotheses.push_back({m.submap, Pose2(m.x + off, m.y - off, j % 3 == 2 ? th(rng) : m.theta)});
+  }
+  HypothesisBatchBuffer buffer;
+  const HypothesisBatch v = buffer.assign(hypotheses);
+  const PoseGridScorerConfig config = distinct_scores();
+  PoseGridScorer with(occupancy, hinted, config), without(occupancy, plain, config);
+  std::vector<float> a(v.size), b(v.size);
+  std::size_t hits = 0, surface_on_return = 0, other = 0;
+  for (int k = 0; k < 300; ++k) {
+    const float near = k % 2 == 0 ? 0.0f : 1.0f;  // half on the hypothesis' own mark
+    const LocalPoint x{near * static_cast<float>(local(rng)), near * static_cast<float>(local(rng)),
+                       near * static_cast<float>(th(rng)), LocalPoint::Kind::kSurface};
+    with(x, v, a.data());
+    without(x, v, b.data());
+    for (std::size_t j = 0; j < v.size; ++j) {
+      ASSERT_EQ(a[j], b[j]) << "point " << k << " hypothesis " << j;
+      hits += a[j] == config.hit, surface_on_return += a[j] == config.surface_on_return, other += a[j] == 0.0f;
+    }
+  }
+  EXPECT_GT(hits, 1000u);
+  EXPECT_GT(surface_on_return, 100u);
+  EXPECT_GT(other, 1000u);
+  EXPECT_EQ(with.lookups(), without.lookups());
+}
+
+TEST(PoseGridScorer, PoseCellHintsChangeNoScore) { check_pose_cell_hints(0, 0.0); }
+TEST(PoseGridScorer, PoseCellHintsChangeNoScoreFarOut) { check_pose_cell_hints(0, 13000.0); }
+TEST(PoseGridScorer, PoseCellHintsChangeNoScoreDilatingInXY) { check_pose_cell_hints(1, 0.0); }
+
 TEST(PoseGridScorer, NegativeEvidenceFromAFreeSpaceGrid) {
   // Map of submap 0: a wall along x = 5 (normal heading pi), seen by rays that
   // crossed x = 0..4 freely. The free-space grid marks the wall's cells as

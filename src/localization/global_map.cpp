@@ -45,7 +45,9 @@ GlobalMap::GlobalMap(GlobalMapConfig config)
       extractor_(config_.features),
       database_(config_.database),
       occupancy_(config_.occupancy),
-      free_space_(config_.free_space) {}
+      free_space_(config_.free_space) {
+  free_space_.track_pose_cells(config_.occupancy.cell_size);
+}
 
 std::uint32_t GlobalMap::add_submap(std::string name) {
   submaps_.push_back({std::move(name), ScanContext(config_.context_scans, config_.context_spacing), 0});
@@ -147,6 +149,15 @@ void GlobalMap::mark_free_space(std::uint32_t submap, const Point2& p, CellFlags
 
 void GlobalMap::make_planned_marks() {
   occupancy_.mark_planned(occupancy_plan_);
+  if (free_space_.tracks_pose_cells()) {
+    std::uint64_t previous = PoseGridHashMap::kInvalidXy;  // a mark's heading bins come in a row
+    for (const PoseGridHashMap::CellMark& m : occupancy_plan_.writes) {
+      if (m.xy == previous) continue;
+      previous = m.xy;
+      const PoseCell c = PoseGridHashMap::unpack_xy(m.xy);
+      free_space_.note_pose_cell(c.submap, c.ix, c.iy);
+    }
+  }
   free_space_.mark_planned(free_space_plan_);
   occupancy_plan_.clear();
   free_space_plan_.clear();
@@ -335,6 +346,10 @@ std::unique_ptr<GlobalMap> GlobalMap::from_snapshot(const GlobalMapConfig& confi
   if (map->database_.size() != map->locations_.size())
     throw Error(source + ": section database holds " + std::to_string(map->database_.size()) +
                 " entries; expected one per location (" + std::to_string(map->locations_.size()) + ")");
+  if (map->free_space_.tracks_pose_cells())
+    map->occupancy_.for_each_bin([&](std::uint32_t submap, std::int32_t ix, std::int32_t iy) {
+      map->free_space_.note_pose_cell(submap, ix, iy);
+    });
   map->recent_first_ = static_cast<std::uint32_t>(map->locations_.size());
   return map;
 }

@@ -43,7 +43,7 @@ void FreeSpaceGrid::mark_planned(const MarkPlan& plan) {
     boxes_[c.submap].add(c.ix, c.iy);
     if (used_ + 1 > table_grow_at_) set_table_capacity(table_capacity_ * 2), ++table_rehashes_;
     CellFlags& f = cell(c.submap, c.ix, c.iy);
-    used_ += f == 0 ? 1 : 0;
+    used_ += (f & ~cell_flags::kPoseCell) == 0 ? 1 : 0;
     f |= plan.flags[i];
   }
 }
@@ -56,9 +56,48 @@ void FreeSpaceGrid::mark(std::uint32_t submap, double x, double y, CellFlags fla
   mark_planned(plan);
 }
 
+bool FreeSpaceGrid::track_pose_cells(double pose_cell_size) {
+  require(pose_cell_size > 0.0 && std::isfinite(pose_cell_size), "free-space grid: the pose grid's cell size", "> 0 m",
+          pose_cell_size);
+  const double ratio = pose_cell_size * inv_cell_;
+  if (ratio > 1.0) return false;  // pose cells reaching past our limits: no hints
+  pose_cells_per_cell_ = ratio;
+  return true;
+}
+
+void FreeSpaceGrid::note_pose_cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy) {
+  if (!tracks_pose_cells()) throw Error("free-space grid: note_pose_cell() before track_pose_cells()");
+  // Pose cell i spans [i, i + 1) pose cells, so [i r, (i + 1) r) of ours; the
+  // margin of 0.01 pose cells takes in a point that float rounding put in
+  // pose cell i but just outside that span.
+  constexpr double kMargin = 0.01;
+  const double r = pose_cells_per_cell_;
+  const auto span = [&](std::int32_t i) {
+    return std::pair{cell_index((i - kMargin) * r), cell_index((i + 1 + kMargin) * r)};
+  };
+  auto [x0, x1] = span(ix);
+  auto [y0, y1] = span(iy);
+  if (submap >= PoseGridHashMap::kMaxSubmaps)
+    throw Error("free-space grid: a pose cell of submap " + std::to_string(submap) + " (limit 16383)");
+  // Our limits hold every cell a point of the pose grid can fall in (pose
+  // cells are no larger than ours); the margin may step one cell past them.
+  const auto clamp = [](std::int32_t c) {
+    return std::clamp(c, -PoseGridHashMap::kCoordBias, PoseGridHashMap::kCoordBias - 1);
+  };
+  x0 = clamp(x0), x1 = clamp(x1), y0 = clamp(y0), y1 = clamp(y1);
+  cover(submap, x0 >> kTileShift, x1 >> kTileShift, y0 >> kTileShift, y1 >> kTileShift);
+  for (std::int32_t y = y0; y <= y1; ++y)
+    for (std::int32_t x = x0; x <= x1; ++x) covered_cell(submap, x, y) |= cell_flags::kPoseCell;
+}
+
 CellFlags& FreeSpaceGrid::cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy) {
   const std::int32_t tx = ix >> kTileShift, ty = iy >> kTileShift;
   cover(submap, tx, tx, ty, ty);
+  return covered_cell(submap, ix, iy);
+}
+
+CellFlags& FreeSpaceGrid::covered_cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy) {
+  const std::int32_t tx = ix >> kTileShift, ty = iy >> kTileShift;
   const View::Directory& d = directories_[submap];
   std::uint32_t& tile =
       tile_ids_[submap][static_cast<std::size_t>(ty - d.tile_y0) * d.width + static_cast<std::size_t>(tx - d.tile_x0)];
@@ -119,12 +158,13 @@ void FreeSpaceGrid::write_snapshot(ByteWriter& out) const {
         if (tile == 0) continue;
         const CellFlags* f = cells_.data() + std::size_t{tile} * kTileCells;
         for (std::size_t k = 0; k < kTileCells; ++k) {
-          if (f[k] == 0) continue;
+          const CellFlags flags = f[k] & ~cell_flags::kPoseCell;
+          if (flags == 0) continue;
           const std::int32_t ix = ((d.tile_x0 + static_cast<std::int32_t>(q)) << kTileShift) +
                                   static_cast<std::int32_t>(k & (kTileSide - 1));
           const std::int32_t iy =
               ((d.tile_y0 + static_cast<std::int32_t>(r)) << kTileShift) + static_cast<std::int32_t>(k >> kTileShift);
-          g.cells.push_back((PoseGridHashMap::pack_xy(submap, ix, iy) << 16) | f[k]);
+          g.cells.push_back((PoseGridHashMap::pack_xy(submap, ix, iy) << 16) | flags);
         }
       }
   }
@@ -158,7 +198,7 @@ void FreeSpaceGrid::read_snapshot(ByteReader& in, std::uint32_t submap_limit) {
     if (submap >= g.boxes.size() || !g.boxes[submap].contains(ix, iy))
       in.fail("cells inside their submap's box (cell (" + std::to_string(ix) + ", " + std::to_string(iy) +
               ") of submap " + std::to_string(submap) + ")");
-    cell(submap, ix, iy) = static_cast<CellFlags>(s & 0xff);
+    cell(submap, ix, iy) |= static_cast<CellFlags>(s & 0xff);
   }
   used_ = g.cells.size();
   marks_ = g.marks;

@@ -162,7 +162,7 @@ template <class Points>
 void PoseGridScorer::score(const Points& x, LocalPoint::Kind kind, const HypothesisBatch& v, float* scores) {
   const std::size_t n = v.size;
   if (xy_.size() < n) {
-    xy_.resize(n), home_.resize(n), ix_.resize(n), iy_.resize(n), it_.resize(n), flags_.resize(n);
+    xy_.resize(n), home_.resize(n), ix_.resize(n), iy_.resize(n), it_.resize(n), flags_.resize(n), pending_.resize(n);
     fx_.resize(n), fy_.resize(n), offset_.resize(n);
   }
   if (free_space_ == nullptr) {
@@ -192,6 +192,54 @@ void PoseGridScorer::score(const Points& x, LocalPoint::Kind kind, const Hypothe
     ++misses;
   }
   lookups_ += misses;
+}
+
+void PoseGridScorer::score_surface_hinted(const HypothesisBatch& v, float* scores) {
+  // The free-space cells first (a small dense grid, mostly cached): only the
+  // points whose cell holds the pose-cell hint can hit the pose grid, whose
+  // lookups are random reads of a big table. The others score as a lookup
+  // that found nothing would have them score.
+  const std::size_t n = v.size;
+  const FreeSpaceGrid::View free = free_space_->view();
+  const std::size_t* __restrict offset = offset_.data();
+  CellFlags* __restrict flags = flags_.data();
+  std::uint32_t* __restrict pending = pending_.data();
+  for (std::size_t j = 0; j < std::min(kAhead, n); ++j) free.prefetch(offset[j]);
+  const float hit = config_.hit, empty = value_[0];
+  std::size_t m = 0, misses = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (j + kAhead < n) free.prefetch(offset[j + kAhead]);
+    const CellFlags f = free.at(offset[j]);
+    flags[j] = f;
+    if ((f & cell_flags::kPoseCell) != 0) {
+      pending[m++] = static_cast<std::uint32_t>(j);
+    } else {
+      const bool miss = empty != hit;
+      scores[j] = miss ? surface_value_[f & 15] : empty;
+      misses += miss;
+    }
+  }
+  const PoseGridHashMap::TableView table = grid_.table_view();
+  const std::int32_t* __restrict ix = ix_.data();
+  const std::int32_t* __restrict iy = iy_.data();
+  const std::int32_t* __restrict it = it_.data();
+  std::uint64_t* __restrict xy = xy_.data();
+  std::uint32_t* __restrict home = home_.data();
+  for (std::size_t k = 0; k < m; ++k) {
+    const std::uint32_t j = pending[k];
+    xy[k] = PoseGridHashMap::pack_xy(v.submap[j], ix[j], iy[j]);
+    home[k] = static_cast<std::uint32_t>(table.home(xy[k], it[j]));
+  }
+  for (std::size_t k = 0; k < std::min(kAhead, m); ++k) table.prefetch(home[k]);
+  for (std::size_t k = 0; k < m; ++k) {
+    if (k + kAhead < m) table.prefetch(home[k + kAhead]);
+    const std::uint32_t j = pending[k];
+    const float s = value_[table.lookup_run(xy[k], home[k], it[j], 1) & 3];
+    const bool miss = s != hit;
+    scores[j] = miss ? surface_value_[flags[j] & 15] : s;
+    misses += miss;
+  }
+  lookups_ += n + misses;
 }
 
 template <bool WithTheta, class Points>
@@ -254,6 +302,10 @@ bool PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
   const bool probe = grid_.probes_neighbours();
   const int xy_tol = probe ? grid_.config().xy_tolerance : 0;
   const bool theta_window = probe && grid_.config().theta_tolerance > 0 && grid_.theta_bins() > 1;
+  if (!probe && free_space_ != nullptr && free_space_->tracks_pose_cells()) {
+    score_surface_hinted(v, scores);
+    return true;
+  }
   const float lut[4] = {value_[0], value_[1], value_[2], value_[3]};  // local: no aliasing with scores
   const std::int32_t* __restrict ix = ix_.data();
   const std::int32_t* __restrict iy = iy_.data();

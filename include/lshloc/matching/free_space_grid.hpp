@@ -34,7 +34,8 @@ namespace lshloc {
 /// so map files are the same bytes.
 ///
 /// Thread safety: const methods may run concurrently with each other;
-/// mark() and mark_planned() must not run concurrently with anything.
+/// mark(), mark_planned() and note_pose_cell() must not run concurrently with
+/// anything.
 class FreeSpaceGrid {
  public:
   static constexpr int kTileShift = 4;
@@ -67,6 +68,22 @@ class FreeSpaceGrid {
   void mark_planned(const MarkPlan& plan);
   /// ORs `flags` into the cell of (x, y) [m] of `submap`.
   void mark(std::uint32_t submap, double x, double y, CellFlags flags);
+
+  /// Pose-cell hints (cell_flags::kPoseCell): from now on the grid's owner
+  /// reports every cell it marks in a pose grid of `pose_cell_size` [m]
+  /// (note_pose_cell), and the grid sets the hint on each of its own cells
+  /// that the pose cell overlaps, so that a scorer reading a point's cell here
+  /// first knows when the point's pose cell is empty in every heading and can
+  /// skip that lookup (most of them: BENCHMARKS.md). Hints are neither saved
+  /// nor counted; a loaded grid's owner notes the pose grid's cells again.
+  /// Only for pose cells no larger than ours (else it returns false and the
+  /// grid holds no hints).
+  bool track_pose_cells(double pose_cell_size);
+  bool tracks_pose_cells() const { return pose_cells_per_cell_ > 0.0; }
+  /// Sets the hint on every cell that pose cell (ix, iy) of `submap` overlaps,
+  /// with a margin that covers a scorer's float rounding (at most a
+  /// hundredth of a pose cell at the grid's limits). Needs track_pose_cells().
+  void note_pose_cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy);
 
   /// The flags of the cell of (x, y) [m] of `submap`.
   CellFlags probe(std::uint32_t submap, double x, double y) const { return lookup(cell_of(submap, x, y)); }
@@ -121,6 +138,8 @@ class FreeSpaceGrid {
  private:
   /// The byte of the cell, its tile allocated (and its directory grown) if need be.
   CellFlags& cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy);
+  /// cell() where the directory of `submap` already covers the cell's tile.
+  CellFlags& covered_cell(std::uint32_t submap, std::int32_t ix, std::int32_t iy);
   /// Makes the directory of `submap` cover tiles [x0, x1] x [y0, y1] as well.
   void cover(std::uint32_t submap, std::int32_t x0, std::int32_t x1, std::int32_t y0, std::int32_t y1);
   void set_table_capacity(std::size_t capacity);
@@ -136,6 +155,8 @@ class FreeSpaceGrid {
   std::vector<CellBox> boxes_;  ///< per submap: its marked cells' box
   std::size_t used_ = 0;        ///< marked cells
   std::size_t marks_ = 0;       ///< cell marks made
+  /// [own cells per pose cell] edge ratio of the pose grid's cells to ours; 0: no hints.
+  double pose_cells_per_cell_ = 0.0;
   // The hash table this grid replaced, replayed for the snapshot: its slot
   // count, doublings and growth threshold (it grew before any write that
   // would pass max_load_factor, even one to a cell it held).

@@ -29,6 +29,10 @@ inline constexpr CellFlags kReturn = 4;
 /// A map surface point (an endpoint with a normal, as the occupancy grid
 /// holds it) lies in this cell (free-space grid only).
 inline constexpr CellFlags kNormal = 8;
+/// A cell of the pose grid that overlaps this cell holds a mark, in some
+/// heading (free-space grid only, see FreeSpaceGrid::track_pose_cells): a
+/// lookup hint, never saved nor counted as a mark.
+inline constexpr CellFlags kPoseCell = 16;
 }  // namespace cell_flags
 
 /// How a probe tolerates neighbouring cells.
@@ -202,6 +206,17 @@ class PoseGridHashMap {
 
   PoseGridStats stats() const;
 
+  /// Calls f(submap, ix, iy) for every stored bin, in table order (a cell
+  /// stored in several heading bins comes once per bin).
+  template <class F>
+  void for_each_bin(F&& f) const {
+    for (const std::uint64_t s : slots_) {
+      if ((s & 0xff) == 0) continue;
+      const PoseCell c = unpack_xy(s >> 16);
+      f(c.submap, c.ix, c.iy);
+    }
+  }
+
   /// The grid's cells and counters in a canonical form (cells by ascending
   /// key): equal grids write equal bytes whatever their table layout
   /// (docs/map-format.md).
@@ -223,6 +238,13 @@ class PoseGridHashMap {
     const std::uint32_t by = static_cast<std::uint32_t>(iy + kCoordBias);
     if (submap >= kMaxSubmaps || bx >= kCoordRange || by >= kCoordRange) return kInvalidXy;
     return (std::uint64_t{submap} << 34) | (std::uint64_t{bx} << 17) | std::uint64_t{by};
+  }
+
+  /// The cell (itheta 0) of a key pack_xy() made.
+  static PoseCell unpack_xy(std::uint64_t xy) {
+    return {static_cast<std::uint32_t>(xy >> 34),
+            static_cast<std::int32_t>((xy >> 17) & (kCoordRange - 1)) - kCoordBias,
+            static_cast<std::int32_t>(xy & (kCoordRange - 1)) - kCoordBias, 0};
   }
 
   /// Up to two runs of heading bins, [first, first + count) each inside

@@ -85,6 +85,10 @@ class PoseGridScorer {
   /// read the free-space grid for the misses (from offset_).
   template <class Points>
   bool score_surface(const Points& x, const HypothesisBatch& v, float* scores);
+  /// score_surface() where the free-space grid holds pose-cell hints
+  /// (FreeSpaceGrid::track_pose_cells) and the grid probes no neighbours:
+  /// cells in ix_, iy_, it_ and offset_ already; the same scores.
+  void score_surface_hinted(const HypothesisBatch& v, float* scores);
   /// offset_[j]: the free-space cell of x under hypothesis j.
   template <class Points>
   void free_space_offsets(const Points& x, const HypothesisBatch& v);
@@ -106,7 +110,8 @@ class PoseGridScorer {
   std::vector<std::size_t> offset_;    ///< ... and that cell's offset (FreeSpaceGrid::View)
   std::vector<std::int32_t> ix_, iy_, it_;
   std::vector<CellFlags> flags_;
-  struct Gathered {  ///< score_pairs()' batch of one kind, and where it came from
+  std::vector<std::uint32_t> pending_;  ///< the hypotheses whose free-space cell holds the pose-cell hint
+  struct Gathered {                     ///< score_pairs()' batch of one kind, and where it came from
     std::vector<std::uint32_t> index, submap;
     std::vector<float> tx, ty, cos, sin, theta, px, py, pt, scores;
   } gathered_;
