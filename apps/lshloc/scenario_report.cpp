@@ -69,7 +69,9 @@ nlohmann::json target_outcome_json(const std::string& building, const Localizati
 nlohmann::json median_localized_at(std::vector<double> scans) {
   if (scans.empty()) return nullptr;
   std::sort(scans.begin(), scans.end());
-  return scans[scans.size() / 2];
+  const std::size_t half = scans.size() / 2;
+  // An even count's median is the mean of its two middle values (ten targets: not the upper one).
+  return scans.size() % 2 == 1 ? scans[half] : 0.5 * (scans[half - 1] + scans[half]);
 }
 
 void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run) {

@@ -23,7 +23,7 @@ void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run);
 nlohmann::json target_outcome_json(const std::string& building, const LocalizationMetrics& m);
 
 /// The median of the scans at which a benchmark's targets were localized
-/// (the upper one of an even count), null when none was.
+/// (of an even count, the mean of the two middle ones), null when none was.
 nlohmann::json median_localized_at(std::vector<double> scans);
 
 /// Writes STEM-error.{png,svg} (error per viewpoint, the paper's Fig. 8) and
