@@ -49,6 +49,10 @@ PY
 # CSV's laser poses) in ascending time.
 "$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" "$b/sim-3-001-corrected.log.gz" --name 'west, "A"' \
   --name 'east, "B"' --out "$d/named.map" >/dev/null 2>&1
+# A name before its log takes that one name, not the log after it too.
+"$LSHLOC" map build --out "$d/named-first.map" --name first "$a/sim-3-000-corrected.log.gz" >/dev/null 2>&1 ||
+  fail "map build --name NAME LOG"
+"$LSHLOC" map info "$d/named-first.map" | grep -q "submap 0: first," || fail "the name given before its log"
 { echo "PARAM robot_frontlaser_offset 0.25"; zcat "$b/sim-3-001.log.gz"; } >"$d/mounted.log"
 "$LSHLOC" localize --map "$d/named.map" --target "$d/mounted.log" --start 300 --length 150 --out "$d/n.tum" \
   >/dev/null 2>&1 || fail "localize with named submaps"

@@ -100,7 +100,12 @@ GlobalMapConfig map_settings(const std::string& config_path) {
 /// unless --print-config: require_given()).
 const CLI::Option* add_build_options(CLI::App& cmd, BuildOptions& opt) {
   const CLI::Option* out = cmd.add_option("--out", opt.out, "the map file to write (required)");
-  cmd.add_option("--name", opt.names, "submap names, one per map argument in order (default: each file's name)");
+  // One name per --name (repeat it): a list would swallow the map arguments after it.
+  cmd.add_option("--name", opt.names,
+                 "a submap name; repeat it, one per map argument in order (default: each file's name)")
+      ->expected(1)
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   cmd.add_option("--config", opt.config,
                  "JSON file of map settings (GlobalMapConfig fields; the shape --print-config writes)");
   cmd.add_flag("--print-config", opt.print_config, "print the effective map settings as JSON and exit");
