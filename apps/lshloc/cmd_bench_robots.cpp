@@ -19,6 +19,7 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "option_checks.hpp"
 #include "process_memory.hpp"
 

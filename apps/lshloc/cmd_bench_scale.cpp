@@ -18,6 +18,7 @@
 #include "lshloc/eval/appearance.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/eval/place_recall.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "option_checks.hpp"
 #include "process_memory.hpp"

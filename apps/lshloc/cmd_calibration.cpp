@@ -16,6 +16,7 @@
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/io/atomic_file.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "lshloc/io/line_reader.hpp"
 
 namespace lshloc::app {

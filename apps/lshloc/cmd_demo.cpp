@@ -11,6 +11,7 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "scenario_report.hpp"
 #include "option_checks.hpp"

@@ -19,6 +19,7 @@
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/figures/figures.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "lshloc/localization/grid_submap.hpp"
 #include "lshloc/slam/occupancy_grid.hpp"
 #include "lshloc/eval/live_replay.hpp"

@@ -9,6 +9,7 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "map_source.hpp"
 
 namespace lshloc::app {

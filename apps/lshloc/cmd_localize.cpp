@@ -30,6 +30,7 @@
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
 #include "map_source.hpp"
 #include "option_checks.hpp"

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "lshloc/io/scan_record.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"

@@ -12,6 +12,7 @@
 #include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/carmen_writer.hpp"
+#include "lshloc/io/config_json.hpp"
 #include "lshloc/sim/render.hpp"
 #include "lshloc/sim/simulator.hpp"
 #include "option_checks.hpp"
