@@ -205,7 +205,9 @@ void PoseGridScorer::score_surface_hinted(const HypothesisBatch& v, float* score
   CellFlags* __restrict flags = flags_.data();
   std::uint32_t* __restrict pending = pending_.data();
   for (std::size_t j = 0; j < std::min(kAhead, n); ++j) free.prefetch(offset[j]);
+  // What a lookup that found nothing scores, and whether it then reads the free-space cell.
   const float hit = config_.hit, empty = value_[0];
+  const bool empty_misses = empty != hit;
   std::size_t m = 0, misses = 0;
   for (std::size_t j = 0; j < n; ++j) {
     if (j + kAhead < n) free.prefetch(offset[j + kAhead]);
@@ -214,9 +216,8 @@ void PoseGridScorer::score_surface_hinted(const HypothesisBatch& v, float* score
     if ((f & cell_flags::kPoseCell) != 0) {
       pending[m++] = static_cast<std::uint32_t>(j);
     } else {
-      const bool miss = empty != hit;
-      scores[j] = miss ? surface_value_[f & 15] : empty;
-      misses += miss;
+      scores[j] = empty_misses ? surface_value_[f & 15] : empty;
+      misses += empty_misses;
     }
   }
   const PoseGridHashMap::TableView table = grid_.table_view();
