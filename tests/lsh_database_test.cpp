@@ -4,10 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <numeric>
 #include <random>
 #include <set>
 
+#include "lshloc/common/byte_codec.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/appearance/location_store.hpp"
 #include "lshloc/appearance/lsh_database.hpp"
@@ -334,6 +337,67 @@ TEST(LshDatabase, TheBudgetReadsTheLeastFilledBucketsFirst) {
   }
 }
 
+std::vector<std::uint8_t> lsh_snapshot(const LshDatabase& db) {
+  ByteWriter w;
+  db.write_snapshot(w);
+  return w.take();
+}
+
+TEST(LshDatabase, SketchesInTheBucketsRankAsThePerIdArrayDoes) {
+  // Full buckets (capacity 8: evictions and block moves); the sketches live
+  // in the per-id array, move into the buckets part-way, or are there from
+  // the start. Every answer is the same, and so is every answer after a
+  // snapshot reload.
+  const auto data = clustered(6000, 40, 0.2, 23);
+  const auto queries = clustered(150, 40, 0.2, 24);
+  const std::size_t never = std::numeric_limits<std::size_t>::max();
+  std::vector<std::unique_ptr<LshDatabase>> dbs;
+  for (const std::size_t from : {never, std::size_t{2500}, std::size_t{0}}) {
+    LshConfig cfg;
+    cfg.bucket_capacity = 8;
+    cfg.sketches_in_buckets_from = from;
+    dbs.push_back(std::make_unique<LshDatabase>(cfg));
+  }
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    for (auto& db : dbs) db->insert(data[i], static_cast<std::uint32_t>(i));
+    EXPECT_EQ(dbs[1]->sketches_in_buckets(), i + 1 >= 2500) << i;
+  }
+  EXPECT_FALSE(dbs[0]->sketches_in_buckets());
+  EXPECT_TRUE(dbs[2]->sketches_in_buckets());
+  // The copies in the buckets cost more than the array (8 ids a bucket at most).
+  EXPECT_GT(dbs[2]->stats().bytes, dbs[0]->stats().bytes);
+  const auto answers = [&](const LshDatabase& db) {
+    LshQuery q(db);
+    std::vector<std::uint32_t> ids, all;
+    std::vector<std::uint16_t> counts;
+    for (const Descriptor& d : queries) {
+      db.query_counts(d, 50, ids, counts, q);
+      all.insert(all.end(), ids.begin(), ids.end());
+      all.insert(all.end(), counts.begin(), counts.end());
+      all.push_back(0xFFFFFFFFu);  // ends a query's answer
+    }
+    return all;
+  };
+  const auto expected = answers(*dbs[0]);
+  ASSERT_GT(expected.size(), 150u * 40) << "the queries find candidates";
+  for (std::size_t k = 1; k < dbs.size(); ++k) EXPECT_EQ(answers(*dbs[k]), expected) << k;
+  // Reloads: either snapshot into either layout answers the same; a
+  // layout's snapshot reloads into its own layout bit for bit.
+  for (std::size_t from_db = 0; from_db < dbs.size(); ++from_db) {
+    const auto bytes = lsh_snapshot(*dbs[from_db]);
+    for (std::size_t into = 0; into < dbs.size(); ++into) {
+      LshDatabase back(dbs[into]->config());
+      ByteReader in(bytes, "lsh");
+      back.read_snapshot(in, data.size());
+      EXPECT_EQ(back.sketches_in_buckets(), dbs[into]->sketches_in_buckets());
+      EXPECT_EQ(answers(back), expected) << from_db << " into " << into;
+      if (into == from_db) {
+        EXPECT_EQ(lsh_snapshot(back), bytes) << into;
+      }
+    }
+  }
+}
+
 TEST(LshDatabase, AKeyInsertsAndQueriesAsItsDescriptorDoes) {
   // A second database of the same hashing, fed only the first one's keys,
   // answers every query as the first does; queries by key equal queries by
@@ -345,7 +409,7 @@ TEST(LshDatabase, AKeyInsertsAndQueriesAsItsDescriptorDoes) {
     const auto id = static_cast<std::uint32_t>(i);
     a.insert(data[i], id);
     const std::vector<std::uint32_t> tags(a.last_insert_tags().begin(), a.last_insert_tags().end());
-    b.insert(LshKeyView{tags, a.sketch_of(id)}, id);
+    b.insert(LshKeyView{tags, a.last_insert_sketch()}, id);
   }
   LshQuery qa(a), qb(b), qk(a);
   std::vector<std::uint32_t> ia, ib, ik;

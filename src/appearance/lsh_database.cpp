@@ -24,9 +24,8 @@ std::uint64_t mix64(std::uint64_t x) {
 
 /// What the ranking's distance loop reads (LshDatabase::rerank_by_sketch).
 struct SketchDistances {
-  const std::uint64_t* sketches;
+  const std::uint64_t* const* slot_sketch;  ///< per counting slot: the candidate's sketch (null: none)
   std::size_t words;
-  std::size_t ids_with_sketch;
   const std::uint64_t* query;
   std::size_t weight;  ///< bits per table missed
   std::size_t L;
@@ -35,14 +34,12 @@ struct SketchDistances {
 
 /// Each ranked candidate's sketch distance, counted into `histogram`.
 [[gnu::always_inline]] inline void sketch_distances(const SketchDistances& job, const std::uint32_t* ranked,
-                                                    std::size_t n, const std::uint32_t* slot_id,
-                                                    const std::uint16_t* slot_count, std::uint32_t* distance,
-                                                    std::uint32_t* histogram) {
+                                                    std::size_t n, const std::uint16_t* slot_count,
+                                                    std::uint32_t* distance, std::uint32_t* histogram) {
   for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t id = slot_id[ranked[i]];
+    const std::uint64_t* e = job.slot_sketch[ranked[i]];
     std::uint32_t d = job.no_sketch;
-    if (id < job.ids_with_sketch) {
-      const std::uint64_t* e = job.sketches + static_cast<std::size_t>(id) * job.words;
+    if (e != nullptr) {
       d = 0;
       for (std::size_t w = 0; w < job.words; ++w) d += static_cast<std::uint32_t>(std::popcount(e[w] ^ job.query[w]));
       // Each table the candidate missed costs `weight` bits.
@@ -54,19 +51,17 @@ struct SketchDistances {
 }
 
 void sketch_distances_portable(const SketchDistances& job, const std::uint32_t* ranked, std::size_t n,
-                               const std::uint32_t* slot_id, const std::uint16_t* slot_count, std::uint32_t* distance,
-                               std::uint32_t* histogram) {
-  sketch_distances(job, ranked, n, slot_id, slot_count, distance, histogram);
+                               const std::uint16_t* slot_count, std::uint32_t* distance, std::uint32_t* histogram) {
+  sketch_distances(job, ranked, n, slot_count, distance, histogram);
 }
 
 // The build targets baseline x86-64, where a popcount is a library call;
 // this copy uses the CPU's popcnt instruction, chosen at run time.
 #if defined(__x86_64__) && defined(__GNUC__)
 [[gnu::target("popcnt")]] void sketch_distances_popcnt(const SketchDistances& job, const std::uint32_t* ranked,
-                                                       std::size_t n, const std::uint32_t* slot_id,
-                                                       const std::uint16_t* slot_count, std::uint32_t* distance,
-                                                       std::uint32_t* histogram) {
-  sketch_distances(job, ranked, n, slot_id, slot_count, distance, histogram);
+                                                       std::size_t n, const std::uint16_t* slot_count,
+                                                       std::uint32_t* distance, std::uint32_t* histogram) {
+  sketch_distances(job, ranked, n, slot_count, distance, histogram);
 }
 bool cpu_has_popcount() { return __builtin_cpu_supports("popcnt"); }
 #else
@@ -104,6 +99,7 @@ LshQuery::LshQuery(const LshDatabase& db) {
   slot_id_.assign(slots, 0);
   slot_count_.assign(slots, 0);
   slot_stamp_.assign(slots, 0);
+  slot_sketch_.assign(slots, nullptr);
   found_.reserve(slots);
   mask_ = static_cast<std::uint32_t>(slots - 1);
   shift_ = 32 - std::countr_zero(slots);
@@ -120,6 +116,7 @@ LshConfig validated(LshConfig c) {
 
 LshDatabase::LshDatabase(LshConfig config)
     : config_(validated(config)), hardware_popcount_(cpu_has_popcount()), own_query_(*this) {
+  sketches_in_buckets_ = config_.sketch_bits > 0 && config_.sketches_in_buckets_from == 0;
   const auto rows = static_cast<Eigen::Index>(config_.K * config_.L);
   a_.resize(rows, static_cast<Eigen::Index>(kDescriptorSize));
   b_.resize(rows);
@@ -148,6 +145,7 @@ LshDatabase::LshDatabase(LshConfig config)
   }
   insert_projections_.resize(rows);
   insert_tags_.resize(config_.L);
+  insert_sketch_.resize(sketch_words_);
   insert_slots_.resize(config_.L);
   capacity_class_ = static_cast<std::uint32_t>(std::countr_zero(std::bit_ceil(config_.bucket_capacity)));
   for (Table& t : tables_) t.free_blocks.resize(capacity_class_ + 1);
@@ -198,10 +196,12 @@ std::uint32_t LshDatabase::allocate(Table& t, std::uint32_t size_class) const {
   const std::size_t offset = t.pool.size();
   if (offset + (std::size_t{1} << size_class) > kNone) throw Error("LshDatabase: a table's id pool is full (2^32 ids)");
   t.pool.resize(offset + (std::size_t{1} << size_class));
+  if (sketches_in_buckets_) t.sketch_pool.resize(t.pool.size() * sketch_words_);
   return static_cast<std::uint32_t>(offset);
 }
 
-void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) {
+void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id, const std::uint64_t* sketch) {
+  const std::size_t words = sketches_in_buckets_ ? sketch_words_ : 0;
   const std::uint32_t cap = 1u << capacity_class_;
   if (slot.inserted == 0) {
     slot.size_class = 0;
@@ -210,27 +210,32 @@ void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id) {
     // Block full but below the cap: move to a block twice as large.
     const std::uint32_t bigger = allocate(t, slot.size_class + 1);
     std::copy_n(t.pool.begin() + slot.offset, slot.inserted, t.pool.begin() + bigger);
+    std::copy_n(t.sketch_pool.begin() + std::size_t{slot.offset} * words, slot.inserted * words,
+                t.sketch_pool.begin() + std::size_t{bigger} * words);
     t.free_blocks[slot.size_class].push_back(slot.offset);
     slot.offset = bigger;
     slot.size_class += 1;
   }
   if (slot.inserted < cap) {
     t.pool[slot.offset + slot.inserted] = id;
+    std::copy_n(sketch, words, t.sketch_pool.begin() + (std::size_t{slot.offset} + slot.inserted) * words);
     slot.inserted += 1;
   } else {
     // Reservoir sampling: the bucket stays a uniform sample of all its ids.
     rng_state_ = mix64(rng_state_ + 0x9E3779B97F4A7C15ULL);
     const std::uint64_t j = rng_state_ % (static_cast<std::uint64_t>(slot.inserted) + 1);
-    if (j < cap) t.pool[slot.offset + j] = id;
+    if (j < cap) {
+      t.pool[slot.offset + j] = id;
+      std::copy_n(sketch, words, t.sketch_pool.begin() + (slot.offset + j) * words);
+    }
     if (slot.inserted < 0xFFFFFFFFu) slot.inserted += 1;
   }
 }
 
 void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
   hash(descriptor, insert_projections_, insert_tags_);
+  if (sketch_words_ > 0) sketch(descriptor, insert_sketch_.data());
   place(id);
-  if (sketch_words_ > 0) sketch(descriptor, sketch_slot(id));
-  ++entries_;
 }
 
 void LshDatabase::insert(LshKeyView key, std::uint32_t id) {
@@ -240,9 +245,27 @@ void LshDatabase::insert(LshKeyView key, std::uint32_t id) {
                 std::to_string(sketch_words_));
   }
   std::copy(key.tags.begin(), key.tags.end(), insert_tags_.begin());
+  std::copy(key.sketch.begin(), key.sketch.end(), insert_sketch_.begin());
   place(id);
-  if (sketch_words_ > 0) std::copy(key.sketch.begin(), key.sketch.end(), sketch_slot(id));
-  ++entries_;
+}
+
+template <class EntryFn>
+void LshDatabase::for_each_kept(const Table& t, EntryFn&& fn) const {
+  const std::uint32_t cap = 1u << capacity_class_;
+  for (const Slot& s : t.slots)
+    for (std::uint32_t n = 0; n < std::min(s.inserted, cap); ++n) fn(std::size_t{s.offset} + n);
+}
+
+void LshDatabase::move_sketches_into_buckets() {
+  const std::size_t words = sketch_words_;
+  for (Table& t : tables_) {
+    t.sketch_pool.assign(t.pool.size() * words, 0);
+    for_each_kept(t, [&](std::size_t entry) {
+      std::copy_n(sketches_.begin() + std::size_t{t.pool[entry]} * words, words, t.sketch_pool.begin() + entry * words);
+    });
+  }
+  decltype(sketches_)().swap(sketches_);
+  sketches_in_buckets_ = true;
 }
 
 std::uint64_t* LshDatabase::sketch_slot(std::uint32_t id) {
@@ -280,8 +303,17 @@ void LshDatabase::place(std::uint32_t id) {
       slot.tag = insert_tags_[t];
       ++table.used;
     }
-    push(table, slot, id);
+    push(table, slot, id, insert_sketch_.data());
   }
+  if (sketch_words_ > 0) {
+    if (sketches_in_buckets_)
+      sketch_ids_ = std::max(sketch_ids_, static_cast<std::size_t>(id) + 1);
+    else
+      std::copy(insert_sketch_.begin(), insert_sketch_.end(), sketch_slot(id));
+  }
+  ++entries_;
+  if (sketch_words_ > 0 && !sketches_in_buckets_ && entries_ >= config_.sketches_in_buckets_from)
+    move_sketches_into_buckets();
 }
 
 void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out) {
@@ -320,11 +352,6 @@ void LshDatabase::check_scratch(const LshQuery& q) const {
     throw Error("LshDatabase::query: the LshQuery was made for another database configuration");
 }
 
-std::span<const std::uint64_t> LshDatabase::sketch_of(std::uint32_t id) const {
-  if (sketch_words_ == 0 || id >= sketch_ids_) return {};
-  return {sketches_.data() + static_cast<std::size_t>(id) * sketch_words_, sketch_words_};
-}
-
 void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<const std::uint64_t> query_sketch,
                              std::size_t k, std::vector<std::uint32_t>& out, std::vector<std::uint16_t>& counts,
                              LshQuery& q) const {
@@ -352,6 +379,10 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     const std::size_t ids =
         std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, config_.max_candidates});
     for (std::size_t n = 0; n < ids; n += 16) __builtin_prefetch(table.pool.data() + slot.offset + n);
+    if (sketches_in_buckets_) {
+      const std::uint64_t* sketches = table.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_;
+      for (std::size_t n = 0; n < ids * sketch_words_; n += 8) __builtin_prefetch(sketches + n);
+    }
     q.blocks_.emplace_back(static_cast<std::uint32_t>(t), static_cast<std::uint32_t>(i));
   }
   if (config_.rarest_buckets_first) {
@@ -375,6 +406,8 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     const std::size_t count =
         std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, config_.max_candidates - touched});
     const std::uint32_t* ids = table.pool.data() + slot.offset;
+    const std::uint64_t* sketches =
+        sketches_in_buckets_ ? table.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_ : nullptr;
     touched += count;
     for (std::size_t n = 0; n < count; ++n) {
       const std::uint32_t id = ids[n];
@@ -386,8 +419,15 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
         q.slot_id_[s] = id;
         q.slot_count_[s] = 0;
         q.found_.push_back(s);
-        // Its sketch is read when ranking: asked for now, the miss overlaps the counting.
-        if (id < sketch_ids_) __builtin_prefetch(sketches_.data() + static_cast<std::size_t>(id) * sketch_words_);
+        const std::uint64_t* sketch = nullptr;
+        if (sketches != nullptr) {
+          sketch = sketches + n * sketch_words_;
+        } else if (id < sketch_ids_) {
+          // Read when ranking: asked for now, the miss overlaps the counting.
+          sketch = sketches_.data() + std::size_t{id} * sketch_words_;
+          __builtin_prefetch(sketch);
+        }
+        q.slot_sketch_[s] = sketch;
       }
       ++q.slot_count_[s];
     }
@@ -441,15 +481,14 @@ void LshDatabase::rerank_by_sketch(std::span<const std::uint64_t> query_sketch, 
   const std::size_t weight = config_.sketch_collision_weight;
   const std::size_t max_distance = 64 * sketch_words_ + weight * config_.L;
   q.sketch_histogram_.assign(max_distance + 2, 0u);
-  const SketchDistances job{.sketches = sketches_.data(),
+  const SketchDistances job{.slot_sketch = q.slot_sketch_.data(),
                             .words = sketch_words_,
-                            .ids_with_sketch = sketch_ids_,
                             .query = query_sketch.data(),
                             .weight = weight,
                             .L = config_.L,
                             .no_sketch = static_cast<std::uint32_t>(max_distance + 1)};
   (hardware_popcount_ ? sketch_distances_popcnt : sketch_distances_portable)(
-      job, q.ranked_.data(), n, q.slot_id_.data(), q.slot_count_.data(), q.hamming_.data(), q.sketch_histogram_.data());
+      job, q.ranked_.data(), n, q.slot_count_.data(), q.hamming_.data(), q.sketch_histogram_.data());
   std::uint32_t start = 0;
   for (auto& h : q.sketch_histogram_) {
     const std::uint32_t here = h;
@@ -491,7 +530,20 @@ void LshDatabase::write_snapshot(ByteWriter& out) const {
     }
   }
   out.varint(sketch_ids_);
-  for (const std::uint64_t w : sketches_) out.u64(w);
+  if (!sketches_in_buckets_) {
+    for (const std::uint64_t w : sketches_) out.u64(w);
+    return;
+  }
+  // Gathered from the buckets; an id no bucket keeps any more has lost its
+  // sketch, and is written as zeros (no query can reach it).
+  std::vector<std::uint64_t> per_id(sketch_ids_ * sketch_words_, 0);
+  for (const Table& t : tables_) {
+    for_each_kept(t, [&](std::size_t entry) {
+      std::copy_n(t.sketch_pool.begin() + entry * sketch_words_, sketch_words_,
+                  per_id.begin() + std::size_t{t.pool[entry]} * sketch_words_);
+    });
+  }
+  for (const std::uint64_t w : per_id) out.u64(w);
 }
 
 void LshDatabase::read_snapshot(ByteReader& in, std::uint64_t id_limit) {
@@ -547,6 +599,15 @@ void LshDatabase::read_snapshot(ByteReader& in, std::uint64_t id_limit) {
   if (words > in.remaining() / 8) in.fail(std::to_string(words) + " sketch words");
   sketches_.resize(words);
   for (std::uint64_t& w : sketches_) w = in.u64();
+  if (sketch_words_ == 0) return;
+  for (const Table& t : tables_) {
+    for_each_kept(t, [&](std::size_t entry) {
+      if (t.pool[entry] >= sketch_ids_)
+        in.fail("a sketch for every bucket id (" + std::to_string(sketch_ids_) + " sketches, bucket id " +
+                std::to_string(t.pool[entry]) + ")");
+    });
+  }
+  if (entries_ >= config_.sketches_in_buckets_from) move_sketches_into_buckets();
 }
 
 LshStats LshDatabase::stats() const {
@@ -554,7 +615,8 @@ LshStats LshDatabase::stats() const {
   s.entries = entries_;
   for (const Table& t : tables_) {
     s.buckets += t.used;
-    s.bytes += t.slots.capacity() * sizeof(Slot) + t.pool.capacity() * sizeof(std::uint32_t);
+    s.bytes += t.slots.capacity() * sizeof(Slot) + t.pool.capacity() * sizeof(std::uint32_t) +
+               t.sketch_pool.capacity() * sizeof(std::uint64_t);
     for (const auto& f : t.free_blocks) s.bytes += f.capacity() * sizeof(std::uint32_t);
   }
   s.bytes += sketches_.capacity() * sizeof(std::uint64_t) + static_cast<std::size_t>(sketch_a_.size()) * sizeof(float);

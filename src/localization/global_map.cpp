@@ -107,15 +107,22 @@ void GlobalMap::keep_recent_key(std::uint32_t id) {
   const std::size_t ring = config_.recent_keys;
   if (ring == 0) return;
   const std::span<const std::uint32_t> tags = database_.last_insert_tags();
-  if (recent_tags_.empty()) recent_tags_.resize(ring * tags.size());
+  const std::span<const std::uint64_t> sketch = database_.last_insert_sketch();
+  if (recent_tags_.empty()) {
+    recent_tags_.resize(ring * tags.size());
+    recent_sketches_.resize(ring * sketch.size());
+  }
   std::copy(tags.begin(), tags.end(), recent_tags_.begin() + static_cast<std::ptrdiff_t>((id % ring) * tags.size()));
+  std::copy(sketch.begin(), sketch.end(),
+            recent_sketches_.begin() + static_cast<std::ptrdiff_t>((id % ring) * sketch.size()));
 }
 
 std::optional<LshKeyView> GlobalMap::recent_key(std::uint32_t id) const {
   const std::size_t ring = config_.recent_keys, size = locations_.size();
   if (ring == 0 || recent_tags_.empty() || id < recent_first_ || id >= size || size - id > ring) return std::nullopt;
   const std::size_t L = config_.database.L;
-  return LshKeyView{{recent_tags_.data() + (id % ring) * L, L}, database_.sketch_of(id)};
+  const std::size_t words = database_.last_insert_sketch().size();
+  return LshKeyView{{recent_tags_.data() + (id % ring) * L, L}, {recent_sketches_.data() + (id % ring) * words, words}};
 }
 
 void GlobalMap::ScanMarks::start(std::int32_t cx, std::int32_t cy, std::int32_t half_width) {
@@ -361,7 +368,8 @@ GlobalMapStats GlobalMap::stats() const {
   s.occupancy = occupancy_.stats();
   s.free_space = free_space_.stats();
   s.location_bytes = locations_.bytes();
-  s.recent_key_bytes = recent_tags_.capacity() * sizeof(std::uint32_t);
+  s.recent_key_bytes =
+      recent_tags_.capacity() * sizeof(std::uint32_t) + recent_sketches_.capacity() * sizeof(std::uint64_t);
   return s;
 }
 

@@ -48,6 +48,16 @@ struct LshConfig {
   /// With sketches, the ranking key is the Hamming distance plus this many
   /// bits for every table the candidate did not collide in (0: sketch only).
   std::size_t sketch_collision_weight = 1;
+  /// From this many entries on (0: from the start), every bucket entry keeps
+  /// a copy of its id's sketch and the per-id sketch array is dropped. A
+  /// query then reads its ~600 candidates' sketches from the ~24 blocks it
+  /// reads anyway, not from ~600 random places, which is most of its time
+  /// once the map outgrows the caches. It costs sketch_bits / 8 bytes per
+  /// bucket entry: about 2.5 entries per feature at 1e6-1e7 entries, but up
+  /// to L in a small map, hence only for big ones. Rankings are the same
+  /// either way for ids inserted once (an id inserted again keeps, in each
+  /// bucket, the sketch it came with; the array keeps the last one).
+  std::size_t sketches_in_buckets_from = std::size_t{1} << 20;
   std::size_t initial_slots = 1024;  ///< slots per table at start (rounded up to a power of two)
 
   /// Throws lshloc::Error naming the first field out of range.
@@ -61,7 +71,7 @@ bool same_hashing(const LshConfig& a, const LshConfig& b);
 
 /// A descriptor as the database hashes it: its L table tags and its sign
 /// sketch (sketch_bits / 64 words). Lets a caller that kept the key of an
-/// inserted descriptor (LshDatabase::last_insert_tags, sketch_of) query a
+/// inserted descriptor (LshDatabase::last_insert_tags, last_insert_sketch) query a
 /// database of the same hashing without the descriptor.
 struct LshKeyView {
   std::span<const std::uint32_t> tags;
@@ -105,12 +115,13 @@ class LshQuery {
   std::vector<std::uint32_t> slot_id_;                           ///< counting hash: id per slot
   std::vector<std::uint16_t> slot_count_;                        ///< collisions per slot
   std::vector<std::uint32_t> slot_stamp_;                        ///< slot valid when equal to stamp_
-  std::vector<std::uint32_t> found_;                             ///< slots in first-seen order
-  std::vector<std::uint32_t> ranked_;                            ///< slots by collision count
-  std::vector<std::uint32_t> histogram_;                         ///< ids per collision count, then rank offsets
-  std::vector<std::uint64_t> sketch_;                            ///< the query's sign sketch
-  std::vector<std::uint32_t> hamming_;                           ///< per ranked candidate
-  std::vector<std::uint32_t> sketch_histogram_;                  ///< counting sort by Hamming distance
+  std::vector<const std::uint64_t*> slot_sketch_;  ///< the id's sketch in the bucket it was first read from
+  std::vector<std::uint32_t> found_;               ///< slots in first-seen order
+  std::vector<std::uint32_t> ranked_;              ///< slots by collision count
+  std::vector<std::uint32_t> histogram_;           ///< ids per collision count, then rank offsets
+  std::vector<std::uint64_t> sketch_;              ///< the query's sign sketch
+  std::vector<std::uint32_t> hamming_;             ///< per ranked candidate
+  std::vector<std::uint32_t> sketch_histogram_;    ///< counting sort by Hamming distance
   std::vector<std::uint32_t> reranked_;
   std::uint32_t stamp_ = 0;
   std::uint32_t mask_ = 0;
@@ -119,8 +130,9 @@ class LshQuery {
 
 /// The incremental E2LSH appearance database: L tables, each keyed by K
 /// concatenated p-stable hashes h(v) = floor((a.v + b) / w) with Gaussian a
-/// and b uniform in [0, w). Buckets hold location ids only; the descriptor
-/// is not stored (only an optional 128-bit sign sketch per id).
+/// and b uniform in [0, w). Buckets hold location ids (and, in a big map,
+/// their sketches); the descriptor is not stored (only an optional 128-bit
+/// sign sketch per id).
 ///
 /// Buckets: each bucket keeps its ids in one contiguous block of a per-table
 /// pool, doubling from 1 id up to bucket_capacity (rounded up to a power of
@@ -141,8 +153,10 @@ class LshQuery {
 /// 70% full): about 4L..(8L + 23L) bytes, so roughly 100..750 bytes at L = 24
 /// depending on how many buckets hold a single id (measured: 250 bytes at
 /// 1e4 real entries, 50..130 at 1e6 where buckets fill up), plus
-/// sketch_bits / 8 bytes per id for the sign sketch (16 at the default);
-/// LshStats::bytes measures it all. The descriptor itself is never stored.
+/// sketch_bits / 8 bytes per id for the sign sketch (16 at the default), or
+/// per kept bucket entry once the sketches move into the buckets (about 40
+/// per feature at 1e6-1e7 entries); LshStats::bytes measures it all. The
+/// descriptor itself is never stored.
 ///
 /// Ranking: candidates are the ids of the L buckets the query falls in; they
 /// are ranked by the Hamming distance of their sign sketch to the query's
@@ -179,9 +193,12 @@ class LshDatabase {
   /// The table tags of the descriptor the last insert() hashed (valid until
   /// the next insert()).
   std::span<const std::uint32_t> last_insert_tags() const { return insert_tags_; }
-  /// The sign sketch kept for `id` (empty without sketches or for an id
-  /// never inserted).
-  std::span<const std::uint64_t> sketch_of(std::uint32_t id) const;
+  /// The sign sketch of the descriptor the last insert() hashed (valid until
+  /// the next insert(); empty without sketches).
+  std::span<const std::uint64_t> last_insert_sketch() const { return insert_sketch_; }
+  /// True once every bucket entry keeps its sketch
+  /// (LshConfig::sketches_in_buckets_from).
+  bool sketches_in_buckets() const { return sketches_in_buckets_; }
 
   std::size_t size() const { return entries_; }
   LshStats stats() const;
@@ -208,8 +225,12 @@ class LshDatabase {
   struct Table {
     std::vector<Slot, HugePageAllocator<Slot>> slots;  ///< open addressing, linear probing, power-of-two size
     std::vector<std::uint32_t, HugePageAllocator<std::uint32_t>> pool;  ///< the buckets' id blocks
-    std::vector<std::vector<std::uint32_t>> free_blocks;                ///< per size class: offsets of released blocks
-    std::size_t used = 0;                                               ///< non-empty slots
+    /// Each pool entry's sketch (sketch_words_ per entry, at the same
+    /// index): a query reads its candidates' sketches from the blocks it
+    /// already reads, not from one random place per candidate.
+    std::vector<std::uint64_t, HugePageAllocator<std::uint64_t>> sketch_pool;
+    std::vector<std::vector<std::uint32_t>> free_blocks;  ///< per size class: offsets of released blocks
+    std::size_t used = 0;                                 ///< non-empty slots
     int bits = 0;
   };
 
@@ -221,12 +242,19 @@ class LshDatabase {
   }
   static void grow(Table& t);
   std::uint32_t allocate(Table& t, std::uint32_t size_class) const;
-  void push(Table& t, Slot& slot, std::uint32_t id);
+  void push(Table& t, Slot& slot, std::uint32_t id, const std::uint64_t* sketch);
   void sketch(const Descriptor& descriptor, std::uint64_t* words) const;
-  /// Puts `id` into the buckets of insert_tags_.
+  /// Puts `id`, with the sketch in insert_sketch_, into the buckets of
+  /// insert_tags_ and counts it as an entry.
   void place(std::uint32_t id);
-  /// Where `id`'s sketch goes (grown to hold it).
+  /// Where `id`'s sketch goes in the per-id array (grown to hold it).
   std::uint64_t* sketch_slot(std::uint32_t id);
+  /// Calls fn(pool index) for every id a bucket of `t` keeps.
+  template <class EntryFn>
+  void for_each_kept(const Table& t, EntryFn&& fn) const;
+  /// Copies every bucket entry's sketch from the per-id array into the
+  /// buckets, then drops the array.
+  void move_sketches_into_buckets();
   /// Throws unless `q` was made for this database's settings.
   void check_scratch(const LshQuery& q) const;
   /// query_counts() once the query's tags (and sketch) are known.
@@ -246,12 +274,15 @@ class LshDatabase {
   std::uint32_t capacity_class_ = 0;
   std::uint64_t rng_state_ = 0;  ///< reservoir sampling
   std::size_t sketch_words_ = 0;
-  std::size_t sketch_ids_ = 0;                                             ///< ids 0..sketch_ids_-1 have a sketch slot
-  std::vector<std::uint64_t, HugePageAllocator<std::uint64_t>> sketches_;  ///< sketch_words_ per id
+  std::size_t sketch_ids_ = 0;  ///< ids 0..sketch_ids_-1 were given a sketch
+  /// sketch_words_ per id, until the sketches move into the buckets.
+  std::vector<std::uint64_t, HugePageAllocator<std::uint64_t>> sketches_;
+  bool sketches_in_buckets_ = false;
   Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>
       sketch_a_;  ///< bucket capacity = 2^capacity_class_
   Eigen::VectorXf insert_projections_;
   std::vector<std::uint32_t> insert_tags_;
+  std::vector<std::uint64_t> insert_sketch_;
   std::vector<std::size_t> insert_slots_;
   LshQuery own_query_;
 };

@@ -221,7 +221,8 @@ class GlobalMap {
   FreeSpaceGrid::MarkPlan free_space_plan_;
   // A ring of the newest features' table tags: L per feature, slot id % recent_keys.
   std::vector<std::uint32_t> recent_tags_;
-  std::uint32_t recent_first_ = 0;  ///< the first location id add_scan() added (a snapshot's come before)
+  std::vector<std::uint64_t> recent_sketches_;  ///< and their sign sketches, sketch_bits / 64 per feature
+  std::uint32_t recent_first_ = 0;              ///< the first location id add_scan() added (a snapshot's come before)
 };
 
 /// The direction [rad] of the normal of a surface with direction `tangent`
