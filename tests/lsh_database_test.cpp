@@ -344,28 +344,34 @@ std::vector<std::uint8_t> lsh_snapshot(const LshDatabase& db) {
 }
 
 TEST(LshDatabase, SketchesInTheBucketsRankAsThePerIdArrayDoes) {
-  // Full buckets (capacity 8: evictions and block moves); the sketches live
-  // in the per-id array, move into the buckets part-way, or are there from
-  // the start. Every answer is the same, and so is every answer after a
+  // Full buckets (3 hashes a table, capacity 8: evictions and block moves); the sketches live
+  // in the per-id array, move into the buckets part-way, or from the first
+  // insert. Every answer is the same, and so is every answer after a
   // snapshot reload.
   const auto data = clustered(6000, 40, 0.2, 23);
   const auto queries = clustered(150, 40, 0.2, 24);
-  const std::size_t never = std::numeric_limits<std::size_t>::max();
   std::vector<std::unique_ptr<LshDatabase>> dbs;
-  for (const std::size_t from : {never, std::size_t{2500}, std::size_t{0}}) {
+  for (const double copies : {0.0, 3.0, 24.0}) {  // never, once buckets fill, from the first insert
     LshConfig cfg;
+    cfg.K = 3;  // few buckets a table: they fill
     cfg.bucket_capacity = 8;
-    cfg.sketches_in_buckets_from = from;
+    cfg.max_sketch_copies = copies;
     dbs.push_back(std::make_unique<LshDatabase>(cfg));
   }
+  std::size_t moved_at = 0;
   for (std::size_t i = 0; i < data.size(); ++i) {
     for (auto& db : dbs) db->insert(data[i], static_cast<std::uint32_t>(i));
-    EXPECT_EQ(dbs[1]->sketches_in_buckets(), i + 1 >= 2500) << i;
+    if (moved_at == 0 && dbs[1]->sketches_in_buckets()) moved_at = i + 1;
+    EXPECT_TRUE(dbs[2]->sketches_in_buckets()) << i;
   }
+  // 24 tables of buckets keeping at most 8 ids: the copies come down to 3
+  // per descriptor part-way.
+  EXPECT_GT(moved_at, 100u);
+  EXPECT_LT(moved_at, 5000u);
   EXPECT_FALSE(dbs[0]->sketches_in_buckets());
   EXPECT_TRUE(dbs[2]->sketches_in_buckets());
-  // The copies in the buckets cost more than the array (8 ids a bucket at most).
-  EXPECT_GT(dbs[2]->stats().bytes, dbs[0]->stats().bytes);
+  EXPECT_LE(dbs[1]->stats().bytes, dbs[0]->stats().bytes + 2 * 16 * data.size())
+      << "at most 2 more copies a descriptor";
   const auto answers = [&](const LshDatabase& db) {
     LshQuery q(db);
     std::vector<std::uint32_t> ids, all;

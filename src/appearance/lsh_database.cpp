@@ -82,6 +82,8 @@ void LshConfig::validate() const {
           sketch_bits);
   require(sketch_collision_weight <= 64, "LshConfig.sketch_collision_weight", "0..64 bits per table",
           sketch_collision_weight);
+  require(std::isfinite(max_sketch_copies) && max_sketch_copies >= 0.0, "LshConfig.max_sketch_copies",
+          "a number of sketch copies per descriptor >= 0", max_sketch_copies);
   require(initial_slots >= 1 && initial_slots <= (std::size_t{1} << 30), "LshConfig.initial_slots", "1..2^30",
           initial_slots);
 }
@@ -116,7 +118,6 @@ LshConfig validated(LshConfig c) {
 
 LshDatabase::LshDatabase(LshConfig config)
     : config_(validated(config)), hardware_popcount_(cpu_has_popcount()), own_query_(*this) {
-  sketches_in_buckets_ = config_.sketch_bits > 0 && config_.sketches_in_buckets_from == 0;
   const auto rows = static_cast<Eigen::Index>(config_.K * config_.L);
   a_.resize(rows, static_cast<Eigen::Index>(kDescriptorSize));
   b_.resize(rows);
@@ -217,6 +218,7 @@ void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id, const std::uint64
     slot.size_class += 1;
   }
   if (slot.inserted < cap) {
+    ++kept_;
     t.pool[slot.offset + slot.inserted] = id;
     std::copy_n(sketch, words, t.sketch_pool.begin() + (std::size_t{slot.offset} + slot.inserted) * words);
     slot.inserted += 1;
@@ -247,6 +249,11 @@ void LshDatabase::insert(LshKeyView key, std::uint32_t id) {
   std::copy(key.tags.begin(), key.tags.end(), insert_tags_.begin());
   std::copy(key.sketch.begin(), key.sketch.end(), insert_sketch_.begin());
   place(id);
+}
+
+bool LshDatabase::copies_are_cheap() const {
+  return sketch_words_ > 0 && !sketches_in_buckets_ &&
+         static_cast<double>(kept_) <= config_.max_sketch_copies * static_cast<double>(entries_);
 }
 
 template <class EntryFn>
@@ -312,8 +319,7 @@ void LshDatabase::place(std::uint32_t id) {
       std::copy(insert_sketch_.begin(), insert_sketch_.end(), sketch_slot(id));
   }
   ++entries_;
-  if (sketch_words_ > 0 && !sketches_in_buckets_ && entries_ >= config_.sketches_in_buckets_from)
-    move_sketches_into_buckets();
+  if (copies_are_cheap()) move_sketches_into_buckets();
 }
 
 void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out) {
@@ -591,6 +597,7 @@ void LshDatabase::read_snapshot(ByteReader& in, std::uint64_t id_limit) {
       while (t.slots[i].inserted != 0) i = (i + 1) & mask;
       t.slots[i] = {static_cast<std::uint32_t>(tag), offset, inserted, size_class};
       ++t.used;
+      kept_ += kept;
     }
   }
   sketch_ids_ = static_cast<std::size_t>(in.varint_at_most(max_id, "a sketch count"));
@@ -607,7 +614,7 @@ void LshDatabase::read_snapshot(ByteReader& in, std::uint64_t id_limit) {
                 std::to_string(t.pool[entry]) + ")");
     });
   }
-  if (entries_ >= config_.sketches_in_buckets_from) move_sketches_into_buckets();
+  if (copies_are_cheap()) move_sketches_into_buckets();
 }
 
 LshStats LshDatabase::stats() const {

@@ -67,7 +67,7 @@ LSHLOC_JSON_FIELDS(FeatureExtractorConfig, min_range, max_range, segment_gap, se
                    max_normal_residual, edge_margin, rings, sectors, occupancy_component, descriptor_radius,
                    descriptor_inner_radius, rim_taper, bin_power, min_descriptor_support)
 LSHLOC_JSON_FIELDS(LshConfig, K, L, w, seed, bucket_capacity, max_candidates, rarest_buckets_first, sketch_bits,
-                   sketch_collision_weight, sketches_in_buckets_from, initial_slots)
+                   sketch_collision_weight, max_sketch_copies, initial_slots)
 LSHLOC_JSON_FIELDS(PoseGridConfig, cell_size, theta_bins, xy_tolerance, theta_tolerance, tolerance_mode,
                    max_load_factor, initial_capacity, seed)
 LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_features_per_scan, new_hypotheses_per_scan,

@@ -48,16 +48,18 @@ struct LshConfig {
   /// With sketches, the ranking key is the Hamming distance plus this many
   /// bits for every table the candidate did not collide in (0: sketch only).
   std::size_t sketch_collision_weight = 1;
-  /// From this many entries on (0: from the start), every bucket entry keeps
-  /// a copy of its id's sketch and the per-id sketch array is dropped. A
-  /// query then reads its ~600 candidates' sketches from the ~24 blocks it
-  /// reads anyway, not from ~600 random places, which is most of its time
-  /// once the map outgrows the caches. It costs sketch_bits / 8 bytes per
-  /// bucket entry: about 2.5 entries per feature at 1e6-1e7 entries, but up
-  /// to L in a small map, hence only for big ones. Rankings are the same
-  /// either way for ids inserted once (an id inserted again keeps, in each
-  /// bucket, the sketch it came with; the array keeps the last one).
-  std::size_t sketches_in_buckets_from = std::size_t{1} << 20;
+  /// Once the buckets keep at most this many ids per inserted descriptor (0:
+  /// never; L or more: from the first insert), every bucket entry gets a copy
+  /// of its id's sketch and the per-id sketch array is dropped. A query then
+  /// reads its ~600 candidates' sketches from the ~24 blocks it reads
+  /// anyway, not from ~600 random places, which is most of its time once
+  /// the map outgrows the caches. The copies cost sketch_bits / 8 bytes per
+  /// kept id: up to L per descriptor in a small map, fewer as buckets fill
+  /// (2.7 at 1.9e6 synthetic features, under 1 at 1e7, when they cost less
+  /// than the array). Rankings are the same either way for ids inserted
+  /// once (an id inserted again keeps, in each bucket, the sketch it came
+  /// with; the array keeps the last one).
+  double max_sketch_copies = 3.0;
   std::size_t initial_slots = 1024;  ///< slots per table at start (rounded up to a power of two)
 
   /// Throws lshloc::Error naming the first field out of range.
@@ -197,7 +199,7 @@ class LshDatabase {
   /// the next insert(); empty without sketches).
   std::span<const std::uint64_t> last_insert_sketch() const { return insert_sketch_; }
   /// True once every bucket entry keeps its sketch
-  /// (LshConfig::sketches_in_buckets_from).
+  /// (LshConfig::max_sketch_copies).
   bool sketches_in_buckets() const { return sketches_in_buckets_; }
 
   std::size_t size() const { return entries_; }
@@ -252,6 +254,9 @@ class LshDatabase {
   /// Calls fn(pool index) for every id a bucket of `t` keeps.
   template <class EntryFn>
   void for_each_kept(const Table& t, EntryFn&& fn) const;
+  /// Whether the sketches should move into the buckets now
+  /// (LshConfig::max_sketch_copies).
+  bool copies_are_cheap() const;
   /// Copies every bucket entry's sketch from the per-id array into the
   /// buckets, then drops the array.
   void move_sketches_into_buckets();
@@ -271,6 +276,7 @@ class LshDatabase {
   std::vector<std::uint64_t> tuple_multipliers_;  ///< K L random odd multipliers hashing a K-tuple
   std::vector<Table> tables_;
   std::size_t entries_ = 0;
+  std::size_t kept_ = 0;  ///< ids the buckets keep, over all tables
   std::uint32_t capacity_class_ = 0;
   std::uint64_t rng_state_ = 0;  ///< reservoir sampling
   std::size_t sketch_words_ = 0;
