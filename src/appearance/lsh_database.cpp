@@ -379,16 +379,6 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     std::size_t i = home(tag, table.bits);
     while (table.slots[i].inserted != 0 && table.slots[i].tag != tag) i = (i + 1) & mask;
     if (table.slots[i].inserted == 0) continue;
-    // Every cache line of the ids the query will read, not only the first:
-    // in a big map the block is in memory, and the lines after it miss too.
-    const Slot& slot = table.slots[i];
-    const std::size_t ids =
-        std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, config_.max_candidates});
-    for (std::size_t n = 0; n < ids; n += 16) __builtin_prefetch(table.pool.data() + slot.offset + n);
-    if (sketches_in_buckets_) {
-      const std::uint64_t* sketches = table.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_;
-      for (std::size_t n = 0; n < ids * sketch_words_; n += 8) __builtin_prefetch(sketches + n);
-    }
     q.blocks_.emplace_back(static_cast<std::uint32_t>(t), static_cast<std::uint32_t>(i));
   }
   if (config_.rarest_buckets_first) {
@@ -402,6 +392,22 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
       std::size_t b = a;
       for (; b > 0 && given(q.blocks_[b - 1]) > given(block); --b) q.blocks_[b] = q.blocks_[b - 1];
       q.blocks_[b] = block;
+    }
+  }
+  // Every cache line of the ids (and sketches) the budget will read, and
+  // no more: in a big map the blocks are in memory, and the budget leaves
+  // most of their lines unread.
+  std::size_t budget = config_.max_candidates;
+  for (const auto& [t, i] : q.blocks_) {
+    if (budget == 0) break;
+    const Table& table = tables_[t];
+    const Slot& slot = table.slots[i];
+    const std::size_t count = std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, budget});
+    budget -= count;
+    for (std::size_t n = 0; n < count; n += 16) __builtin_prefetch(table.pool.data() + slot.offset + n);
+    if (sketches_in_buckets_) {
+      const std::uint64_t* sketches = table.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_;
+      for (std::size_t n = 0; n < count * sketch_words_; n += 8) __builtin_prefetch(sketches + n);
     }
   }
   std::size_t touched = 0;
