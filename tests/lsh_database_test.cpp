@@ -370,6 +370,10 @@ TEST(LshDatabase, SketchesInTheBucketsRankAsThePerIdArrayDoes) {
   EXPECT_LT(moved_at, 5000u);
   EXPECT_FALSE(dbs[0]->sketches_in_buckets());
   EXPECT_TRUE(dbs[2]->sketches_in_buckets());
+  const LshStats moved = dbs[1]->stats();
+  EXPECT_TRUE(moved.sketches_in_buckets);
+  EXPECT_LE(moved.kept, 3 * moved.entries);
+  EXPECT_EQ(moved.kept, dbs[0]->stats().kept);
   EXPECT_LE(dbs[1]->stats().bytes, dbs[0]->stats().bytes + 2 * 16 * data.size())
       << "at most 2 more copies a descriptor";
   const auto answers = [&](const LshDatabase& db) {

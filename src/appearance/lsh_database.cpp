@@ -626,6 +626,8 @@ void LshDatabase::read_snapshot(ByteReader& in, std::uint64_t id_limit) {
 LshStats LshDatabase::stats() const {
   LshStats s;
   s.entries = entries_;
+  s.kept = kept_;
+  s.sketches_in_buckets = sketches_in_buckets_;
   for (const Table& t : tables_) {
     s.buckets += t.used;
     s.bytes += t.slots.capacity() * sizeof(Slot) + t.pool.capacity() * sizeof(std::uint32_t) +

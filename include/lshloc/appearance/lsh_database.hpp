@@ -82,9 +82,11 @@ struct LshKeyView {
 
 /// Sizes and work counters of the database.
 struct LshStats {
-  std::size_t entries = 0;  ///< inserted descriptors
-  std::size_t buckets = 0;  ///< non-empty buckets over all tables
-  std::size_t bytes = 0;    ///< heap bytes held (tables, bucket lists, projections)
+  std::size_t entries = 0;           ///< inserted descriptors
+  std::size_t buckets = 0;           ///< non-empty buckets over all tables
+  std::size_t kept = 0;              ///< ids the buckets keep over all tables (at most L per entry)
+  bool sketches_in_buckets = false;  ///< the sketches are copied beside the ids (LshConfig::max_sketch_copies)
+  std::size_t bytes = 0;             ///< heap bytes held (tables, bucket lists, projections)
   /// Query counters of the database's own scratch (queries made with a
   /// caller's LshQuery are counted in that LshQuery).
   std::size_t queries = 0;
@@ -156,9 +158,9 @@ class LshQuery {
 /// depending on how many buckets hold a single id (measured: 250 bytes at
 /// 1e4 real entries, 50..130 at 1e6 where buckets fill up), plus
 /// sketch_bits / 8 bytes per id for the sign sketch (16 at the default), or
-/// per kept bucket entry once the sketches move into the buckets (about 40
-/// per feature at 1e6-1e7 entries); LshStats::bytes measures it all. The
-/// descriptor itself is never stored.
+/// per kept bucket entry once the sketches move into the buckets (43 per
+/// feature at 1.9e6 synthetic features, under 16 at 1e7); LshStats::bytes
+/// measures it all. The descriptor itself is never stored.
 ///
 /// Ranking: candidates are the ids of the L buckets the query falls in; they
 /// are ranked by the Hamming distance of their sign sketch to the query's
