@@ -405,10 +405,8 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     const std::size_t count = std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, budget});
     budget -= count;
     for (std::size_t n = 0; n < count; n += 16) __builtin_prefetch(table.pool.data() + slot.offset + n);
-    if (sketches_in_buckets_) {
-      const std::uint64_t* sketches = table.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_;
+    if (const std::uint64_t* sketches = block_sketches(table, slot))
       for (std::size_t n = 0; n < count * sketch_words_; n += 8) __builtin_prefetch(sketches + n);
-    }
   }
   std::size_t touched = 0;
   for (const auto& [t, i] : q.blocks_) {
@@ -418,8 +416,7 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     const std::size_t count =
         std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, config_.max_candidates - touched});
     const std::uint32_t* ids = table.pool.data() + slot.offset;
-    const std::uint64_t* sketches =
-        sketches_in_buckets_ ? table.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_ : nullptr;
+    const std::uint64_t* sketches = block_sketches(table, slot);
     touched += count;
     for (std::size_t n = 0; n < count; ++n) {
       const std::uint32_t id = ids[n];

@@ -253,6 +253,11 @@ class LshDatabase {
   void place(std::uint32_t id);
   /// Where `id`'s sketch goes in the per-id array (grown to hold it).
   std::uint64_t* sketch_slot(std::uint32_t id);
+  /// The sketches beside the ids of `slot`'s block (null while they are in
+  /// the per-id array).
+  const std::uint64_t* block_sketches(const Table& t, const Slot& slot) const {
+    return sketches_in_buckets_ ? t.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_ : nullptr;
+  }
   /// Calls fn(pool index) for every id a bucket of `t` keeps.
   template <class EntryFn>
   void for_each_kept(const Table& t, EntryFn&& fn) const;
