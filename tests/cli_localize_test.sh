@@ -264,6 +264,24 @@ grep -q "its odometry never changes over 150 scans: localizing without odometry"
 python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['localized'] and j['final_submap'] == 'sim-3-001-corrected.log.gz', j" \
   "$d/noodom.json" || fail "a target without odometry was not localized in its building"
 
+# A saved map answers with the query-time database settings --config asks for, as a map built with them
+# does (same CSV, row for row); any other map setting --config asks for is refused, naming it.
+echo '{"database": {"max_candidates": 150, "rarest_buckets_first": false}}' >"$d/q_map.json"
+echo '{"map": {"database": {"max_candidates": 150, "rarest_buckets_first": false}}}' >"$d/q_run.json"
+"$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" "$b/sim-3-001-corrected.log.gz" --config "$d/q_map.json" \
+  --out "$d/q.map" >/dev/null 2>&1 || fail "map build --config"
+"$LSHLOC" localize --map "$d/q.map" "${target[@]}" --out "$d/q_built.tum" >/dev/null 2>&1 || fail "built with the settings"
+"$LSHLOC" localize "${maps[@]}" --config "$d/q_run.json" "${target[@]}" --out "$d/q_tuned.tum" >/dev/null 2>&1 ||
+  fail "a saved map given query-time settings"
+"$LSHLOC" localize "${maps[@]}" "${target[@]}" --out "$d/q_plain.tum" >/dev/null 2>&1 || fail "a saved map as built"
+cmp -s "$d/q_built.tum.csv" "$d/q_tuned.tum.csv" || fail "query-time settings on a saved map answer otherwise"
+! cmp -s "$d/q_plain.tum.csv" "$d/q_tuned.tum.csv" || fail "the query-time settings changed nothing (no test)"
+echo '{"map": {"database": {"K": 11}}}' >"$d/k.json"
+if "$LSHLOC" localize "${maps[@]}" --config "$d/k.json" "${target[@]}" >/dev/null 2>"$d/err.txt"; then
+  fail "a saved map accepted another hash (K)"
+fi
+grep -q "m.map: the map was built with other map settings.*/database/K" "$d/err.txt" || fail "K refused: $(cat "$d/err.txt")"
+
 # --print-config needs no inputs (it shows the defaults a run would use); a run without them names what is missing.
 echo '{"localizer": {"candidates_per_feature": 321}}' >"$d/patch.json"
 "$LSHLOC" localize --print-config --config "$d/patch.json" >"$d/cfg.json" || fail "localize --print-config alone"

@@ -97,6 +97,19 @@ TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndSketchAndNothingElse) {
   EXPECT_EQ(nlohmann::json(c), expected);
 }
 
+TEST(ConfigJson, TheManyBuildingsExampleSetsOnlyAQueryTimeSetting) {
+  // A larger candidate budget, nothing a map's layout depends on: a map
+  // saved with the defaults can be given it without a rebuild.
+  ScenarioRunConfig c;
+  const std::string path = std::string(LSHLOC_SOURCE_DIR) + "/examples/config/many-buildings.json";
+  io::apply_config_patch(io::read_json_file(path), c, path);
+  EXPECT_EQ(c.map.database.max_candidates, 1000u);
+  nlohmann::json expected = ScenarioRunConfig{};
+  expected["map"]["database"]["max_candidates"] = 1000;
+  EXPECT_EQ(nlohmann::json(c), expected);
+  EXPECT_EQ(nlohmann::json(with_query_settings(LshConfig{}, c.map.database)), nlohmann::json(c.map.database));
+}
+
 TEST(ConfigJson, ReadingAFileNamesItOnSyntaxErrors) {
   const std::string path = test::temp_path("_bad_config.json");
   {

@@ -343,6 +343,24 @@ std::vector<std::uint8_t> lsh_snapshot(const LshDatabase& db) {
   return w.take();
 }
 
+/// Every query's ids and collision counts, one after the other (a
+/// separator after each answer), from a fresh LshQuery; `touched` gets the
+/// bucket entries those queries read.
+std::vector<std::uint32_t> every_answer(const LshDatabase& db, const std::vector<Descriptor>& queries, std::size_t k,
+                                        std::size_t* touched = nullptr) {
+  LshQuery q(db);
+  std::vector<std::uint32_t> ids, all;
+  std::vector<std::uint16_t> counts;
+  for (const Descriptor& d : queries) {
+    db.query_counts(d, k, ids, counts, q);
+    all.insert(all.end(), ids.begin(), ids.end());
+    all.insert(all.end(), counts.begin(), counts.end());
+    all.push_back(0xFFFFFFFFu);  // ends a query's answer
+  }
+  if (touched != nullptr) *touched = q.candidates_touched;
+  return all;
+}
+
 TEST(LshDatabase, SketchesInTheBucketsRankAsThePerIdArrayDoes) {
   // Full buckets (3 hashes a table, capacity 8: evictions and block moves); the sketches live
   // in the per-id array, move into the buckets part-way, or from the first
@@ -376,18 +394,7 @@ TEST(LshDatabase, SketchesInTheBucketsRankAsThePerIdArrayDoes) {
   EXPECT_EQ(moved.kept, dbs[0]->stats().kept);
   EXPECT_LE(dbs[1]->stats().bytes, dbs[0]->stats().bytes + 2 * 16 * data.size())
       << "at most 2 more copies a descriptor";
-  const auto answers = [&](const LshDatabase& db) {
-    LshQuery q(db);
-    std::vector<std::uint32_t> ids, all;
-    std::vector<std::uint16_t> counts;
-    for (const Descriptor& d : queries) {
-      db.query_counts(d, 50, ids, counts, q);
-      all.insert(all.end(), ids.begin(), ids.end());
-      all.insert(all.end(), counts.begin(), counts.end());
-      all.push_back(0xFFFFFFFFu);  // ends a query's answer
-    }
-    return all;
-  };
+  const auto answers = [&](const LshDatabase& db) { return every_answer(db, queries, 50); };
   const auto expected = answers(*dbs[0]);
   ASSERT_GT(expected.size(), 150u * 40) << "the queries find candidates";
   for (std::size_t k = 1; k < dbs.size(); ++k) EXPECT_EQ(answers(*dbs[k]), expected) << k;
@@ -445,6 +452,53 @@ TEST(LshDatabase, AKeyInsertsAndQueriesAsItsDescriptorDoes) {
   LshConfig other;
   other.seed += 1;
   EXPECT_FALSE(same_hashing(a.config(), other));
+}
+
+TEST(LshDatabase, QuerySettingsSetAfterTheBuildAnswerAsIfBuiltWithThem) {
+  // Full buckets (so the budget binds); a database built with the defaults'
+  // query settings, then given others, answers every query as one built
+  // with the others does; layout settings in the asked config are ignored.
+  const auto data = clustered(6000, 40, 0.2, 31);
+  const auto queries = clustered(150, 40, 0.2, 32);
+  LshConfig built;
+  built.K = 3;
+  built.bucket_capacity = 16;
+  built.max_candidates = 100;
+  LshConfig tuned = built;
+  tuned.max_candidates = 300;
+  tuned.rarest_buckets_first = false;
+  tuned.sketch_collision_weight = 3;
+  LshDatabase retuned(built), reference(tuned);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    retuned.insert(data[i], static_cast<std::uint32_t>(i));
+    reference.insert(data[i], static_cast<std::uint32_t>(i));
+  }
+  const auto answers = [&](LshDatabase& db) {
+    std::size_t touched = 0;
+    auto all = every_answer(db, queries, 60, &touched);
+    std::vector<std::uint32_t> ids;
+    for (const Descriptor& d : queries) {  // the database's own scratch, resized with max_candidates
+      db.query(d, 60, ids);
+      all.insert(all.end(), ids.begin(), ids.end());
+    }
+    return std::pair{all, touched};
+  };
+  const auto before = answers(retuned);
+  LshConfig asked = tuned;
+  asked.K = 9;  // a layout setting: not taken
+  retuned.set_query_settings(asked);
+  EXPECT_EQ(retuned.config().K, 3u);
+  EXPECT_EQ(retuned.config().max_candidates, 300u);
+  const auto after = answers(retuned);
+  const auto expected = answers(reference);
+  EXPECT_EQ(after.first, expected.first);
+  EXPECT_EQ(after.second, expected.second);
+  EXPECT_LT(before.second, after.second) << "the larger budget reads more bucket entries";
+  EXPECT_NE(before.first, after.first);
+  LshConfig bad = tuned;
+  bad.max_candidates = 0;
+  EXPECT_THROW(retuned.set_query_settings(bad), Error);
+  EXPECT_EQ(retuned.config().max_candidates, 300u) << "a refused setting changes nothing";
 }
 
 }  // namespace

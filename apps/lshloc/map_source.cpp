@@ -134,13 +134,29 @@ Submap load_map_argument(const std::string& arg, bool slam) {
 }
 
 void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config, const std::string& source) {
-  // The map's settings decide; a --config that asks for others is a mistake.
-  const nlohmann::json asked = config.map, theirs = built, defaults = GlobalMapConfig{};
-  if (asked != theirs && asked != defaults) {
+  // The map's settings decide, but for those only queries read: one that
+  // --config moves off its default is taken (a saved map tuned without a
+  // rebuild). Any other setting that --config asks for must be the map's.
+  const GlobalMapConfig defaults{};
+  const LshConfig& asked = config.map.database;
+  LshConfig query = built.database;
+  if (asked.max_candidates != defaults.database.max_candidates) query.max_candidates = asked.max_candidates;
+  if (asked.rarest_buckets_first != defaults.database.rarest_buckets_first)
+    query.rarest_buckets_first = asked.rarest_buckets_first;
+  if (asked.sketch_collision_weight != defaults.database.sketch_collision_weight)
+    query.sketch_collision_weight = asked.sketch_collision_weight;
+  GlobalMapConfig adopted = built, asked_rest = config.map, defaults_rest = defaults;
+  adopted.database = with_query_settings(built.database, query);
+  asked_rest.database = with_query_settings(asked_rest.database, query);
+  defaults_rest.database = with_query_settings(defaults_rest.database, query);
+  const nlohmann::json asked_json = asked_rest, theirs = adopted;
+  if (asked_json != theirs && asked_json != nlohmann::json(defaults_rest)) {
     throw Error(source + ": the map was built with other map settings than --config asks for (" +
-                nlohmann::json::diff(theirs, asked).dump() + "); leave the map's settings out of --config");
+                nlohmann::json::diff(theirs, asked_json).dump() +
+                "); leave the map's settings out of --config (of the database's, only max_candidates, "
+                "rarest_buckets_first and sketch_collision_weight may differ from the map's)");
   }
-  config.map = built;
+  config.map = adopted;
   config.localizer.features = built.features;
   io::require_localizer_fits_map(config.localizer, built, source);
 }
@@ -149,6 +165,7 @@ io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config)
   io::LoadedMap loaded = io::load_map(path);
   print_warnings(loaded.warnings);
   adopt_map_settings(loaded.map->config(), config, path);
+  loaded.map->set_query_settings(config.map.database);
   return loaded;
 }
 
@@ -172,6 +189,7 @@ FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const
     if (meta["map_log"].value("prefix", "") != prefix)
       throw Error(snapshot + ": a snapshot of the map under prefix '" + meta["map_log"].value("prefix", "") +
                   "', not '" + prefix + "'");
+    loaded.map->set_query_settings(config.map.database);
     if (nlohmann::json(loaded.map->config()) != nlohmann::json(config.map))
       throw Error(snapshot + ": its map settings differ from the fleet's registered settings at " + url);
     f.follower->resume(fleet::positions_from_json(meta["map_log"]["positions"], snapshot + ": meta map_log"));

@@ -38,7 +38,9 @@ Submap load_map_argument(const std::string& arg, bool slam);
 /// Loads a saved map for a run with `config`: prints the file's warnings
 /// (a torn journal tail) to stderr, gives the localizer the map's feature
 /// settings, and throws lshloc::Error when `config` asks for map settings
-/// other than the map's or the localizer cannot use the map.
+/// other than the map's or the localizer cannot use the map. The database's
+/// query-time settings that `config` moves off their defaults
+/// (with_query_settings()) are the exception: the map answers with them.
 io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config);
 
 /// Takes a map's settings (from a file or a fleet's registry, named by

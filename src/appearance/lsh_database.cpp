@@ -92,6 +92,25 @@ bool same_hashing(const LshConfig& a, const LshConfig& b) {
   return a.K == b.K && a.L == b.L && a.w == b.w && a.seed == b.seed && a.sketch_bits == b.sketch_bits;
 }
 
+LshConfig with_query_settings(LshConfig built, const LshConfig& asked) {
+  built.max_candidates = asked.max_candidates;
+  built.rarest_buckets_first = asked.rarest_buckets_first;
+  built.sketch_collision_weight = asked.sketch_collision_weight;
+  return built;
+}
+
+void LshDatabase::set_query_settings(const LshConfig& asked) {
+  const LshConfig next = with_query_settings(config_, asked);
+  next.validate();
+  config_ = next;
+  // The database's own scratch is sized by max_candidates; its counters stay.
+  LshQuery fresh(*this);
+  fresh.queries = own_query_.queries;
+  fresh.candidates_touched = own_query_.candidates_touched;
+  fresh.distinct_candidates = own_query_.distinct_candidates;
+  own_query_ = std::move(fresh);
+}
+
 LshQuery::LshQuery(const LshDatabase& db) {
   const LshConfig& c = db.config_;
   projections_.resize(static_cast<Eigen::Index>(c.K * c.L));

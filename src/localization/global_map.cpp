@@ -117,6 +117,11 @@ void GlobalMap::keep_recent_key(std::uint32_t id) {
             recent_sketches_.begin() + static_cast<std::ptrdiff_t>((id % ring) * sketch.size()));
 }
 
+void GlobalMap::set_query_settings(const LshConfig& asked) {
+  database_.set_query_settings(asked);
+  config_.database = database_.config();
+}
+
 std::optional<LshKeyView> GlobalMap::recent_key(std::uint32_t id) const {
   const std::size_t ring = config_.recent_keys, size = locations_.size();
   if (ring == 0 || recent_tags_.empty() || id < recent_first_ || id >= size || size - id > ring) return std::nullopt;

@@ -71,6 +71,12 @@ struct LshConfig {
 /// the other.
 bool same_hashing(const LshConfig& a, const LshConfig& b);
 
+/// `built` with the settings of `asked` that only queries read
+/// (max_candidates, rarest_buckets_first, sketch_collision_weight): a
+/// database built with `built` answers with these as one built with them
+/// would.
+LshConfig with_query_settings(LshConfig built, const LshConfig& asked);
+
 /// A descriptor as the database hashes it: its L table tags and its sign
 /// sketch (sketch_bits / 64 words). Lets a caller that kept the key of an
 /// inserted descriptor (LshDatabase::last_insert_tags, last_insert_sketch) query a
@@ -181,6 +187,13 @@ class LshDatabase {
   /// The same for a descriptor given by its key (from a database of the same
   /// hashing). Throws lshloc::Error on a key of other sizes.
   void insert(LshKeyView key, std::uint32_t id);
+
+  /// Answers from now on with `asked`'s query-time settings
+  /// (with_query_settings(); the contents and the rest of the config stay).
+  /// Not concurrently with queries; an LshQuery made before serves only if
+  /// max_candidates did not grow (query() throws otherwise). Throws
+  /// lshloc::Error naming a setting out of range.
+  void set_query_settings(const LshConfig& asked);
 
   /// Up to k ids, most colliding tables first (ties: the first seen, which is
   /// the newest entry of the first tables), into `out` (cleared first).

@@ -154,6 +154,11 @@ class GlobalMap {
                                                   std::span<const MapSectionView> sections, const std::string& source);
 
   const LshDatabase& database() const { return database_; }
+  /// The database answers from now on with `asked`'s query-time settings
+  /// (LshDatabase::set_query_settings; config() reports them). A write: not
+  /// concurrently with anything; a Localizer made before must be made again
+  /// if max_candidates grew (its queries throw).
+  void set_query_settings(const LshConfig& asked);
   /// The LSH key of map feature `id` (a location id) while it is one of the
   /// newest `recent_keys` features add_scan() added; none for older ones and
   /// for those a snapshot brought.
