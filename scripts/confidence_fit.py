@@ -135,11 +135,13 @@ def value_flag(w, up, hold):
 
 
 def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
-                  unsupported_hold=20, rise_lead=math.inf):
+                  unsupported_hold=20, rise_lead=math.inf, weak_support=None):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
     hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans,
     rise_margin_whole_map_lead) replayed from a trace's evidence columns (a trace scores the whole-map
-    lead on every scan)."""
+    lead on every scan). weak_support (not in the localizer): (C/N, N, margin, whole-map lead, newest
+    evidence): a scan meeting the first four also counts as supported (and makes its place supported),
+    and its rise passes the newest-fit test when the map scores at most that share of the newest points."""
     def rule(s, flag, state):
         x = s["x"]
         if x is None:
@@ -150,7 +152,15 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
         kept = kept_scans > 0
         if not kept:
             state["qualified"] = False
-        if supported > 0:
+            state["weak_place"] = False
+        weak = weak_support is not None and (x[1] >= weak_support[0] and math.expm1(x[3]) >= weak_support[1]
+                                             and margin >= weak_support[2] and s["lead"] >= weak_support[3])
+        if weak and kept:
+            state["weak_place"] = True
+        place_supported = place_supported > 0 or state.get("weak_place", False)
+        supported = supported > 0 or weak
+        fit_passes = fit >= rise_fit or (weak_support is not None and evidence <= weak_support[4])
+        if supported:
             if state.get("run", 0) == 0:
                 long_unsupported = kept_scans >= unsupported_hold and not state.get("qualified", False)
                 state["needs"] = supported_scans if long_unsupported else 1
@@ -160,9 +170,9 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
             state["run"] = 0
         penalty = 0.5 * (evidence - fit)
         state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
-        rises = (stable > 0 and supported > 0 and state["run"] >= state["needs"]
-                 and (margin >= min_margin or s["lead"] >= rise_lead) and fit >= rise_fit)
-        held = flag and kept and place_supported > 0 and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
+        rises = (stable > 0 and supported and state["run"] >= state["needs"]
+                 and (margin >= min_margin or s["lead"] >= rise_lead) and fit_passes)
+        held = flag and kept and place_supported and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
         return rises or held
     return rule
 
@@ -233,6 +243,8 @@ def main():
     ap.add_argument("--unsupported-hold-scans", type=int, default=20)
     ap.add_argument("--rise-lead", type=float, default=0.25,
                     help="the whole-map lead that also passes the rise's margin test (inf: off)")
+    ap.add_argument("--weak-support", help="C/N,N,MARGIN,LEAD,EVIDENCE: a weaker support test replayed beside "
+                    "the localizer's (evidence_flag; not built)")
     a = ap.parse_args()
     runs = load(a.trace_dir)
     train = set(a.train.split(","))
@@ -249,7 +261,8 @@ def main():
     flag_rule = (value_flag(w, a.up, a.hold) if a.flag == "value" else
                  evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
                                supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans,
-                               rise_lead=a.rise_lead))
+                               rise_lead=a.rise_lead,
+                               weak_support=[float(v) for v in a.weak_support.split(",")] if a.weak_support else None))
     buildings = sorted({b for b, _, _ in runs})
     everything = []
     for b in buildings:

@@ -39,7 +39,9 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool resea
          "--config",
          [&o](const std::string& path) { io::apply_config_patch(io::read_json_file(path), o.config, path); },
          "JSON file of settings (the shape --print-config writes; any subset): every field of the global map "
-         "and the localizer, under its C++ name")
+         "and the localizer, under its C++ name; a saved map keeps its own map settings but for the database's "
+         "query-time ones (max_candidates, rarest_buckets_first, sketch_collision_weight; "
+         "examples/config/many-buildings.json)")
       ->trigger_on_parse()
       ->group(group);
   cmd.add_flag("--print-config", o.print_config,
