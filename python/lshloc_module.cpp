@@ -262,6 +262,23 @@ PYBIND11_MODULE(lshloc, m) {
            "config_json: a JSON object of GlobalMapConfig fields to change (the `map` part of `lshloc map build "
            "--print-config`), e.g. '{\"database\": {\"L\": 16}}'")
       .def(
+          "set_query_settings",
+          [](PyGlobalMap& g, const std::string& config_json) {
+            g.write([&](GlobalMap& map) {
+              LshConfig asked = map.config().database;
+              io::apply_config_patch(parse_config_json(config_json), asked, "config_json");
+              if (nlohmann::json(with_query_settings(map.config().database, asked)) != nlohmann::json(asked))
+                throw Error(
+                    "config_json: a built map's database takes only max_candidates, rarest_buckets_first and "
+                    "sketch_collision_weight (the others are part of its contents)");
+              map.set_query_settings(asked);
+            });
+          },
+          py::arg("config_json"), py::call_guard<py::gil_scoped_release>(),
+          "Queries from now on read the map's database with these query-time settings, no rebuild: a JSON "
+          "object of LshConfig fields (the map's `database` part), e.g. '{\"max_candidates\": 1000}'; "
+          "localizers made before take them from their next scan")
+      .def(
           "add_submap",
           [](PyGlobalMap& g, const std::string& name) {
             return g.write([&](GlobalMap& map) { return map.add_submap(name); });

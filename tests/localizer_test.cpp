@@ -60,6 +60,36 @@ TEST(SharedMap, LocalizersOnTheirOwnThreadsGiveALoneLocalizersEstimates) {
   EXPECT_TRUE(m.success);
 }
 
+TEST(Localizer, TakesTheMapsNewQuerySettingsFromItsNextScan) {
+  // A localizer made before the map's candidate budget grew gives the
+  // estimates of one made after it (its query scratch is sized again), and
+  // the budget changes what the database proposes.
+  const Scenario sc = sim::synthetic_scenario(test::small_world());
+  GlobalMap map(GlobalMapConfig{});
+  MapFeeder(map, sc.submaps).feed_until(1.0);
+  const ScenarioRun before = localize_target(map, sc.target, LocalizerConfig{});
+  LshConfig asked = map.config().database;
+  asked.max_candidates = 1500;
+  asked.rarest_buckets_first = false;
+  const ScenarioRun changed_on_the_way = localize_target(map, sc.target, LocalizerConfig{}, {}, {}, [&](std::size_t i) {
+    if (i == 0) map.set_query_settings(asked);
+  });
+  EXPECT_EQ(map.config().database.max_candidates, 1500u);
+  EXPECT_FALSE(map.database().config().rarest_buckets_first);
+  const ScenarioRun after = localize_target(map, sc.target, LocalizerConfig{});
+  ASSERT_EQ(changed_on_the_way.estimates.size(), after.estimates.size());
+  bool differs_from_before = false;
+  for (std::size_t i = 0; i < after.estimates.size(); ++i) {
+    const LocalizationEstimate &a = after.estimates[i], &b = changed_on_the_way.estimates[i], &c = before.estimates[i];
+    EXPECT_EQ(a.submap, b.submap) << i;
+    EXPECT_EQ(a.pose.x, b.pose.x) << i;
+    EXPECT_EQ(a.pose.theta, b.pose.theta) << i;
+    differs_from_before = differs_from_before || a.pose.x != c.pose.x || a.pose.theta != c.pose.theta;
+  }
+  EXPECT_GT(after.localizer.candidates_touched, before.localizer.candidates_touched);
+  EXPECT_TRUE(differs_from_before) << "the settings changed nothing: no test";
+}
+
 TEST(Localizer, MapperScansMayArriveWhileTheTargetLocalizes) {
   // Half of every submap is mapped before the target starts; the rest
   // arrives between target scans, and the target still localizes.

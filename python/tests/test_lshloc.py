@@ -98,6 +98,32 @@ def test_a_saved_map_loads_to_the_same_estimates(world, tmp_path):
         lshloc.load_map(str(tmp_path / "bad.map"))
 
 
+def test_a_loaded_map_takes_query_settings_as_a_map_built_with_them(world, tmp_path):
+    """A map saved with the defaults and given a larger candidate budget answers as one built with it;
+    settings that are part of the map's contents are refused."""
+    a = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000-corrected.log.gz"))
+    target = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000.log.gz"))
+    plain, built = lshloc.GlobalMap(), lshloc.GlobalMap('{"database": {"max_candidates": 1500}}')
+    feed(plain, [("a", a.scans)])
+    feed(built, [("a", a.scans)])
+    plain.save(str(tmp_path / "plain.map"))
+    loaded = lshloc.load_map(str(tmp_path / "plain.map"))
+    before = lshloc.Localizer(loaded)  # made before the change: takes it from its next scan
+    loaded.set_query_settings('{"max_candidates": 1500}')
+    after, reference, untouched = lshloc.Localizer(loaded), lshloc.Localizer(built), lshloc.Localizer(plain)
+    differs = False
+    for scan in target.scans[100:160]:
+        want = reference.add_scan(scan)
+        assert before.add_scan(scan) == want
+        assert after.add_scan(scan) == want
+        differs = differs or untouched.add_scan(scan) != want
+    assert differs, "the budget changed nothing: no test"
+    with pytest.raises(lshloc.Error, match="takes only max_candidates"):
+        loaded.set_query_settings('{"K": 11}')
+    with pytest.raises(lshloc.Error, match="max_candidates"):
+        loaded.set_query_settings('{"max_candidates": 0}')
+
+
 def test_a_map_from_ros_grids_localizes_against_ground_truth(world, tmp_path):
     a = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000-corrected.log.gz"))
     b = lshloc.read_carmen_log(str(world / "sim-3-001" / "sim-3-001-corrected.log.gz"))

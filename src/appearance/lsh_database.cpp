@@ -103,12 +103,15 @@ void LshDatabase::set_query_settings(const LshConfig& asked) {
   const LshConfig next = with_query_settings(config_, asked);
   next.validate();
   config_ = next;
-  // The database's own scratch is sized by max_candidates; its counters stay.
-  LshQuery fresh(*this);
-  fresh.queries = own_query_.queries;
-  fresh.candidates_touched = own_query_.candidates_touched;
-  fresh.distinct_candidates = own_query_.distinct_candidates;
-  own_query_ = std::move(fresh);
+  own_query_.fit_to(*this);
+}
+
+void LshQuery::fit_to(const LshDatabase& db) {
+  LshQuery fresh(db);
+  fresh.queries = queries;
+  fresh.candidates_touched = candidates_touched;
+  fresh.distinct_candidates = distinct_candidates;
+  *this = std::move(fresh);
 }
 
 LshQuery::LshQuery(const LshDatabase& db) {
@@ -371,10 +374,13 @@ void LshDatabase::query_counts(LshKeyView key, std::size_t k, std::vector<std::u
   query_tags(key.tags, key.sketch, k, out, counts, q);
 }
 
+bool LshDatabase::serves(const LshQuery& q) const {
+  return q.mask_ + 1 >= 2 * std::min(config_.max_candidates, config_.L * config_.bucket_capacity) &&
+         q.tags_.size() == config_.L;
+}
+
 void LshDatabase::check_scratch(const LshQuery& q) const {
-  if (q.mask_ + 1 < 2 * std::min(config_.max_candidates, config_.L * config_.bucket_capacity) ||
-      q.tags_.size() != config_.L)
-    throw Error("LshDatabase::query: the LshQuery was made for another database configuration");
+  if (!serves(q)) throw Error("LshDatabase::query: the LshQuery was made for another database configuration");
 }
 
 void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<const std::uint64_t> query_sketch,

@@ -178,6 +178,9 @@ void Localizer::retrieve_hypotheses(const std::vector<Feature>& features) {
     stats_.query_s += watch.seconds();
     return;
   }
+  // The map's query-time settings may have changed since this localizer
+  // was made (GlobalMap::set_query_settings).
+  if (!map_.database().serves(query_)) query_.fit_to(map_.database());
   for (std::size_t f = 0; f < features.size(); ++f) {
     map_.database().query_counts(features[f].descriptor, config_.candidates_per_feature, ids_, counts_, query_);
     for (std::size_t k = 0; k < ids_.size(); ++k) {

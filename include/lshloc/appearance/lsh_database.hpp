@@ -113,6 +113,9 @@ class LshQuery {
   explicit LshQuery(const LshDatabase& db);
   /// The key of the descriptor last queried by descriptor with this scratch.
   LshKeyView last_key() const { return {tags_, sketch_}; }
+  /// Sizes this scratch for `db`'s settings now (after
+  /// LshDatabase::set_query_settings); the counters below stay.
+  void fit_to(const LshDatabase& db);
   std::size_t queries = 0;
   std::size_t candidates_touched = 0;
   std::size_t distinct_candidates = 0;
@@ -191,9 +194,13 @@ class LshDatabase {
   /// Answers from now on with `asked`'s query-time settings
   /// (with_query_settings(); the contents and the rest of the config stay).
   /// Not concurrently with queries; an LshQuery made before serves only if
-  /// max_candidates did not grow (query() throws otherwise). Throws
-  /// lshloc::Error naming a setting out of range.
+  /// max_candidates did not grow (serves(); query() throws otherwise).
+  /// Throws lshloc::Error naming a setting out of range.
   void set_query_settings(const LshConfig& asked);
+  /// Whether `q` can serve this database's queries: made for its number of
+  /// tables, and for a max_candidates at least as large (else
+  /// LshQuery::fit_to).
+  bool serves(const LshQuery& q) const;
 
   /// Up to k ids, most colliding tables first (ties: the first seen, which is
   /// the newest entry of the first tables), into `out` (cleared first).
@@ -280,7 +287,7 @@ class LshDatabase {
   /// Copies every bucket entry's sketch from the per-id array into the
   /// buckets, then drops the array.
   void move_sketches_into_buckets();
-  /// Throws unless `q` was made for this database's settings.
+  /// Throws unless serves(q).
   void check_scratch(const LshQuery& q) const;
   /// query_counts() once the query's tags (and sketch) are known.
   void query_tags(std::span<const std::uint32_t> tags, std::span<const std::uint64_t> sketch, std::size_t k,

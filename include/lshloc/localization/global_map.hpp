@@ -156,8 +156,8 @@ class GlobalMap {
   const LshDatabase& database() const { return database_; }
   /// The database answers from now on with `asked`'s query-time settings
   /// (LshDatabase::set_query_settings; config() reports them). A write: not
-  /// concurrently with anything; a Localizer made before must be made again
-  /// if max_candidates grew (its queries throw).
+  /// concurrently with anything; a Localizer made before takes them from
+  /// its next scan on.
   void set_query_settings(const LshConfig& asked);
   /// The LSH key of map feature `id` (a location id) while it is one of the
   /// newest `recent_keys` features add_scan() added; none for older ones and
