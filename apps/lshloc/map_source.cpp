@@ -138,13 +138,7 @@ void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config,
   // --config moves off its default is taken (a saved map tuned without a
   // rebuild). Any other setting that --config asks for must be the map's.
   const GlobalMapConfig defaults{};
-  const LshConfig& asked = config.map.database;
-  LshConfig query = built.database;
-  if (asked.max_candidates != defaults.database.max_candidates) query.max_candidates = asked.max_candidates;
-  if (asked.rarest_buckets_first != defaults.database.rarest_buckets_first)
-    query.rarest_buckets_first = asked.rarest_buckets_first;
-  if (asked.sketch_collision_weight != defaults.database.sketch_collision_weight)
-    query.sketch_collision_weight = asked.sketch_collision_weight;
+  const LshConfig query = with_query_settings_off(built.database, config.map.database, defaults.database);
   GlobalMapConfig adopted = built, asked_rest = config.map, defaults_rest = defaults;
   adopted.database = with_query_settings(built.database, query);
   asked_rest.database = with_query_settings(asked_rest.database, query);

@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -93,9 +94,16 @@ bool same_hashing(const LshConfig& a, const LshConfig& b) {
 }
 
 LshConfig with_query_settings(LshConfig built, const LshConfig& asked) {
-  built.max_candidates = asked.max_candidates;
-  built.rarest_buckets_first = asked.rarest_buckets_first;
-  built.sketch_collision_weight = asked.sketch_collision_weight;
+  return with_query_settings_off(built, asked, std::nullopt);
+}
+
+LshConfig with_query_settings_off(LshConfig built, const LshConfig& asked, const std::optional<LshConfig>& defaults) {
+  const auto take = [&](auto LshConfig::*field) {
+    if (!defaults || asked.*field != (*defaults).*field) built.*field = asked.*field;
+  };
+  take(&LshConfig::max_candidates);
+  take(&LshConfig::rarest_buckets_first);
+  take(&LshConfig::sketch_collision_weight);
   return built;
 }
 
@@ -427,7 +435,7 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     if (budget == 0) break;
     const Table& table = tables_[t];
     const Slot& slot = table.slots[i];
-    const std::size_t count = std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, budget});
+    const std::size_t count = std::min(held_ids(slot), budget);
     budget -= count;
     for (std::size_t n = 0; n < count; n += 16) __builtin_prefetch(table.pool.data() + slot.offset + n);
     if (const std::uint64_t* sketches = block_sketches(table, slot))
@@ -438,8 +446,7 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
     if (touched >= config_.max_candidates) break;
     const Table& table = tables_[t];
     const Slot& slot = table.slots[i];
-    const std::size_t count =
-        std::min<std::size_t>({slot.inserted, std::size_t{1} << slot.size_class, config_.max_candidates - touched});
+    const std::size_t count = std::min(held_ids(slot), config_.max_candidates - touched);
     const std::uint32_t* ids = table.pool.data() + slot.offset;
     const std::uint64_t* sketches = block_sketches(table, slot);
     touched += count;

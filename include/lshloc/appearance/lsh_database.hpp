@@ -4,8 +4,10 @@
 // Descriptor units (L2-normalized, distances in [0, 2]); no physical units.
 // Thread safety: insert() alone; concurrent queries each with their own
 // LshQuery (see LshDatabase).
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -76,6 +78,10 @@ bool same_hashing(const LshConfig& a, const LshConfig& b);
 /// database built with `built` answers with these as one built with them
 /// would.
 LshConfig with_query_settings(LshConfig built, const LshConfig& asked);
+/// The same, but only for the settings in which `asked` differs from
+/// `defaults` (a setting left at its default keeps `built`'s); without
+/// `defaults`, with_query_settings().
+LshConfig with_query_settings_off(LshConfig built, const LshConfig& asked, const std::optional<LshConfig>& defaults);
 
 /// A descriptor as the database hashes it: its L table tags and its sign
 /// sketch (sketch_bits / 64 words). Lets a caller that kept the key of an
@@ -275,6 +281,10 @@ class LshDatabase {
   std::uint64_t* sketch_slot(std::uint32_t id);
   /// The sketches beside the ids of `slot`'s block (null while they are in
   /// the per-id array).
+  /// The ids `slot`'s block holds (all it was given, up to the block's size).
+  static std::size_t held_ids(const Slot& slot) {
+    return std::min<std::size_t>(slot.inserted, std::size_t{1} << slot.size_class);
+  }
   const std::uint64_t* block_sketches(const Table& t, const Slot& slot) const {
     return sketches_in_buckets_ ? t.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_ : nullptr;
   }
