@@ -363,6 +363,63 @@ TEST(ReportPolicy, AWellSupportedPlaceYieldsToAnUnsupportedChallengerOnlyOnALarg
   }
 }
 
+TEST(ReportPolicy, APlaceNeverSupportedIsChallengedByTheRivalPlaceThatFitsTheWholeLocalMap) {
+  // a is reported on weak support (C/N 0.3 on 200 points); iRANSAC ranks b
+  // and c below it, but the whole local map fits c best. With
+  // young_place_rivals the estimate moves to c past the hysteresis; without,
+  // a stays (it is iRANSAC's best) and no duel is run.
+  const Hypothesis a = at(0, 0.0), b = at(1, 0.0), c = at(2, 0.0), c_near = at(2, 0.3);
+  const std::vector<ScoredHypothesis> active{scored(a, 0.30, 200), scored(b, 0.29, 200), scored(c, 0.28, 200),
+                                             scored(c_near, 0.27, 200)};
+  for (const std::size_t rivals : {std::size_t{3}, std::size_t{0}}) {
+    ReportPolicyConfig config = plain();
+    config.confidence.young_place_rivals = rivals;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    step(policy, {scored(a, 0.30, 200)}, sample);
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == 2 ? 0.5 : h.submap == 1 ? 0.25 : 0.2; };
+    const LocalizationEstimate e = step(policy, active, sample);
+    EXPECT_EQ(e.submap, rivals > 0 ? 2u : 0u) << "young_place_rivals " << rivals;
+    // c's place is represented by its most preferred hypothesis, not c_near.
+    if (rivals > 0) {
+      EXPECT_NEAR(e.pose.x, 0.0, 1e-12);
+    }
+    EXPECT_EQ(policy.stats().duels, rivals > 0 ? 1u : 0u);
+  }
+  // Only one rival place allowed: b, whose fit is no better than a's, loses.
+  {
+    ReportPolicyConfig config = plain();
+    config.confidence.young_place_rivals = 1;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    step(policy, {scored(a, 0.30, 200)}, sample);
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == 2 ? 0.5 : 0.2; };
+    EXPECT_EQ(step(policy, active, sample).submap, 0u);
+    EXPECT_EQ(policy.stats().duels_won, 0u);
+  }
+  // A place kept young_place_scans scans is no longer young: the hysteresis holds it.
+  {
+    ReportPolicyConfig config = plain();
+    config.confidence.young_place_scans = 2;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    for (int i = 0; i < 3; ++i) step(policy, {scored(a, 0.30, 200)}, sample);
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == 2 ? 0.5 : 0.2; };
+    EXPECT_EQ(step(policy, active, sample).submap, 0u);
+    EXPECT_EQ(policy.stats().duels, 0u);
+  }
+  // Once the reported place has been supported, only iRANSAC's best
+  // challenges it, through the hysteresis: a (0.5 on 1000 points) stays.
+  {
+    ReportPolicy policy(plain(), kPreference);
+    FakeSample sample;
+    step(policy, {scored(a, 0.5, 1000)}, sample);
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == 2 ? 0.5 : 0.2; };
+    EXPECT_EQ(step(policy, {scored(a, 0.5, 1000), scored(c, 0.45, 1000)}, sample).submap, 0u);
+    EXPECT_EQ(policy.stats().duels, 0u);
+  }
+}
+
 TEST(ReportPolicy, TrackingChildrenSurroundTheReportAtTheRobot) {
   ReportPolicyConfig config = plain();
   config.track_reported = true;

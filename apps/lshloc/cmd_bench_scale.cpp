@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <limits>
 #include <optional>
 #include <cstdio>
@@ -18,6 +19,7 @@
 #include "lshloc/eval/appearance.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/eval/place_recall.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "option_checks.hpp"
@@ -36,6 +38,7 @@ struct ScaleOptions {
   std::size_t recall_queries = 500;  ///< target features sampled for recall@100 (0: none)
   bool json = false;
   std::string plot;
+  std::string trace_dir;  ///< --trace: each target's eval-style trace and .truth.csv go here
   LocalizerOptions localizer;
 };
 
@@ -47,13 +50,24 @@ struct Outcomes {
   nlohmann::json per_target = nlohmann::json::array();
 };
 
+/// With a trace directory, each target's run is written as `eval --trace`
+/// writes it, to DIR/BUILDING.SUBMAPS.LABEL.csv and its .truth.csv.
 void localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
                   const std::vector<std::uint32_t>& target_submaps, const LocalizerConfig& config, bool tty,
-                  const char* label, Outcomes& o) {
+                  const char* label, const std::string& trace_dir, Outcomes& o) {
   for (std::size_t t = 0; t < targets.size(); ++t) {
     if (tty) std::fprintf(stderr, "\r  localizing %s (%s)   ", targets[t].building.c_str(), label);
-    const ScenarioRun run = localize_target(map, targets[t], config);
+    std::vector<TruthRank> ranks;
+    LocalizerObserver observer;
+    if (!trace_dir.empty()) observer = truth_rank_observer(targets[t], target_submaps[t], ranks);
+    const ScenarioRun run = localize_target(map, targets[t], config, {}, observer);
     const auto m = evaluate_localization(run.scan_estimates(), targets[t].truth, target_submaps[t]);
+    if (!trace_dir.empty()) {
+      const std::string path =
+          trace_dir + "/" + targets[t].building + "." + std::to_string(map.submap_count()) + "." + label + ".csv";
+      write_scenario_trace(path, targets[t], run, m);
+      write_truth_ranks(path + ".truth.csv", targets[t], ranks);
+    }
     o.localized += m.success;
     if (m.success && m.localized_at) o.localized_at.push_back(static_cast<double>(*m.localized_at));
     o.query_s += run.localizer.query_s, o.features += static_cast<double>(run.localizer.features);
@@ -167,11 +181,11 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
     }
     // The database's targets, then (the control) the same targets with random
     // map features as hypotheses at the same budget.
-    localize_all(map, targets, target_submaps, config.localizer, tty, "database", lsh);
+    localize_all(map, targets, target_submaps, config.localizer, tty, "database", opt.trace_dir, lsh);
     if (opt.random_control) {
       LocalizerConfig control = config.localizer;
       control.hypothesis_source = HypothesisSource::kRandomMapFeatures;
-      localize_all(map, targets, target_submaps, control, tty, "random hypotheses", random);
+      localize_all(map, targets, target_submaps, control, tty, "random", opt.trace_dir, random);
     }
     totals.add(map.stats(), map_scans);
     totals.rss_mb = std::max(totals.rss_mb, rss_mb());
@@ -248,12 +262,21 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
   cmd->add_flag("!--no-random", opt->random_control,
                 "skip the control run that localizes every target again with random map features as hypotheses");
   cmd->add_option("--plot", opt->plot, "write the per-feature costs against map size (PNG or SVG) to this file");
+  cmd->add_option("--trace", opt->trace_dir,
+                  "write each target's per-scan trace (as `eval --trace` does, with its .truth.csv) into this "
+                  "directory, as BUILDING.SUBMAPS.database.csv and BUILDING.SUBMAPS.random.csv");
   cmd->add_flag("--json", opt->json, "JSON lines only (the default output is JSON lines too)");
   add_localizer_options(*cmd, opt->localizer);
   cmd->callback([opt, &global] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
     if (opt->targets == 0) throw Error("bench scale: --targets must be at least 1");
+    // A typo in the trace directory must not cost a whole run.
+    if (!opt->trace_dir.empty()) {
+      std::error_code ec;
+      std::filesystem::create_directories(opt->trace_dir, ec);
+      io::require_writable(opt->trace_dir + "/trace.csv");
+    }
     const bool tty = isatty(fileno(stderr));
     std::vector<io::CostSeries> series = {
         {"update [us/feature]", {}, {}}, {"retrieval [us/feature]", {}, {}}, {"score [ns/pair] / 10", {}, {}}};

@@ -74,7 +74,7 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
       if (run.estimates[i].localized) announced = i;
     }
     const std::string stem = write_scenario_figures(opt->out, sc, run, m);
-    write_scenario_trace(opt->out + "/trace.csv", sc, run, m);
+    write_scenario_trace(opt->out + "/trace.csv", sc.target, run, m);
     const double wall = seconds_since(t0);
     if (opt->json) {
       std::printf("%s\n", io::json_text(scenario_json(sc, run, m)).c_str());

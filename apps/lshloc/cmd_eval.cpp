@@ -62,43 +62,6 @@ struct EvalOptions {
   LocalizerOptions localizer;
 };
 
-struct TruthRank {
-  std::size_t near = 0;  ///< active hypotheses within 0.5 m / 5 deg of the truth
-  std::size_t rank = 0;  ///< preference rank of the best of them (0 = reported)
-  double mean = 0.0;
-  std::uint32_t scored = 0;
-  std::size_t active = 0;
-  Pose2 local;                ///< the scan's laser pose in the local frame
-  double truth_all = 0.0;     ///< mean score of the true pose over the whole local map
-  double truth_recent = 0.0;  ///< ... over iRANSAC's recent window
-  double reported_all = 0.0;  ///< mean score of the reported pose over the whole local map
-};
-
-TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t submap,
-                        const LocalizationEstimate* reported) {
-  TruthRank r;
-  const double z = loc.config().ransac.preference_z;
-  const auto active = loc.ransac().active();
-  r.active = active.size();
-  const Pose2 local = loc.last_local_pose();
-  r.local = local;
-  const Hypothesis true_hypothesis{static_cast<std::uint32_t>(submap), truth * local.inverse()};
-  r.truth_all = loc.mean_score_of(true_hypothesis);
-  r.truth_recent = loc.mean_score_of(true_hypothesis, loc.config().ransac.recent_window);
-  if (reported) r.reported_all = loc.mean_score_of({reported->submap, reported->T_submap_local});
-  double best = -1e30;
-  for (const auto& h : active) {
-    if (h.hypothesis.submap != submap) continue;
-    const Pose2 est = h.hypothesis.T_submap_local * local;
-    if (translation_distance(est, truth) > 0.5 || angle_distance(est.theta, truth.theta) > 5 * M_PI / 180) continue;
-    ++r.near;
-    if (h.preference(z) > best) best = h.preference(z), r.mean = h.mean_score(), r.scored = h.scored;
-  }
-  if (r.near == 0) return r;
-  for (const auto& h : active) r.rank += h.preference(z) > best && h.score >= loc.config().ransac.min_score;
-  return r;
-}
-
 /// The scenario of `config`; beyond the real buildings (R > 15) synthetic
 /// buildings join the map as further submaps, each in its own frame.
 Scenario load_eval_scenario(const io::DatasetCatalog& catalog, const ScenarioConfig& config,
@@ -248,15 +211,9 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   if (!opt.trace.empty()) run_config.localizer.report.confidence.always_score_whole_map = true;
   const bool tty = isatty(fileno(stderr));
   // With --trace: where the true hypothesis stands among the active ones.
-  std::vector<TruthRank> ranks(sc.target.scans.size());
+  std::vector<TruthRank> ranks;
   LocalizerObserver observer;
-  if (!opt.trace.empty()) {
-    observer = [&](std::size_t i, const Localizer& loc, const LocalizationEstimate& e) {
-      if (sc.target.truth[i]) {
-        ranks[i] = rank_of_truth(loc, *sc.target.truth[i], sc.target_submap, e.has_estimate ? &e : nullptr);
-      }
-    };
-  }
+  if (!opt.trace.empty()) observer = truth_rank_observer(sc.target, sc.target_submap, ranks);
   nlohmann::json map_store = nlohmann::json::object();
   const Progress progress = [&](std::size_t done, std::size_t total) {
     if (tty && (done % 25 == 0 || done == total)) {
@@ -304,20 +261,8 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   }
   if (!opt.trace.empty()) {
     const std::string& path = trace_path;
-    write_scenario_trace(path, sc, run, m);
-    std::string f;
-    io::append_format(f,
-                      "scan,near_truth,best_rank,best_mean,best_scored,active,local_x,local_y,local_theta,"
-                      "truth_all_mean,truth_recent_mean,reported_all_mean\n");
-    for (std::size_t i = 0; i < ranks.size(); ++i) {
-      if (sc.target.truth[i]) {
-        const TruthRank& r = ranks[i];
-        io::append_format(f, "%zu,%zu,%zu,%.4f,%u,%zu,%.4f,%.4f,%.5f,%.4f,%.4f,%.4f\n", i, r.near, r.rank, r.mean,
-                          r.scored, r.active, r.local.x, r.local.y, r.local.theta, r.truth_all, r.truth_recent,
-                          r.reported_all);
-      }
-    }
-    io::write_file_atomically(path + ".truth.csv", f);
+    write_scenario_trace(path, sc.target, run, m);
+    write_truth_ranks(path + ".truth.csv", sc.target, ranks);
   }
   io::ErrorSeries curve{"R = " + std::to_string(config.submaps), {}, {}};
   for (std::size_t i = 0; i < m.error_per_scan_m.size(); ++i) {

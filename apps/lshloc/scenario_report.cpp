@@ -132,7 +132,7 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
   return stem;
 }
 
-void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run,
+void write_scenario_trace(const std::string& path, const TargetRun& target, const ScenarioRun& run,
                           const LocalizationMetrics& m) {
   std::string f;
   io::append_format(
@@ -142,8 +142,8 @@ void write_scenario_trace(const std::string& path, const Scenario& sc, const Sce
       "error_m,heading_error_deg\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
-    const auto& t = sc.target.truth[i];
-    io::append_format(f, "%zu,%.6f,%d,", i, sc.target.scans[i].timestamp, e.has_estimate ? 1 : 0);
+    const auto& t = target.truth[i];
+    io::append_format(f, "%zu,%.6f,%d,", i, target.scans[i].timestamp, e.has_estimate ? 1 : 0);
     // No estimate: no pose (empty fields, not a pose at the origin of submap 0).
     if (e.has_estimate)
       io::append_format(f, "%u,%.4f,%.4f,%.5f,", e.submap, e.pose.x, e.pose.y, e.pose.theta);
@@ -162,6 +162,53 @@ void write_scenario_trace(const std::string& path, const Scenario& sc, const Sce
     } else {
       f += ",,,,\n";
     }
+  }
+  io::write_file_atomically(path, f);
+}
+
+TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t submap,
+                        const LocalizationEstimate* reported) {
+  TruthRank r;
+  const double z = loc.config().ransac.preference_z;
+  const auto active = loc.ransac().active();
+  r.active = active.size();
+  const Pose2 local = loc.last_local_pose();
+  r.local = local;
+  const Hypothesis true_hypothesis{static_cast<std::uint32_t>(submap), truth * local.inverse()};
+  r.truth_all = loc.mean_score_of(true_hypothesis);
+  r.truth_recent = loc.mean_score_of(true_hypothesis, loc.config().ransac.recent_window);
+  if (reported) r.reported_all = loc.mean_score_of({reported->submap, reported->T_submap_local});
+  double best = -1e30;
+  for (const auto& h : active) {
+    if (h.hypothesis.submap != submap) continue;
+    const Pose2 est = h.hypothesis.T_submap_local * local;
+    if (translation_distance(est, truth) > 0.5 || angle_distance(est.theta, truth.theta) > 5 * std::numbers::pi / 180)
+      continue;
+    ++r.near;
+    if (h.preference(z) > best) best = h.preference(z), r.mean = h.mean_score(), r.scored = h.scored;
+  }
+  if (r.near == 0) return r;
+  for (const auto& h : active) r.rank += h.preference(z) > best && h.score >= loc.config().ransac.min_score;
+  return r;
+}
+
+LocalizerObserver truth_rank_observer(const TargetRun& target, std::size_t submap, std::vector<TruthRank>& ranks) {
+  ranks.assign(target.scans.size(), TruthRank{});
+  return [&target, submap, &ranks](std::size_t i, const Localizer& loc, const LocalizationEstimate& e) {
+    if (target.truth[i]) ranks[i] = rank_of_truth(loc, *target.truth[i], submap, e.has_estimate ? &e : nullptr);
+  };
+}
+
+void write_truth_ranks(const std::string& path, const TargetRun& target, const std::vector<TruthRank>& ranks) {
+  std::string f;
+  io::append_format(f,
+                    "scan,near_truth,best_rank,best_mean,best_scored,active,local_x,local_y,local_theta,"
+                    "truth_all_mean,truth_recent_mean,reported_all_mean\n");
+  for (std::size_t i = 0; i < ranks.size(); ++i) {
+    if (!target.truth[i]) continue;
+    const TruthRank& r = ranks[i];
+    io::append_format(f, "%zu,%zu,%zu,%.4f,%u,%zu,%.4f,%.4f,%.5f,%.4f,%.4f,%.4f\n", i, r.near, r.rank, r.mean, r.scored,
+                      r.active, r.local.x, r.local.y, r.local.theta, r.truth_all, r.truth_recent, r.reported_all);
   }
   io::write_file_atomically(path, f);
 }

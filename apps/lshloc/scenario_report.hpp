@@ -1,6 +1,7 @@
 #pragma once
 // What eval and demo report about one scenario run: its JSON line, its
 // figures and a per-scan trace.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -33,7 +34,33 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
                                    const LocalizationMetrics& m);
 
 /// One CSV row per target scan: estimate, truth, error, scores, CPU time.
-void write_scenario_trace(const std::string& path, const Scenario& sc, const ScenarioRun& run,
+void write_scenario_trace(const std::string& path, const TargetRun& target, const ScenarioRun& run,
                           const LocalizationMetrics& m);
+
+/// Where the true pose stands among the localizer's active hypotheses after
+/// one scan (a trace's .truth.csv row): whether verification or retrieval is
+/// what a late localization waits for.
+struct TruthRank {
+  std::size_t near = 0;  ///< active hypotheses within 0.5 m / 5 deg of the truth
+  std::size_t rank = 0;  ///< preference rank of the best of them (0 = reported)
+  double mean = 0.0;
+  std::uint32_t scored = 0;
+  std::size_t active = 0;
+  Pose2 local;                ///< the scan's laser pose in the local frame
+  double truth_all = 0.0;     ///< mean score of the true pose over the whole local map
+  double truth_recent = 0.0;  ///< ... over iRANSAC's recent window
+  double reported_all = 0.0;  ///< mean score of the reported pose over the whole local map
+};
+
+/// The TruthRank of `truth` (in submap `submap`) after the localizer's latest scan.
+TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t submap,
+                        const LocalizationEstimate* reported);
+
+/// An observer that records rank_of_truth at every target scan with ground truth into `ranks`
+/// (sized to the target's scans).
+LocalizerObserver truth_rank_observer(const TargetRun& target, std::size_t submap, std::vector<TruthRank>& ranks);
+
+/// The .truth.csv beside a trace: one row per scan with ground truth.
+void write_truth_ranks(const std::string& path, const TargetRun& target, const std::vector<TruthRank>& ranks);
 
 }  // namespace lshloc::app

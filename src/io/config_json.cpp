@@ -94,9 +94,9 @@ LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, e
                    recent_keys)
 LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, stable_scans, rise_supported_scans,
                    unsupported_hold_scans, switch_margin, duel_points, duel_margin, duel_z, duel_recent_margin,
-                   duel_recent_min_evidence, challenger_needs_support, unsupported_challenger_margin, same_place_m,
-                   same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
-                   hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,
+                   duel_recent_min_evidence, challenger_needs_support, unsupported_challenger_margin,
+                   young_place_rivals, same_place_m, same_place_deg, newest_points, rise_min_newest_fit,
+                   hold_max_contradiction, hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,
                    rise_min_whole_map_lead, rise_margin_whole_map_lead, whole_map_points, always_score_whole_map,
                    value_weights)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,

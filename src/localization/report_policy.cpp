@@ -43,6 +43,8 @@ void ReportPolicyConfig::validate() const {
   require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
           "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
           confidence.unsupported_challenger_margin);
+  require(confidence.young_place_rivals <= 64, "ReportPolicyConfig.confidence.young_place_rivals", "<= 64",
+          confidence.young_place_rivals);
   require(std::isfinite(confidence.rise_margin_whole_map_lead),
           "ReportPolicyConfig.confidence.rise_margin_whole_map_lead", "a finite number",
           confidence.rise_margin_whole_map_lead);
@@ -90,9 +92,45 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
     if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
   }
   if (incumbent != nullptr) anchor_ = incumbent->hypothesis;
-  if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) return *incumbent;
-  if (cc.duel_points == 0 || same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) {
-    return best;
+  // A place never supported is challenged by the leading rival places, past the hysteresis.
+  const bool young =
+      !reported_supported_ && kept_scans_ < cc.young_place_scans && cc.young_place_rivals > 0 && cc.duel_points > 0;
+  if (young) {
+    // The most preferred hypothesis of each of the young_place_rivals most preferred other places.
+    ranked_.clear();
+    for (const ScoredHypothesis& h : active) {
+      if (h.score >= ransac_.min_score && h.scored > 0) ranked_.push_back(&h);
+    }
+    std::sort(ranked_.begin(), ranked_.end(), [&](const ScoredHypothesis* a, const ScoredHypothesis* b) {
+      return a->preference(z) > b->preference(z);
+    });
+    rivals_.clear();
+    for (const ScoredHypothesis* h : ranked_) {
+      if (rivals_.size() == cc.young_place_rivals) break;
+      if (same_place(h->hypothesis, reported_place, local_pose, cc.same_place_m, same_angle)) continue;
+      const RobotPlace place(h->hypothesis, local_pose);
+      const bool taken = std::any_of(rivals_.begin(), rivals_.end(), [&](const ScoredHypothesis* r) {
+        return same_place(r->hypothesis, place, local_pose, cc.same_place_m, same_angle);
+      });
+      if (!taken) rivals_.push_back(h);
+    }
+    if (rivals_.empty()) return incumbent != nullptr ? std::optional(*incumbent) : best;
+    // The rival that fits one sample best; a fresh sample then judges it.
+    std::size_t chosen = 0;
+    if (rivals_.size() > 1) {
+      rival_hypotheses_.clear();
+      for (const ScoredHypothesis* r : rivals_) rival_hypotheses_.push_back(r->hypothesis);
+      if (sample.draw(0, cc.duel_points) > 0) {
+        sample.score(rival_hypotheses_, sums_);
+        chosen = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
+      }
+    }
+    best = *rivals_[chosen];
+  } else {
+    if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) return *incumbent;
+    if (cc.duel_points == 0 || same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) {
+      return best;
+    }
   }
   ++stats_.duels;
   std::array<Hypothesis, 2> held{*reported_, {}};

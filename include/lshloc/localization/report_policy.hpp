@@ -79,6 +79,20 @@ struct ConfidenceConfig {
   /// 414). The look-alike this rule stops led by 0.044 (RESULTS.md). Above 2
   /// (scores lie in [-1, 1]): never.
   double unsupported_challenger_margin = 0.1;
+  /// While the reported place is young (never supported, and kept fewer
+  /// than `young_place_scans` scans), iRANSAC's best hypotheses at up to
+  /// `young_place_rivals` other places challenge it each scan, not only its
+  /// overall best, and the hysteresis (switch_margin) does not shield it: on
+  /// the few data-points each was scored on, C/N ranks a look-alike over the
+  /// true place as often as not, while the whole local map tells them apart
+  /// (bench scale's targets among 300 buildings, BENCHMARKS.md). The rival
+  /// that fits one sample best is then dueled on a fresh one. A place held
+  /// longer is left to the hysteresis: in a building its map scores weakly
+  /// (mit-csail) the true place never meets the support test, and look-alikes
+  /// would win it away by chance (docs/results/confidence.md). 0 rivals:
+  /// only the overall best challenges, through the hysteresis.
+  std::size_t young_place_rivals = 3;
+  std::uint32_t young_place_scans = 20;
   double same_place_m = 1.0;     ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
   /// The newest-scan fit: the reported place scored on this many of the
@@ -301,6 +315,9 @@ class ReportPolicy {
   double mean_contradiction_ = 0.0;  ///< exponential mean of the newest points' penalty while flagged
   std::size_t last_drawn_ = 0;       ///< size of the sample last drawn
   std::array<Hypothesis, 6> children_;
+  /// young_place_rivals' challengers (into the active list of one call) and their hypotheses
+  std::vector<const ScoredHypothesis*> ranked_, rivals_;
+  std::vector<Hypothesis> rival_hypotheses_;
   std::vector<double> sums_;
   ReportPolicyStats stats_;
 };
