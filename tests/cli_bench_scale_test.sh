@@ -33,6 +33,15 @@ for key, runs in (("database", row["per_target"]), ("random", row["random_per_ta
             assert scans[bad[-1] + 1 if bad else 0][0] == t["localized_at"], (path, t)
             assert math.isclose(final, t["final_error_m"], abs_tol=1e-4), (path, final, t)
 PY
+# Tracing changes no estimate: the same run without --trace reports the same targets.
+"$LSHLOC" bench scale --submaps 3 --targets 2 --map-scans 2000 --target-scans 60 --recall-queries 0 \
+  >"$d/plain.json" 2>/dev/null || fail "bench scale without --trace failed"
+python3 - "$d/rows.json" "$d/plain.json" <<'PY' || fail "--trace changed the estimates"
+import json, sys
+a, b = (json.loads(open(p).read().splitlines()[-1]) for p in sys.argv[1:3])
+for key in ("per_target", "random_per_target", "targets_localized", "median_localized_at"):
+    assert a[key] == b[key], (key, a[key], b[key])
+PY
 # A trace directory that cannot be made is refused before any map is built.
 touch "$d/file"
 if "$LSHLOC" bench scale --submaps 1 --targets 1 --trace "$d/file/sub" >/dev/null 2>"$d/err2.txt"; then

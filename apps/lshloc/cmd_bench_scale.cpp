@@ -134,7 +134,10 @@ std::vector<RecallQuery> recall_sample(const std::vector<TargetRun>& targets,
 /// at 1 submap, one map per target. The same buildings host the targets at
 /// every size.
 nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) {
-  const ScenarioRunConfig config = make_run_config(opt.localizer);
+  ScenarioRunConfig config = make_run_config(opt.localizer);
+  // Traces carry the whole-map comparison on every scan, as eval's do: it
+  // draws nothing at random, so the estimates stay those of a run without it.
+  if (!opt.trace_dir.empty()) config.localizer.report.confidence.always_score_whole_map = true;
   const std::size_t per_map = std::min(opt.targets, submaps);
   const std::size_t maps = (opt.targets + per_map - 1) / per_map;
   MapTotals totals;
