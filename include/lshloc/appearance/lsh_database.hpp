@@ -279,12 +279,12 @@ class LshDatabase {
   void place(std::uint32_t id);
   /// Where `id`'s sketch goes in the per-id array (grown to hold it).
   std::uint64_t* sketch_slot(std::uint32_t id);
-  /// The sketches beside the ids of `slot`'s block (null while they are in
-  /// the per-id array).
   /// The ids `slot`'s block holds (all it was given, up to the block's size).
   static std::size_t held_ids(const Slot& slot) {
     return std::min<std::size_t>(slot.inserted, std::size_t{1} << slot.size_class);
   }
+  /// The sketches beside the ids of `slot`'s block (null while they are in
+  /// the per-id array).
   const std::uint64_t* block_sketches(const Table& t, const Slot& slot) const {
     return sketches_in_buckets_ ? t.sketch_pool.data() + std::size_t{slot.offset} * sketch_words_ : nullptr;
   }
