@@ -19,15 +19,14 @@ namespace {
 class FakeSample final : public SampleScorer {
  public:
   std::function<double(const Hypothesis&)> score_of = [](const Hypothesis&) { return 0.0; };
-  std::size_t draws = 0;
+  std::size_t draws = 0;  ///< samples drawn at random (not taken newest or spread)
 
   std::size_t draw(std::size_t, std::size_t n) override {
     ++draws;
-    n_ = n;
-    return n;
+    return take(n);
   }
-  std::size_t take_newest(std::size_t n) override { return draw(0, n); }
-  std::size_t take_spread(std::size_t n) override { return draw(0, n); }
+  std::size_t take_newest(std::size_t n) override { return take(n); }
+  std::size_t take_spread(std::size_t n) override { return take(n); }
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
     sums.assign(hypotheses.size(), 0.0);
     for (std::size_t j = 0; j < hypotheses.size(); ++j) sums[j] = score_of(hypotheses[j]) * static_cast<double>(n_);
@@ -39,6 +38,10 @@ class FakeSample final : public SampleScorer {
   }
 
  private:
+  std::size_t take(std::size_t n) {
+    n_ = n;
+    return n;
+  }
   std::size_t n_ = 0;
 };
 
@@ -418,6 +421,47 @@ TEST(ReportPolicy, APlaceNeverSupportedIsChallengedByTheRivalPlaceThatFitsTheWho
     EXPECT_EQ(step(policy, {scored(a, 0.5, 1000), scored(c, 0.45, 1000)}, sample).submap, 0u);
     EXPECT_EQ(policy.stats().duels, 0u);
   }
+}
+
+TEST(ReportPolicy, AYoungPlacesRivalThatLosesAsProposedIsRefinedAndMustThenLeadClearly) {
+  // a is reported young and fits the local map at 0.28. The local map fits
+  // submap 2 best with the robot at x = 0.3, but iRANSAC proposed it at x = 0:
+  // it loses as proposed, and its refinement decides.
+  const Hypothesis a = at(0, 0.0), c = at(2, 0.0);
+  const std::vector<ScoredHypothesis> active{scored(a, 0.30, 200), scored(c, 0.28, 200)};
+  const Pose2 place_c(0.3, 0.0, 0.0);
+  struct Case {
+    double c_peak;          // submap 2's fit at its best pose
+    double refined_margin;  // young_refined_margin (above 2: no refined duel)
+    std::uint32_t submap;   // the expected report
+  };
+  const auto run = [&](const Case& k) {
+    ReportPolicyConfig config = plain();
+    config.refine_points = 400;
+    config.confidence.young_refined_margin = k.refined_margin;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    sample.score_of = [&](const Hypothesis& h) {
+      return h.submap == 2 ? k.c_peak - translation_distance(h.T_submap_local, place_c) : 0.28;
+    };
+    step(policy, {scored(a, 0.30, 200)}, sample);
+    const LocalizationEstimate e = step(policy, active, sample);
+    EXPECT_EQ(e.submap, k.submap) << "peak " << k.c_peak << " margin " << k.refined_margin;
+    if (k.submap == 2) {
+      EXPECT_NEAR(e.pose.x, 0.3, 0.0126);  // reported at the refined pose
+      EXPECT_EQ(policy.stats().refined_duels_won, 1u);
+    } else {
+      EXPECT_EQ(policy.stats().duels_won, 0u);
+    }
+    return sample.draws;
+  };
+  run({0.5, 0.1, 2});
+  // A lead of 0.07 after refinement is not enough, though 0.03 would be.
+  const std::size_t draws_lost = run({0.35, 0.1, 0});
+  // Without the refined duel: the same draws, so a refined challenger that
+  // loses leaves every later estimate as it was.
+  EXPECT_EQ(run({0.35, 3.0, 0}), draws_lost);
+  run({0.5, 3.0, 0});
 }
 
 TEST(ReportPolicy, TrackingChildrenSurroundTheReportAtTheRobot) {

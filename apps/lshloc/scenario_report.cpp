@@ -49,6 +49,7 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["ns_per_score"] = run.localizer.ns_per_score();
   j["duels"] = run.localizer.report.duels;
   j["duels_won"] = run.localizer.report.duels_won;
+  j["refined_duels_won"] = run.localizer.report.refined_duels_won;
   j["matcher_velocity_matches"] = run.localizer.scan_matcher.velocity_matches;
   j["matcher_odometry_fallbacks"] = run.localizer.scan_matcher.odometry_fallbacks;
   j["newly_mapped_features"] = run.localizer.newly_mapped_features;

@@ -43,6 +43,8 @@ void ReportPolicyConfig::validate() const {
   require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
           "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
           confidence.unsupported_challenger_margin);
+  require(confidence.young_refined_margin >= 0.0 && std::isfinite(confidence.young_refined_margin),
+          "ReportPolicyConfig.confidence.young_refined_margin", ">= 0 and finite", confidence.young_refined_margin);
   require(confidence.young_place_rivals <= 64, "ReportPolicyConfig.confidence.young_place_rivals", "<= 64",
           confidence.young_place_rivals);
   require(std::isfinite(confidence.rise_margin_whole_map_lead),
@@ -155,13 +157,25 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
     won = wins(recent, cc.duel_recent_margin) &&
           (!reported_supported_ || recent.incumbent_evidence >= cc.duel_recent_min_evidence);
   }
+  const auto n = static_cast<std::uint32_t>(last_drawn_);
+  if (!won && young && cc.young_refined_margin <= 2.0 && config_.refine_points > 0) {
+    // The challenger as iRANSAC proposed it may sit half a metre off its
+    // place. Spread points, not drawn: a refined challenger that loses leaves
+    // the later draws, and so the estimates, as they were.
+    const Hypothesis refined = refine(best->hypothesis, std::nullopt, local_pose, sample, Points::spread);
+    const Duel second = duel(refined, incumbents, 0, sample, Points::spread);
+    if (wins(second, cc.young_refined_margin)) {
+      best->hypothesis = refined;
+      won = true;
+      ++stats_.refined_duels_won;
+    }
+  }
   if (won) {
     ++stats_.duels_won;
     anchor_ = best->hypothesis;
     return best;
   }
   if (incumbent != nullptr) return *incumbent;
-  const auto n = static_cast<std::uint32_t>(last_drawn_);
   return ScoredHypothesis{incumbents[d.incumbent], d.incumbent_mean * n, n};
 }
 
@@ -291,8 +305,9 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
 }
 
 ReportPolicy::Duel ReportPolicy::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents,
-                                      std::size_t window, SampleScorer& sample) {
-  last_drawn_ = sample.draw(window, config_.confidence.duel_points);
+                                      std::size_t window, SampleScorer& sample, Points points) {
+  const std::size_t wanted = config_.confidence.duel_points;
+  last_drawn_ = points == Points::spread ? sample.take_spread(wanted) : sample.draw(window, wanted);
   if (last_drawn_ == 0 || incumbents.empty()) return {};
   // The incumbent place is represented by whichever of its hypotheses fits
   // the whole local map best: the tracked report follows the recent drift,
@@ -318,8 +333,9 @@ ReportPolicy::Duel ReportPolicy::duel(const Hypothesis& challenger, std::span<co
 }
 
 Hypothesis ReportPolicy::refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose,
-                                SampleScorer& sample) {
-  last_drawn_ = sample.draw(config_.refine_window, config_.refine_points);
+                                SampleScorer& sample, Points points) {
+  last_drawn_ = points == Points::spread ? sample.take_spread(config_.refine_points)
+                                         : sample.draw(config_.refine_window, config_.refine_points);
   if (last_drawn_ == 0) return h;
   const double min_gain = config_.refine_min_gain * static_cast<double>(last_drawn_);
   // h's sum over the sample carries from one step to the next: scores do

@@ -93,6 +93,15 @@ struct ConfidenceConfig {
   /// only the overall best challenges, through the hysteresis.
   std::size_t young_place_rivals = 3;
   std::uint32_t young_place_scans = 20;
+  /// A young place's challenger that loses as iRANSAC proposed it (up to
+  /// half a metre and a few degrees off its place) is refined and dueled
+  /// once more, and then wins only by this lead: refined, a look-alike fits
+  /// a short local map a little better than before, the true place far
+  /// better (bench scale's target 3 among 300 buildings, BENCHMARKS.md).
+  /// Both steps score points spread over the whole local map, not drawn, so
+  /// a refined challenger that loses changes no later estimate. Above 2
+  /// (scores lie in [-1, 1]): never.
+  double young_refined_margin = 0.1;
   double same_place_m = 1.0;     ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
   /// The newest-scan fit: the reported place scored on this many of the
@@ -243,9 +252,10 @@ class SampleScorer {
 };
 
 struct ReportPolicyStats {
-  std::size_t duels = 0;         ///< challenger-incumbent duels run
-  std::size_t duels_won = 0;     ///< duels the challenger won (the estimate moved)
-  std::size_t refine_moves = 0;  ///< accepted moves of the tracking refinement
+  std::size_t duels = 0;              ///< challenger-incumbent duels run
+  std::size_t duels_won = 0;          ///< duels the challenger won (the estimate moved)
+  std::size_t refined_duels_won = 0;  ///< ... of them, by a young place's refined challenger
+  std::size_t refine_moves = 0;       ///< accepted moves of the tracking refinement
 };
 
 /// iRANSAC's settings that the policy reads.
@@ -282,15 +292,19 @@ class ReportPolicy {
     double incumbent_evidence = 0.0;
     std::size_t incumbent = 0;  ///< which of the incumbents stood for its place
   };
+  /// How a duel or a refinement takes its data-points: drawn at random, or
+  /// spread evenly over the whole local map (no draw, so the later draws stay
+  /// as they would have been).
+  enum class Points { drawn, spread };
   /// Mean scores of `challenger` and the best of `incumbents` (hypotheses of
   /// one place) over the same duel_points data-points drawn uniformly from
   /// the newest `window` (0: all).
   Duel duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents, std::size_t window,
-            SampleScorer& sample);
+            SampleScorer& sample, Points points = Points::drawn);
   /// `h` (or `alternative`, if it fits the sample better) refined by the
   /// pattern search of refine_points about the robot's `local_pose`.
   Hypothesis refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose,
-                    SampleScorer& sample);
+                    SampleScorer& sample, Points points = Points::drawn);
   /// The hysteresis and the duels: the hypothesis to report this scan.
   std::optional<ScoredHypothesis> hold_or_move(std::optional<ScoredHypothesis> best,
                                                std::span<const ScoredHypothesis> active, const Pose2& local_pose,
