@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <filesystem>
 #include <limits>
 #include <optional>
 #include <cstdio>
@@ -275,11 +274,7 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
     if (print_config_if_asked(opt->localizer)) return;
     if (opt->targets == 0) throw Error("bench scale: --targets must be at least 1");
     // A typo in the trace directory must not cost a whole run.
-    if (!opt->trace_dir.empty()) {
-      std::error_code ec;
-      std::filesystem::create_directories(opt->trace_dir, ec);
-      io::require_writable(opt->trace_dir + "/trace.csv");
-    }
+    if (!opt->trace_dir.empty()) io::require_writable_directory(opt->trace_dir, "the trace directory");
     const bool tty = isatty(fileno(stderr));
     std::vector<io::CostSeries> series = {
         {"update [us/feature]", {}, {}}, {"retrieval [us/feature]", {}, {}}, {"score [ns/pair] / 10", {}, {}}};

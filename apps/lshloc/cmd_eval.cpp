@@ -196,11 +196,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   // Output paths first: a typo must not cost a whole run.
   const std::string trace_path = suffix_trace ? opt.trace + ".R" + std::to_string(config.submaps) : opt.trace;
   if (!opt.trace.empty()) io::require_writable(trace_path), io::require_writable(trace_path + ".truth.csv");
-  if (!opt.plot_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(opt.plot_dir, ec);
-    io::require_writable(opt.plot_dir + "/figure.png");
-  }
+  if (!opt.plot_dir.empty()) io::require_writable_directory(opt.plot_dir, "the figure directory");
   // A saved or a fleet's map holds the submaps: only the target's logs are read.
   Scenario sc = opt.load_map.empty() && opt.map_redis.empty()
                     ? load_eval_scenario(catalog, config, slam_pose_cache(opt.slam_cache))

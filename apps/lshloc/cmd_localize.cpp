@@ -181,9 +181,7 @@ std::string log_stem(const std::string& path) {
 /// over time.
 void write_plots(const std::string& dir, const std::string& target_path, const GlobalMap& map,
                  const MapSources& sources, const ScenarioRun& run) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(dir + ": cannot create the figure directory: " + ec.message());
+  io::require_writable_directory(dir, "the figure directory");
   const std::string stem = dir + "/" + log_stem(target_path);
   const auto& last = run.estimates.back();
   const std::uint32_t submap = last.has_estimate ? last.submap : 0;
@@ -324,9 +322,7 @@ void print_answer(const nlohmann::json& j) {
 std::vector<std::string> output_paths(const LocalizeOptions& opt) {
   if (opt.out.empty()) return {};
   if (opt.targets.size() == 1) return {opt.out};
-  std::error_code ec;
-  std::filesystem::create_directories(opt.out, ec);
-  if (ec) throw Error(opt.out + ": cannot create the output directory for several targets: " + ec.message());
+  io::require_writable_directory(opt.out, "the output directory for several targets");
   std::vector<std::string> outs;
   std::set<std::string> seen;
   for (const auto& path : opt.targets) {

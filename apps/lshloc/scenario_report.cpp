@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <numbers>
 
 #include "lshloc/common/error.hpp"
@@ -91,9 +90,7 @@ void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run) {
 
 std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const ScenarioRun& run,
                                    const LocalizationMetrics& m) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(dir + ": cannot create the figure directory: " + ec.message());
+  io::require_writable_directory(dir, "the figure directory");
   const std::string stem = dir + "/" + sc.config.building + "-s" + std::to_string(sc.config.start) + "-R" +
                            std::to_string(sc.config.submaps);
   io::ErrorSeries series{"R = " + std::to_string(sc.config.submaps), {}, {}};

@@ -148,4 +148,11 @@ void require_writable(const std::string& path) {
   if (::access(name.c_str(), W_OK) != 0) throw Error(system_error(path, "cannot write in " + name));
 }
 
+void require_writable_directory(const std::string& dir, const std::string& what) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw Error(dir + ": cannot create " + what + ": " + ec.message());
+  require_writable(dir + "/file");
+}
+
 }  // namespace lshloc::io

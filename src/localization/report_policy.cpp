@@ -157,6 +157,7 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
     won = wins(recent, cc.duel_recent_margin) &&
           (!reported_supported_ || recent.incumbent_evidence >= cc.duel_recent_min_evidence);
   }
+  // The fallback below stands for the incumbent on the duels' sample size, not the refined retry's.
   const auto n = static_cast<std::uint32_t>(last_drawn_);
   if (!won && young && cc.young_refined_margin <= 2.0 && config_.refine_points > 0) {
     // The challenger as iRANSAC proposed it may sit half a metre off its

@@ -58,4 +58,9 @@ void write_files_atomically(std::span<const FileOutput> files);
 /// the check a long run makes before it starts.
 void require_writable(const std::string& path);
 
+/// Creates `dir` (and its parents) where it is missing, and throws
+/// lshloc::Error naming it, and what it is for (`what`, e.g. "the figure
+/// directory"), unless files can be written in it.
+void require_writable_directory(const std::string& dir, const std::string& what = "the directory");
+
 }  // namespace lshloc::io
