@@ -49,7 +49,10 @@ def load(trace_dir):
                 truth = r["error_m"] != ""
                 err = float(r["error_m"]) if truth else math.nan
                 head = float(r["heading_error_deg"]) if truth and r["heading_error_deg"] != "" else math.nan
+                # rise_margin: the margin the rise read (a rival dropped within
+                # rival_memory_scans still stands); traces before it have margin only.
                 scans.append({"lead": float(r.get("whole_map_lead") or 0.0) if has else 0.0,
+                              "rise_margin": float(r.get("rise_margin") or r["margin"]) if has else 0.0,
                               "x": features(r) if has else None, "truth": truth, "err": err,
                               "right": truth and has and err <= 2.0 and head <= 10.0,
                               "correct": truth and has and err < 1.0})
@@ -147,7 +150,7 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
         if x is None:
             state.clear()
             return False
-        margin, place_supported, stable, supported, fit, evidence = x[2], x[5], x[6], x[7], x[8], x[9]
+        margin, place_supported, stable, supported, fit, evidence = s["rise_margin"], x[5], x[6], x[7], x[8], x[9]
         kept_scans = round(math.expm1(x[4]))
         kept = kept_scans > 0
         if not kept:

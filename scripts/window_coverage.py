@@ -12,8 +12,15 @@ Prints how many window poses lie within 1 m and 2 m of a map pose, and the
 distance of the last one. --sweep: a Markdown table over the 20 evenly spaced
 starts of the start sweep (scripts/sweep.sh starts), with the share within
 2 m (the live protocol's "mapped") and the nearest any window pose comes.
+--endpoints adds what the map's scans saw, whatever scores them: each window
+ground-truth scan's laser endpoints (ranges under 30 m, at its true pose)
+that lie within one 0.15 m cell of a map scan's endpoint; the table gives
+their median and largest share over the window and how many scans reach 30%.
+
+    scripts/window_coverage.py mit-csail --sweep --endpoints
 """
 import argparse
+import bisect
 import gzip
 import math
 import os
@@ -27,8 +34,9 @@ POSES = {"fr079": "fr079/fr079.gfs-poses-at-bag-stamps.txt", "fr101": "fr101/fr1
          "mit-csail": "mit-csail/csail.gfs-poses-at-clf-stamps.txt"}
 
 
-def raw_stamps(path):
-    stamps = []
+def raw_scans(path):
+    """([time stamp], [ranges]) of the FLASER scans of a raw log, in log order."""
+    stamps, ranges = [], []
     with gzip.open(path, "rt") as f:
         for n, line in enumerate(f, 1):
             a = line.split()
@@ -38,7 +46,47 @@ def raw_stamps(path):
             if len(a) < beams + 9:
                 sys.exit(f"{path}:{n}: FLASER line too short for {beams} beams")
             stamps.append(float(a[beams + 8]))
-    return stamps
+            ranges.append([float(r) for r in a[2:2 + beams]])
+    return stamps, ranges
+
+
+CELL = 0.15  # [m] the endpoint grid's cell
+
+
+def endpoint_cells(ranges, pose):
+    """Grid cells of a scan's endpoints under 30 m (FLASER: n beams over 180 degrees, right to left)."""
+    x, y, theta = pose
+    n = len(ranges)
+    cells = []
+    for i, r in enumerate(ranges):
+        if 0 < r < 30:
+            a = theta - math.pi / 2 + i * math.pi / max(n - 1, 1)
+            cells.append((math.floor((x + r * math.cos(a)) / CELL), math.floor((y + r * math.sin(a)) / CELL)))
+    return cells
+
+
+def scan_of(stamps, t):
+    """Index of the raw scan stamped within 1 ms of t (the poses file's key), or None."""
+    i = bisect.bisect_left(stamps, t)
+    near = [j for j in (i - 1, i) if 0 <= j < len(stamps) and abs(stamps[j] - t) <= 0.001]
+    return min(near, key=lambda j: abs(stamps[j] - t)) if near else None
+
+
+def endpoint_overlap(stamps, ranges, window, kept):
+    """Per window pose with its raw scan: the share of its endpoints within a cell of a map endpoint."""
+    seen = set()
+    for q in kept:
+        j = scan_of(stamps, q[0])
+        if j is not None:
+            seen.update(endpoint_cells(ranges[j], q[1:]))
+    shares = []
+    for w in window:
+        j = scan_of(stamps, w[0])
+        cells = endpoint_cells(ranges[j], w[1:]) if j is not None else []
+        if cells:
+            hit = sum(any((cx + dx, cy + dy) in seen for dx in (-1, 0, 1) for dy in (-1, 0, 1)) for cx, cy in cells)
+            shares.append(hit / len(cells))
+    return shares
 
 
 def data_lines(path):
@@ -81,25 +129,32 @@ def main():
     p.add_argument("--sweep", action="store_true", help="the 20 starts of the start sweep instead of one")
     p.add_argument("--length", type=int, default=1000)
     p.add_argument("--guard", type=float, default=60.0, help="[s] map scans this close to the window are left out")
+    p.add_argument("--endpoints", action="store_true", help="with --sweep: the window scans' endpoints the map saw")
     p.add_argument("--data", default=os.environ.get("LSHLOC_DATA", "../shared/data"))
     a = p.parse_args()
     if (a.start is None) == (not a.sweep):
         sys.exit("give a START or --sweep")
-    stamps = raw_stamps(os.path.join(a.data, RAW[a.building]))
+    stamps, ranges = raw_scans(os.path.join(a.data, RAW[a.building]))
     poses = truth_poses(os.path.join(a.data, POSES[a.building]))
     length = min(a.length, len(stamps))
     if a.sweep:
-        print("| start | map poses | window poses | within 2 m | nearest [m] | last pose from the map [m] |")
-        print("|---|---|---|---|---|---|")
+        extra = " endpoints seen: median | largest | scans >= 30% |" if a.endpoints else ""
+        print("| start | map poses | window poses | within 2 m | nearest [m] | last pose from the map [m] |" + extra)
+        print("|---|---|---|---|---|---|" + "---|---|---|" * a.endpoints)
         for i in range(20):
             start = i * (SWEEP_TOTAL[a.building] - length) // 19
             c = coverage(stamps, poses, start, length, a.guard)
             if c is None:
-                print(f"| {start} | - | - | - | - | - |")
+                print(f"| {start} | - | - | - | - | - |" + " - | - | - |" * a.endpoints)
                 continue
             window, kept, d = c
-            print(f"| {start} | {len(kept)} | {len(window)} | {sum(x < 2 for x in d) / len(d):.2f} | "
-                  f"{min(d):.1f} | {d[-1]:.1f} |")
+            row = (f"| {start} | {len(kept)} | {len(window)} | {sum(x < 2 for x in d) / len(d):.2f} | "
+                   f"{min(d):.1f} | {d[-1]:.1f} |")
+            if a.endpoints:
+                e = sorted(endpoint_overlap(stamps, ranges, window, kept))
+                row += (f" {e[len(e) // 2]:.2f} | {e[-1]:.2f} | {sum(v >= 0.3 for v in e)} |" if e
+                        else " - | - | - |")
+            print(row)
         return
     if not 0 <= a.start < len(stamps):
         sys.exit(f"start {a.start} outside the log's {len(stamps)} scans")

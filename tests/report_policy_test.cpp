@@ -104,6 +104,44 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
   }
 }
 
+TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
+  // iRANSAC drops a rival for a few scans and proposes it again: the rise
+  // reads the lead over its C/N when last seen for rival_memory_scans scans.
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
+  const auto replay = [&](std::uint32_t memory, double rival_whole_map_score) {
+    ReportPolicyConfig config = plain();
+    config.confidence.rival_memory_scans = memory;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    double rival_score = 0.5;  // as the place while iRANSAC holds the rival
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? rival_score : 0.5; };
+    for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) {
+      const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.5, 1000)}, sample);
+      EXPECT_FALSE(e.localized);
+      EXPECT_NEAR(e.rise_margin, e.margin, 1e-12);
+    }
+    rival_score = rival_whole_map_score;
+    std::vector<LocalizationEstimate> alone;
+    for (int i = 0; i < 8; ++i) alone.push_back(step(policy, {scored(place, 0.6, 1000)}, sample));
+    return alone;
+  };
+  // The rival scores as well as the place on the whole local map (lead 0):
+  // the flag rises only once the memory has passed.
+  const std::vector<LocalizationEstimate> remembered = replay(5, 0.5);
+  for (std::size_t i = 0; i < remembered.size(); ++i) {
+    EXPECT_NEAR(remembered[i].margin, 0.6, 1e-12) << "iRANSAC holds no rival";
+    EXPECT_NEAR(remembered[i].rise_margin, i < 5 ? 0.1 : 0.6, 1e-9) << "scan " << i;
+    EXPECT_EQ(remembered[i].localized, i >= 5) << "scan " << i;
+  }
+  // Without memory it rises the scan the rival vanishes.
+  EXPECT_TRUE(replay(0, 0.5).front().localized);
+  // A whole-map lead over the remembered rival of rise_margin_whole_map_lead
+  // (0.3 >= 0.25 on the same points) passes the margin test at once.
+  const std::vector<LocalizationEstimate> beaten = replay(5, 0.2);
+  EXPECT_TRUE(beaten.front().localized);
+  EXPECT_NEAR(beaten.front().whole_map_lead, 0.3, 1e-12);
+}
+
 TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
   // A place held long without support (C/N 0.29, as a look-alike whose own
   // building is not mapped yet) whose best hypothesis crosses the support
@@ -135,7 +173,8 @@ TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
 }
 
 TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnContradiction) {
-  const ReportPolicyConfig config = plain();
+  ReportPolicyConfig config = plain();
+  config.confidence.rival_memory_scans = 0;  // the held flag's rival does not stand against the later rises
   const std::size_t stable = config.confidence.stable_scans;
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   FakeSample sample;
@@ -203,7 +242,12 @@ TEST(ReportPolicy, TheWholeMapLeadComparesTheReportedPlaceAndItsRivalOnTheSamePo
   EXPECT_NEAR(e.whole_map_fit, 0.5, 1e-12);
   EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12);
   EXPECT_NEAR(e.margin, 0.2, 1e-12);  // iRANSAC's C/N lead, on whatever points each was scored
-  // Without a rival the lead is the reported place's own fit.
+  // Without a rival the lead is the reported place's own fit, once the
+  // last rival no longer stands (rival_memory_scans) ...
+  for (std::uint32_t i = 0; i < config.confidence.rival_memory_scans; ++i) {
+    e = step(policy, {scored(place, 0.6, 1000)}, sample);
+    EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12) << "scan " << i;
+  }
   e = step(policy, {scored(place, 0.6, 1000)}, sample);
   EXPECT_NEAR(e.whole_map_lead, 0.5, 1e-12);
   // By default it is scored only when the rise hinges on it: not for a

@@ -136,8 +136,8 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
   io::append_format(
       f,
       "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
-      "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,truth_x,truth_y,truth_theta,"
-      "error_m,heading_error_deg\n");
+      "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,rise_margin,truth_x,truth_y,"
+      "truth_theta,error_m,heading_error_deg\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = target.truth[i];
@@ -147,10 +147,10 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
       io::append_format(f, "%u,%.4f,%.4f,%.5f,", e.submap, e.pose.x, e.pose.y, e.pose.theta);
     else
       f += ",,,,";
-    io::append_format(f, "%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%.4f,%.4f,", e.localized ? 1 : 0, e.confidence,
-                      e.mean_score, e.scored, e.margin, e.stable ? 1 : 0, e.supported ? 1 : 0,
+    io::append_format(f, "%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%.4f,%.4f,%.4f,", e.localized ? 1 : 0,
+                      e.confidence, e.mean_score, e.scored, e.margin, e.stable ? 1 : 0, e.supported ? 1 : 0,
                       e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence, e.whole_map_fit,
-                      e.whole_map_lead);
+                      e.whole_map_lead, e.rise_margin);
     if (t) {
       io::append_format(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
       // A heading error only where the estimate is in the true submap (finite error): other frames do not compare.

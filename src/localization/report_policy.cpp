@@ -194,6 +194,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     flag_ = false;
     supported_run_ = 0;
     place_qualified_ = false;
+    remembered_rival_.reset();
     return e;
   }
   // Tracking: the reported place follows the local map's drift by a small
@@ -225,6 +226,18 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     if (h.mean_score() > (rival ? rival->mean_score() : 0.0)) rival = &h;
   }
   e.margin = e.mean_score - (rival ? rival->mean_score() : 0.0);
+  e.rise_margin = e.margin;
+  std::optional<Hypothesis> rise_rival;
+  if (rival != nullptr) {
+    rise_rival = rival->hypothesis;
+    remembered_rival_ = rival->hypothesis;
+    remembered_rival_mean_ = rival->mean_score();
+    scans_since_rival_ = 0;
+  } else if (remembered_rival_ && ++scans_since_rival_ <= cc.rival_memory_scans &&
+             !same_place(*remembered_rival_, best_place, local_pose, 2.0, std::numbers::pi)) {
+    rise_rival = remembered_rival_;
+    e.rise_margin = e.mean_score - remembered_rival_mean_;
+  }
 
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) {
@@ -279,22 +292,22 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool held = flag_ && kept && reported_supported_ && contradiction <= cc.hold_max_contradiction &&
                     mean_contradiction_ <= cc.hold_max_mean_contradiction;
   const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit;
-  const bool rise_but_support = stable && e.margin >= cc.min_margin && newest_fits;
+  const bool rise_but_support = stable && e.rise_margin >= cc.min_margin && newest_fits;
   const bool relative_support_decides = rise_but_support && !e.supported && cc.rise_on_whole_map_lead &&
                                         best->scored >= cc.min_scored && cc.whole_map_points > 0;
   const bool support_holds = e.supported && supported_run_ >= run_needs_;
   // Only where it decides the flag: a held flag needs no rise.
-  const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.margin < cc.min_margin &&
+  const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.rise_margin < cc.min_margin &&
                                    cc.whole_map_points > 0 && cc.rise_margin_whole_map_lead <= 2.0;
   bool whole_map_known = false;
   if (cc.whole_map_points > 0 && (cc.always_score_whole_map || relative_support_decides || lead_decides_margin)) {
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
     whole_map_known = taken > 0;
     if (taken > 0) {
-      const std::array<Hypothesis, 2> pair{*reported_, rival ? rival->hypothesis : *reported_};
-      sample.score(std::span(pair).first(rival ? 2 : 1), sums_);
+      const std::array<Hypothesis, 2> pair{*reported_, rise_rival.value_or(*reported_)};
+      sample.score(std::span(pair).first(rise_rival ? 2 : 1), sums_);
       e.whole_map_fit = sums_[0] / static_cast<double>(taken);
-      e.whole_map_lead = rival ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
+      e.whole_map_lead = rise_rival ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   }
   const bool rises = (rise_but_support && (support_holds || (relative_support_decides && whole_map_known &&

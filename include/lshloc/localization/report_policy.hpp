@@ -24,7 +24,13 @@ struct ConfidenceConfig {
   std::uint32_t min_scored = 500;  ///< N of the best hypothesis at least this (about 10 scans of support)
   double min_mean_score = 0.35;    ///< C/N of the best hypothesis at least this
   double min_margin = 0.15;        ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
-  std::size_t stable_scans = 5;    ///< the best stayed in one place (1 m, 10 deg) this many scans
+  /// iRANSAC's active set flickers: a rival elsewhere may be dropped for a
+  /// scan or two and return. For the rise, the last rival still stands this
+  /// many scans after it was last seen (its C/N then, and the whole-map lead
+  /// over it now): fr079's look-alikes rose the scan their rival vanished
+  /// (docs/results/confidence.md). 0: only the rivals iRANSAC holds.
+  std::uint32_t rival_memory_scans = 5;
+  std::size_t stable_scans = 5;  ///< the best stayed in one place (1 m, 10 deg) this many scans
   /// At a place held `unsupported_hold_scans` scans or more that never
   /// passed the support test (min_scored, min_mean_score), the flag rises
   /// only on support that lasts `rise_supported_scans` scans in a row: there
@@ -198,8 +204,12 @@ struct LocalizationEstimate {
   double mean_score = 0.0;   ///< C/N of the best hypothesis
   std::uint32_t scored = 0;  ///< N of the best hypothesis
   double margin = 0.0;       ///< C/N lead over the best hypothesis elsewhere
-  bool stable = false;       ///< iRANSAC's best stayed at one place the last stable_scans scans
-  bool supported = false;    ///< the best hypothesis meets min_scored and min_mean_score
+  /// The margin the flag's rise test reads: `margin`, or, within
+  /// rival_memory_scans of the last rival iRANSAC held, the lead over that
+  /// rival's C/N when last seen.
+  double rise_margin = 0.0;
+  bool stable = false;     ///< iRANSAC's best stayed at one place the last stable_scans scans
+  bool supported = false;  ///< the best hypothesis meets min_scored and min_mean_score
   /// The reported place has met min_scored and min_mean_score since the
   /// estimate last moved elsewhere.
   bool place_supported = false;
@@ -208,7 +218,7 @@ struct LocalizationEstimate {
   double newest_evidence = 0.0;  ///< ... the share of them its map says anything about (|score| > 0)
   Pose2 local_pose;              ///< the scan's laser pose in the local frame
   /// The reported place and its best rival elsewhere (the hypothesis behind
-  /// `margin`) scored on the same whole_map_points data-points spread over
+  /// `rise_margin`) scored on the same whole_map_points data-points spread over
   /// the whole local map: the reported place's mean, and its lead over the
   /// rival (its mean when there is no rival). iRANSAC's margin compares
   /// means over different points; this one does not.
@@ -318,6 +328,10 @@ class ReportPolicy {
   /// iRANSAC's last hypothesis at the reported place: it keeps the pose that
   /// fitted the older scans after preemption cut it and tracking moved on.
   std::optional<Hypothesis> anchor_;
+  /// The last rival elsewhere iRANSAC held, its C/N then, and the scans since.
+  std::optional<Hypothesis> remembered_rival_;
+  double remembered_rival_mean_ = 0.0;
+  std::uint32_t scans_since_rival_ = 0;
   /// The reported place has met the confidence test's absolute part
   /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
   bool reported_supported_ = false;
