@@ -138,10 +138,12 @@ def value_flag(w, up, hold):
 
 
 def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
-                  unsupported_hold=20, rise_lead=math.inf, weak_support=None):
+                  unsupported_hold=20, rise_lead=math.inf, weak_support=None, scored_per_kept_scan=12.5,
+                  max_scored=750):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
     hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans,
-    rise_margin_whole_map_lead) replayed from a trace's evidence columns (a trace scores the whole-map
+    rise_margin_whole_map_lead, rise_scored_per_kept_scan, rise_max_scored; rival_memory_scans through
+    the trace's rise_margin) replayed from a trace's evidence columns (a trace scores the whole-map
     lead on every scan). weak_support (not in the localizer): (C/N, N, margin, whole-map lead, newest
     evidence): a scan meeting the first four also counts as supported (and makes its place supported),
     and its rise passes the newest-fit test when the map scores at most that share of the newest points."""
@@ -173,8 +175,10 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
             state["run"] = 0
         penalty = 0.5 * (evidence - fit)
         state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
+        # rise_scored_per_kept_scan, rise_max_scored: a new hypothesis at a long-kept place waits
+        seasoned = math.expm1(x[3]) >= min(scored_per_kept_scan * kept_scans, max_scored) - 1e-6
         rises = (stable > 0 and supported and state["run"] >= state["needs"]
-                 and (margin >= min_margin or s["lead"] >= rise_lead) and fit_passes)
+                 and (margin >= min_margin or s["lead"] >= rise_lead) and fit_passes and seasoned)
         held = flag and kept and place_supported and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
         return rises or held
     return rule

@@ -142,6 +142,36 @@ TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
   EXPECT_NEAR(beaten.front().whole_map_lead, 0.3, 1e-12);
 }
 
+TEST(ReportPolicy, AtALongKeptPlaceANewHypothesisRisesOnlyOnceScoredOnEnoughPoints) {
+  ReportPolicyConfig config = plain();
+  config.confidence.rival_memory_scans = 0;
+  ASSERT_EQ(config.confidence.rise_scored_per_kept_scan, 12.5);
+  ASSERT_EQ(config.confidence.rise_max_scored, 750u);
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
+  FakeSample sample;
+  sample.score_of = [](const Hypothesis&) { return 0.5; };
+  ReportPolicy policy(config, kPreference);
+  // 80 scans at the place, its rival within min_margin: no rise.
+  for (std::uint32_t i = 0; i < 80; ++i) {
+    EXPECT_FALSE(step(policy, {scored(place, 0.6, 1000 + 50 * i), scored(rival, 0.5, 1000)}, sample).localized);
+  }
+  // Preemption cut the place's hypothesis; a new one there, scored on 550
+  // data-points, leads alone: 550 < min(12.5 * 80, 750), no rise ...
+  LocalizationEstimate e = step(policy, {scored(place, 0.6, 550)}, sample);
+  EXPECT_EQ(e.kept_scans, 80u);
+  EXPECT_TRUE(e.supported);
+  EXPECT_FALSE(e.localized);
+  // ... until it has been scored on 750.
+  EXPECT_FALSE(step(policy, {scored(place, 0.6, 749)}, sample).localized);
+  EXPECT_TRUE(step(policy, {scored(place, 0.6, 750)}, sample).localized);
+  // Off (0 per kept scan): the new hypothesis rises at once.
+  config.confidence.rise_scored_per_kept_scan = 0.0;
+  ReportPolicy off(config, kPreference);
+  for (std::uint32_t i = 0; i < 80; ++i)
+    step(off, {scored(place, 0.6, 1000 + 50 * i), scored(rival, 0.5, 1000)}, sample);
+  EXPECT_TRUE(step(off, {scored(place, 0.6, 550)}, sample).localized);
+}
+
 TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
   // A place held long without support (C/N 0.29, as a look-alike whose own
   // building is not mapped yet) whose best hypothesis crosses the support

@@ -43,6 +43,9 @@ void ReportPolicyConfig::validate() const {
   require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
           "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
           confidence.unsupported_challenger_margin);
+  require(confidence.rise_scored_per_kept_scan >= 0.0 && std::isfinite(confidence.rise_scored_per_kept_scan),
+          "ReportPolicyConfig.confidence.rise_scored_per_kept_scan", ">= 0 and finite",
+          confidence.rise_scored_per_kept_scan);
   require(confidence.young_refined_margin >= 0.0 && std::isfinite(confidence.young_refined_margin),
           "ReportPolicyConfig.confidence.young_refined_margin", ">= 0 and finite", confidence.young_refined_margin);
   require(confidence.young_place_rivals <= 64, "ReportPolicyConfig.confidence.young_place_rivals", "<= 64",
@@ -313,7 +316,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool rises = (rise_but_support && (support_holds || (relative_support_decides && whole_map_known &&
                                                              e.whole_map_lead >= cc.rise_min_whole_map_lead))) ||
                      (lead_decides_margin && whole_map_known && e.whole_map_lead >= cc.rise_margin_whole_map_lead);
-  flag_ = rises || held;
+  // A hypothesis much younger than the place it stands for rises only once it has caught up.
+  const bool seasoned = static_cast<double>(best->scored) >=
+                        std::min(cc.rise_scored_per_kept_scan * kept_scans_, static_cast<double>(cc.rise_max_scored));
+  flag_ = (rises && seasoned) || held;
   e.localized = flag_;
   return e;
 }

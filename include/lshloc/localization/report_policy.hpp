@@ -30,6 +30,13 @@ struct ConfidenceConfig {
   /// over it now): fr079's look-alikes rose the scan their rival vanished
   /// (docs/results/confidence.md). 0: only the rivals iRANSAC holds.
   std::uint32_t rival_memory_scans = 5;
+  /// At a place kept k scans the rise also needs N >= min(k *
+  /// rise_scored_per_kept_scan, rise_max_scored): a quarter of the 50
+  /// data-points a scan iRANSAC scores a hypothesis on. When preemption cut
+  /// the place's old hypothesis, a new one there leads its rivals on its few
+  /// points as the old one did not (fr079's 3726 look-alike rose so).
+  double rise_scored_per_kept_scan = 12.5;
+  std::uint32_t rise_max_scored = 750;
   std::size_t stable_scans = 5;  ///< the best stayed in one place (1 m, 10 deg) this many scans
   /// At a place held `unsupported_hold_scans` scans or more that never
   /// passed the support test (min_scored, min_mean_score), the flag rises
