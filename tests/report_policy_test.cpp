@@ -135,6 +135,29 @@ TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
   }
   // Without memory it rises the scan the rival vanishes.
   EXPECT_TRUE(replay(0, 0.5).front().localized);
+  // A weaker rival that iRANSAC holds once the first is dropped does not
+  // stand for it: the dropped one still does, for its rival_memory_scans.
+  {
+    ReportPolicy policy(plain(), kPreference);
+    FakeSample sample;
+    sample.score_of = [](const Hypothesis&) { return 0.5; };
+    const Hypothesis weak = at(1, -4.0);
+    for (std::size_t i = 0; i < plain().confidence.stable_scans; ++i)
+      step(policy, {scored(place, 0.6, 1000), scored(rival, 0.5, 1000)}, sample);
+    EXPECT_NEAR(step(policy, {scored(place, 0.6, 1000)}, sample).rise_margin, 0.1, 1e-9);
+    for (int i = 0; i < 3; ++i) {
+      const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000), scored(weak, 0.2, 1000)}, sample);
+      EXPECT_NEAR(e.margin, 0.4, 1e-9);
+      EXPECT_NEAR(e.rise_margin, 0.1, 1e-9) << "scan " << i;
+      EXPECT_FALSE(e.localized);
+    }
+    // A scan without a rival keeps the stronger one standing to its end ...
+    EXPECT_NEAR(step(policy, {scored(place, 0.6, 1000)}, sample).rise_margin, 0.1, 1e-9);
+    // ... after which the weaker one stands, and the flag rises on its lead.
+    const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000)}, sample);
+    EXPECT_NEAR(e.rise_margin, 0.4, 1e-9);
+    EXPECT_TRUE(e.localized);
+  }
   // A whole-map lead over the remembered rival of rise_margin_whole_map_lead
   // (0.3 >= 0.25 on the same points) passes the margin test at once.
   const std::vector<LocalizationEstimate> beaten = replay(5, 0.2);

@@ -197,7 +197,8 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     flag_ = false;
     supported_run_ = 0;
     place_qualified_ = false;
-    remembered_rival_.reset();
+    last_rival_.reset();
+    dropped_rival_.reset();
     return e;
   }
   // Tracking: the reported place follows the local map's drift by a small
@@ -230,16 +231,27 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   }
   e.margin = e.mean_score - (rival ? rival->mean_score() : 0.0);
   e.rise_margin = e.margin;
-  std::optional<Hypothesis> rise_rival;
+  // The rise reads the stronger of iRANSAC's rival and the one it last
+  // dropped, for rival_memory_scans scans after that one was last seen.
+  ++reports_;
+  std::optional<SeenRival> current;
   if (rival != nullptr) {
-    rise_rival = rival->hypothesis;
-    remembered_rival_ = rival->hypothesis;
-    remembered_rival_mean_ = rival->mean_score();
-    scans_since_rival_ = 0;
-  } else if (remembered_rival_ && ++scans_since_rival_ <= cc.rival_memory_scans &&
-             !same_place(*remembered_rival_, best_place, local_pose, 2.0, std::numbers::pi)) {
-    rise_rival = remembered_rival_;
-    e.rise_margin = e.mean_score - remembered_rival_mean_;
+    current = SeenRival{rival->hypothesis, rival->mean_score(), reports_};
+    last_rival_ = current;
+  } else if (last_rival_ && (!dropped_rival_ || reports_ - dropped_rival_->seen_at > cc.rival_memory_scans ||
+                             last_rival_->mean >= dropped_rival_->mean)) {
+    dropped_rival_ = last_rival_;
+  }
+  const SeenRival* standing = current ? &*current : nullptr;
+  if (dropped_rival_ && reports_ - dropped_rival_->seen_at <= cc.rival_memory_scans &&
+      (standing == nullptr || dropped_rival_->mean > standing->mean) &&
+      !same_place(dropped_rival_->hypothesis, best_place, local_pose, 2.0, std::numbers::pi)) {
+    standing = &*dropped_rival_;
+  }
+  std::optional<Hypothesis> rise_rival;
+  if (standing != nullptr) {
+    rise_rival = standing->hypothesis;
+    e.rise_margin = e.mean_score - standing->mean;
   }
 
   bool stable = recent_best_.size() >= cc.stable_scans;

@@ -25,10 +25,11 @@ struct ConfidenceConfig {
   double min_mean_score = 0.35;    ///< C/N of the best hypothesis at least this
   double min_margin = 0.15;        ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
   /// iRANSAC's active set flickers: a rival elsewhere may be dropped for a
-  /// scan or two and return. For the rise, the last rival still stands this
+  /// scan or two and return. For the rise, a dropped rival still stands this
   /// many scans after it was last seen (its C/N then, and the whole-map lead
-  /// over it now): fr079's look-alikes rose the scan their rival vanished
-  /// (docs/results/confidence.md). 0: only the rivals iRANSAC holds.
+  /// over it now), against no rival or a weaker one: fr079's look-alikes
+  /// rose the scan their rival vanished, aces' (live) the scan a weaker one
+  /// took its place (docs/results/confidence.md). 0: only the rivals iRANSAC holds.
   std::uint32_t rival_memory_scans = 5;
   /// At a place kept k scans the rise also needs N >= min(k *
   /// rise_scored_per_kept_scan, rise_max_scored): a quarter of the 50
@@ -335,10 +336,15 @@ class ReportPolicy {
   /// iRANSAC's last hypothesis at the reported place: it keeps the pose that
   /// fitted the older scans after preemption cut it and tracking moved on.
   std::optional<Hypothesis> anchor_;
-  /// The last rival elsewhere iRANSAC held, its C/N then, and the scans since.
-  std::optional<Hypothesis> remembered_rival_;
-  double remembered_rival_mean_ = 0.0;
-  std::uint32_t scans_since_rival_ = 0;
+  /// A rival elsewhere, its C/N and the report it was last seen in: the last
+  /// one iRANSAC held, and the one it held before its last scan without any.
+  struct SeenRival {
+    Hypothesis hypothesis;
+    double mean = 0.0;
+    std::uint64_t seen_at = 0;
+  };
+  std::optional<SeenRival> last_rival_, dropped_rival_;
+  std::uint64_t reports_ = 0;  ///< reports made
   /// The reported place has met the confidence test's absolute part
   /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
   bool reported_supported_ = false;
