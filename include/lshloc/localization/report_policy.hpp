@@ -212,9 +212,9 @@ struct LocalizationEstimate {
   double mean_score = 0.0;   ///< C/N of the best hypothesis
   std::uint32_t scored = 0;  ///< N of the best hypothesis
   double margin = 0.0;       ///< C/N lead over the best hypothesis elsewhere
-  /// The margin the flag's rise test reads: `margin`, or, within
-  /// rival_memory_scans of the last rival iRANSAC held, the lead over that
-  /// rival's C/N when last seen.
+  /// The margin the flag's rise test reads: `margin`, or the lead over the
+  /// C/N of a rival iRANSAC dropped within rival_memory_scans, when that
+  /// one was stronger than any it holds now.
   double rise_margin = 0.0;
   bool stable = false;     ///< iRANSAC's best stayed at one place the last stable_scans scans
   bool supported = false;  ///< the best hypothesis meets min_scored and min_mean_score
