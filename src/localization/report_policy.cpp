@@ -248,11 +248,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       !same_place(dropped_rival_->hypothesis, best_place, local_pose, 2.0, std::numbers::pi)) {
     standing = &*dropped_rival_;
   }
-  std::optional<Hypothesis> rise_rival;
-  if (standing != nullptr) {
-    rise_rival = standing->hypothesis;
-    e.rise_margin = e.mean_score - standing->mean;
-  }
+  if (standing != nullptr) e.rise_margin = e.mean_score - standing->mean;
 
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) {
@@ -319,10 +315,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
     whole_map_known = taken > 0;
     if (taken > 0) {
-      const std::array<Hypothesis, 2> pair{*reported_, rise_rival.value_or(*reported_)};
-      sample.score(std::span(pair).first(rise_rival ? 2 : 1), sums_);
+      const std::array<Hypothesis, 2> pair{*reported_, standing ? standing->hypothesis : *reported_};
+      sample.score(std::span(pair).first(standing ? 2 : 1), sums_);
       e.whole_map_fit = sums_[0] / static_cast<double>(taken);
-      e.whole_map_lead = rise_rival ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
+      e.whole_map_lead = standing ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   }
   const bool rises = (rise_but_support && (support_holds || (relative_support_decides && whole_map_known &&
