@@ -165,6 +165,79 @@ TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
   EXPECT_NEAR(beaten.front().whole_map_lead, 0.3, 1e-12);
 }
 
+TEST(ReportPolicy, ARivalThatMergesAsThePlacesMirrorImageStandsUntilTheyPart) {
+  // The place's mirror image (turned 180 deg about the point the robot
+  // nears): at local (x, y) the place reports (10 + x, 5 + y) and the mirror
+  // (20 - x, 10 - y), 2 |(5, 2.5) - (x, y)| apart.
+  const Hypothesis place = at(2, 10.0, 5.0), mirror = {2, Pose2(20.0, 10.0, std::numbers::pi)};
+  const Pose2 apart(3.5, 2.5, 0.0), merged(4.5, 2.5, 0.0), parted(3.0, 2.5, 0.0);  // 3 m, 1 m, 4 m
+  const auto replay = [&](double twin_turn_deg) {
+    ReportPolicyConfig config = plain();
+    config.confidence.rival_twin_turn_deg = twin_turn_deg;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    sample.score_of = [](const Hypothesis&) { return 0.5; };  // no whole-map lead over the mirror
+    for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) {
+      const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000), scored(mirror, 0.5, 1000)}, sample, apart);
+      EXPECT_FALSE(e.localized);
+      EXPECT_NEAR(e.margin, 0.1, 1e-9);
+    }
+    std::vector<LocalizationEstimate> out;
+    // Within 2 m the mirror is no rival by position, even while iRANSAC holds it ...
+    for (int i = 0; i < 12; ++i)
+      out.push_back(step(policy, {scored(place, 0.6, 1000), scored(mirror, 0.5, 1000)}, sample, merged));
+    // ... and 4 m apart again, iRANSAC no longer holds it.
+    for (int i = 0; i < 8; ++i) out.push_back(step(policy, {scored(place, 0.6, 1000)}, sample, parted));
+    return out;
+  };
+  const std::vector<LocalizationEstimate> mirrored = replay(90.0);
+  const std::uint32_t memory = plain().confidence.rival_memory_scans;
+  for (std::size_t i = 0; i < mirrored.size(); ++i) {
+    EXPECT_NEAR(mirrored[i].margin, 0.6, 1e-9) << "scan " << i << ": iRANSAC holds no rival by position";
+    // The mirror stands while merged, then ages like any remembered rival.
+    const bool stands = i < 12 + memory;
+    EXPECT_NEAR(mirrored[i].rise_margin, stands ? 0.1 : 0.6, 1e-9) << "scan " << i;
+    EXPECT_EQ(mirrored[i].localized, !stands) << "scan " << i;
+    EXPECT_EQ(mirrored[i].has_rival, stands) << "scan " << i;
+    if (stands) {
+      EXPECT_NEAR(std::abs(mirrored[i].rival_pose.theta), std::numbers::pi, 1e-9);
+    }
+  }
+  // Off (>= 180 deg), the merged mirror is the place and the flag rises at once.
+  EXPECT_TRUE(replay(180.0).front().localized);
+}
+
+TEST(ReportPolicy, AMarginOverARivalScoredOnFewPointsNeedsTheWholeMapLeadToo) {
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
+  const auto replay = [&](double rival_whole_map_score, std::uint32_t rival_n) {
+    ReportPolicyConfig config = plain();
+    ASSERT_EQ(config.confidence.rise_rival_min_scored, 250u);
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? rival_whole_map_score : 0.5; };
+    for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) {
+      const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.4, rival_n)}, sample);
+      EXPECT_NEAR(e.margin, 0.2, 1e-9);  // past min_margin (0.15) on iRANSAC's own points
+      EXPECT_EQ(e.rival_scored, rival_n);
+      EXPECT_EQ(e.localized, i + 1 == config.confidence.stable_scans && rival_n >= 250) << "scan " << i;
+      if (i + 1 == config.confidence.stable_scans && rival_n < 250) {
+        EXPECT_NEAR(e.whole_map_lead, 0.5 - rival_whole_map_score, 1e-9);
+      }
+    }
+  };
+  replay(0.5, 1000);  // scored on enough points: the margin suffices, whatever the whole map says
+  replay(0.5, 100);   // on 100: the same spread points show no lead, so no rise
+  // ... unless they show a lead of min_margin too.
+  ReportPolicy policy(plain(), kPreference);
+  FakeSample sample;
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? 0.3 : 0.5; };
+  LocalizationEstimate e;
+  for (std::size_t i = 0; i < plain().confidence.stable_scans; ++i)
+    e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.4, 100)}, sample);
+  EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-9);
+  EXPECT_TRUE(e.localized);
+}
+
 TEST(ReportPolicy, AtALongKeptPlaceANewHypothesisRisesOnlyOnceScoredOnEnoughPoints) {
   ReportPolicyConfig config = plain();
   config.confidence.rival_memory_scans = 0;

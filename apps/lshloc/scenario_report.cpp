@@ -136,8 +136,9 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
   io::append_format(
       f,
       "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
-      "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,rise_margin,truth_x,truth_y,"
-      "truth_theta,error_m,heading_error_deg\n");
+      "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,rise_margin,"
+      "rival_submap,rival_x,rival_y,rival_theta,rival_mean_score,rival_scored,"
+      "truth_x,truth_y,truth_theta,error_m,heading_error_deg\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = target.truth[i];
@@ -151,6 +152,11 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
                       e.confidence, e.mean_score, e.scored, e.margin, e.stable ? 1 : 0, e.supported ? 1 : 0,
                       e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence, e.whole_map_fit,
                       e.whole_map_lead, e.rise_margin);
+    if (e.has_rival)
+      io::append_format(f, "%u,%.4f,%.4f,%.5f,%.4f,%u,", e.rival_submap, e.rival_pose.x, e.rival_pose.y,
+                        e.rival_pose.theta, e.rival_mean_score, e.rival_scored);
+    else
+      f += ",,,,,,";
     if (t) {
       io::append_format(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
       // A heading error only where the estimate is in the true submap (finite error): other frames do not compare.

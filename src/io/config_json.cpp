@@ -92,14 +92,15 @@ LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement,
 LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, endpoint_spacing, free_ray_stride,
                    free_ray_margin, free_ray_max_range, free_ray_no_return_range, context_scans, context_spacing,
                    recent_keys)
-LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, rival_memory_scans,
-                   rise_scored_per_kept_scan, rise_max_scored, stable_scans, rise_supported_scans,
-                   unsupported_hold_scans, switch_margin, duel_points, duel_margin, duel_z, duel_recent_margin,
-                   duel_recent_min_evidence, challenger_needs_support, unsupported_challenger_margin,
-                   young_place_rivals, young_place_scans, young_refined_margin, same_place_m, same_place_deg,
-                   newest_points, rise_min_newest_fit, hold_max_contradiction, hold_max_mean_contradiction,
-                   contradiction_smoothing, rise_on_whole_map_lead, rise_min_whole_map_lead, rise_margin_whole_map_lead,
-                   whole_map_points, always_score_whole_map, value_weights)
+LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, rival_memory_scans, rival_twin_turn_deg,
+                   rise_rival_min_scored, rise_scored_per_kept_scan, rise_max_scored, stable_scans,
+                   rise_supported_scans, unsupported_hold_scans, switch_margin, duel_points, duel_margin, duel_z,
+                   duel_recent_margin, duel_recent_min_evidence, challenger_needs_support,
+                   unsupported_challenger_margin, young_place_rivals, young_place_scans, young_refined_margin,
+                   same_place_m, same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
+                   hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,
+                   rise_min_whole_map_lead, rise_margin_whole_map_lead, whole_map_points, always_score_whole_map,
+                   value_weights)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_heading_rad, window_scans)

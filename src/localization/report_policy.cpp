@@ -43,6 +43,8 @@ void ReportPolicyConfig::validate() const {
   require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
           "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
           confidence.unsupported_challenger_margin);
+  require(confidence.rival_twin_turn_deg >= 0.0 && std::isfinite(confidence.rival_twin_turn_deg),
+          "ReportPolicyConfig.confidence.rival_twin_turn_deg", ">= 0 and finite", confidence.rival_twin_turn_deg);
   require(confidence.rise_scored_per_kept_scan >= 0.0 && std::isfinite(confidence.rise_scored_per_kept_scan),
           "ReportPolicyConfig.confidence.rise_scored_per_kept_scan", ">= 0 and finite",
           confidence.rise_scored_per_kept_scan);
@@ -236,19 +238,31 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   ++reports_;
   std::optional<SeenRival> current;
   if (rival != nullptr) {
-    current = SeenRival{rival->hypothesis, rival->mean_score(), reports_};
+    current = SeenRival{rival->hypothesis, rival->mean_score(), rival->scored, reports_};
     last_rival_ = current;
-  } else if (last_rival_ && (!dropped_rival_ || reports_ - dropped_rival_->seen_at > cc.rival_memory_scans ||
-                             last_rival_->mean >= dropped_rival_->mean)) {
+  } else if (last_rival_ && (!dropped_rival_ || (last_rival_->seen_at > dropped_rival_->seen_at &&
+                                                 (reports_ - dropped_rival_->seen_at > cc.rival_memory_scans ||
+                                                  last_rival_->mean >= dropped_rival_->mean)))) {
     dropped_rival_ = last_rival_;
   }
   const SeenRival* standing = current ? &*current : nullptr;
-  if (dropped_rival_ && reports_ - dropped_rival_->seen_at <= cc.rival_memory_scans &&
-      (standing == nullptr || dropped_rival_->mean > standing->mean) &&
-      !same_place(dropped_rival_->hypothesis, best_place, local_pose, 2.0, std::numbers::pi)) {
-    standing = &*dropped_rival_;
+  if (dropped_rival_ && reports_ - dropped_rival_->seen_at <= cc.rival_memory_scans) {
+    const bool near = same_place(dropped_rival_->hypothesis, best_place, local_pose, 2.0, std::numbers::pi);
+    const bool mirror =
+        near && !same_place(dropped_rival_->hypothesis, best_place, local_pose, 2.0, radians(cc.rival_twin_turn_deg));
+    if (mirror) dropped_rival_->seen_at = reports_;
+    if ((!near || mirror) && (standing == nullptr || dropped_rival_->mean > standing->mean)) {
+      standing = &*dropped_rival_;
+    }
   }
-  if (standing != nullptr) e.rise_margin = e.mean_score - standing->mean;
+  if (standing != nullptr) {
+    e.rise_margin = e.mean_score - standing->mean;
+    e.has_rival = true;
+    e.rival_submap = standing->hypothesis.submap;
+    e.rival_pose = standing->hypothesis.T_submap_local * local_pose;
+    e.rival_mean_score = standing->mean;
+    e.rival_scored = standing->scored;
+  }
 
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) {
@@ -310,8 +324,12 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   // Only where it decides the flag: a held flag needs no rise.
   const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.rise_margin < cc.min_margin &&
                                    cc.whole_map_points > 0 && cc.rise_margin_whole_map_lead <= 2.0;
+  // Only where it decides the flag, as above: a margin over a young rival, confirmed on the same points.
+  const bool margin_needs_lead = !held && rise_but_support && support_holds && standing != nullptr &&
+                                 standing->scored < cc.rise_rival_min_scored && cc.whole_map_points > 0;
   bool whole_map_known = false;
-  if (cc.whole_map_points > 0 && (cc.always_score_whole_map || relative_support_decides || lead_decides_margin)) {
+  if (cc.whole_map_points > 0 &&
+      (cc.always_score_whole_map || relative_support_decides || lead_decides_margin || margin_needs_lead)) {
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
     whole_map_known = taken > 0;
     if (taken > 0) {
@@ -321,8 +339,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       e.whole_map_lead = standing ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   }
-  const bool rises = (rise_but_support && (support_holds || (relative_support_decides && whole_map_known &&
-                                                             e.whole_map_lead >= cc.rise_min_whole_map_lead))) ||
+  const bool margin_confirmed = !margin_needs_lead || (whole_map_known && e.whole_map_lead >= cc.min_margin);
+  const bool rises = (rise_but_support && margin_confirmed &&
+                      (support_holds || (relative_support_decides && whole_map_known &&
+                                         e.whole_map_lead >= cc.rise_min_whole_map_lead))) ||
                      (lead_decides_margin && whole_map_known && e.whole_map_lead >= cc.rise_margin_whole_map_lead);
   // A hypothesis much younger than the place it stands for rises only once it has caught up.
   const bool seasoned = static_cast<double>(best->scored) >=

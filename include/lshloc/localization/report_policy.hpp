@@ -31,6 +31,17 @@ struct ConfidenceConfig {
   /// rose the scan their rival vanished, aces' (live) the scan a weaker one
   /// took its place (docs/results/confidence.md). 0: only the rivals iRANSAC holds.
   std::uint32_t rival_memory_scans = 5;
+  /// A remembered rival that has come within 2 m of the reported place but
+  /// is turned more than this from it is the place's mirror image, not the
+  /// place: it stands and does not age while it stays so. The two part
+  /// again once the robot leaves the point they mirror about (aces' 180 deg
+  /// flip rose the scan its rival merged so). >= 180: off.
+  double rival_twin_turn_deg = 90.0;
+  /// A rival iRANSAC has scored on fewer data-points than this (five scans'
+  /// worth) has a C/N too uncertain for the margin over it: the rise then
+  /// also needs the whole-map lead over it, on the same spread points, to
+  /// reach min_margin (aces' mirror rose so over a rival scored on 100). 0: off.
+  std::uint32_t rise_rival_min_scored = 250;
   /// At a place kept k scans the rise also needs N >= min(k *
   /// rise_scored_per_kept_scan, rise_max_scored): a quarter of the 50
   /// data-points a scan iRANSAC scores a hypothesis on. When preemption cut
@@ -216,6 +227,13 @@ struct LocalizationEstimate {
   /// C/N of a rival iRANSAC dropped within rival_memory_scans, when that
   /// one was stronger than any it holds now.
   double rise_margin = 0.0;
+  /// The rival behind `rise_margin` (has_rival false: none): its submap, the
+  /// scan's laser pose there, its C/N and N when last seen.
+  bool has_rival = false;
+  std::uint32_t rival_submap = 0;
+  Pose2 rival_pose;
+  double rival_mean_score = 0.0;
+  std::uint32_t rival_scored = 0;
   bool stable = false;     ///< iRANSAC's best stayed at one place the last stable_scans scans
   bool supported = false;  ///< the best hypothesis meets min_scored and min_mean_score
   /// The reported place has met min_scored and min_mean_score since the
@@ -341,6 +359,7 @@ class ReportPolicy {
   struct SeenRival {
     Hypothesis hypothesis;
     double mean = 0.0;
+    std::uint32_t scored = 0;
     std::uint64_t seen_at = 0;
   };
   std::optional<SeenRival> last_rival_, dropped_rival_;
