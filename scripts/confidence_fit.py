@@ -53,6 +53,8 @@ def load(trace_dir):
                 # rival_memory_scans still stands); traces before it have margin only.
                 scans.append({"lead": float(r.get("whole_map_lead") or 0.0) if has else 0.0,
                               "rise_margin": float(r.get("rise_margin") or r["margin"]) if has else 0.0,
+                              # the rival behind rise_margin and its N (traces before it: none)
+                              "rival_scored": float(r["rival_scored"]) if has and r.get("rival_scored") else None,
                               "x": features(r) if has else None, "truth": truth, "err": err,
                               "right": truth and has and err <= 2.0 and head <= 10.0,
                               "correct": truth and has and err < 1.0})
@@ -139,11 +141,11 @@ def value_flag(w, up, hold):
 
 def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
                   unsupported_hold=20, rise_lead=math.inf, weak_support=None, scored_per_kept_scan=12.5,
-                  max_scored=750):
+                  max_scored=750, rival_min_scored=250):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
     hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans,
-    rise_margin_whole_map_lead, rise_scored_per_kept_scan, rise_max_scored; rival_memory_scans through
-    the trace's rise_margin) replayed from a trace's evidence columns (a trace scores the whole-map
+    rise_margin_whole_map_lead, rise_scored_per_kept_scan, rise_max_scored, rise_rival_min_scored;
+    rival_memory_scans and rival_twin_turn_deg through the trace's rise_margin) replayed from a trace's evidence columns (a trace scores the whole-map
     lead on every scan). weak_support (not in the localizer): (C/N, N, margin, whole-map lead, newest
     evidence): a scan meeting the first four also counts as supported (and makes its place supported),
     and its rise passes the newest-fit test when the map scores at most that share of the newest points."""
@@ -175,6 +177,9 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
             state["run"] = 0
         penalty = 0.5 * (evidence - fit)
         state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
+        # rise_rival_min_scored: over a rival scored on few points the margin needs the whole-map lead too
+        if s["rival_scored"] is not None and s["rival_scored"] < rival_min_scored:
+            margin = min(margin, s["lead"])
         # rise_scored_per_kept_scan, rise_max_scored: a new hypothesis at a long-kept place waits
         seasoned = math.expm1(x[3]) >= min(scored_per_kept_scan * kept_scans, max_scored) - 1e-6
         rises = (stable > 0 and supported and state["run"] >= state["needs"]
@@ -250,6 +255,8 @@ def main():
     ap.add_argument("--unsupported-hold-scans", type=int, default=20)
     ap.add_argument("--rise-lead", type=float, default=0.25,
                     help="the whole-map lead that also passes the rise's margin test (inf: off)")
+    ap.add_argument("--rival-min-scored", type=float, default=250,
+                    help="below this N a rival's margin also needs the whole-map lead (rise_rival_min_scored; 0: off)")
     ap.add_argument("--weak-support", help="C/N,N,MARGIN,LEAD,EVIDENCE: a weaker support test replayed beside "
                     "the localizer's (evidence_flag; not built)")
     a = ap.parse_args()
@@ -268,7 +275,7 @@ def main():
     flag_rule = (value_flag(w, a.up, a.hold) if a.flag == "value" else
                  evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
                                supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans,
-                               rise_lead=a.rise_lead,
+                               rise_lead=a.rise_lead, rival_min_scored=a.rival_min_scored,
                                weak_support=[float(v) for v in a.weak_support.split(",")] if a.weak_support else None))
     buildings = sorted({b for b, _, _ in runs})
     everything = []
