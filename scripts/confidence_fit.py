@@ -55,6 +55,7 @@ def load(trace_dir):
                               "rise_margin": float(r.get("rise_margin") or r["margin"]) if has else 0.0,
                               # the rival behind rise_margin and its N (traces before it: none)
                               "rival_scored": float(r["rival_scored"]) if has and r.get("rival_scored") else None,
+                              "newest_lead": float(r.get("newest_lead") or "nan") if has else math.nan,
                               "x": features(r) if has else None, "truth": truth, "err": err,
                               "right": truth and has and err <= 2.0 and head <= 10.0,
                               "correct": truth and has and err < 1.0})
@@ -141,10 +142,11 @@ def value_flag(w, up, hold):
 
 def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
                   unsupported_hold=20, rise_lead=math.inf, weak_support=None, scored_per_kept_scan=12.5,
-                  max_scored=750, rival_min_scored=250):
+                  max_scored=750, rival_min_scored=250, paired_lead=(0.15, 0.25)):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
     hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans,
-    rise_margin_whole_map_lead, rise_scored_per_kept_scan, rise_max_scored, rise_rival_min_scored;
+    rise_margin_whole_map_lead, rise_paired_whole_map_lead and rise_paired_newest_lead (paired_lead),
+    rise_scored_per_kept_scan, rise_max_scored, rise_rival_min_scored;
     rival_memory_scans and rival_twin_turn_deg through the trace's rise_margin) replayed from a trace's evidence columns (a trace scores the whole-map
     lead on every scan). weak_support (not in the localizer): (C/N, N, margin, whole-map lead, newest
     evidence): a scan meeting the first four also counts as supported (and makes its place supported),
@@ -182,8 +184,12 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
             margin = min(margin, s["lead"])
         # rise_scored_per_kept_scan, rise_max_scored: a new hypothesis at a long-kept place waits
         seasoned = math.expm1(x[3]) >= min(scored_per_kept_scan * kept_scans, max_scored) - 1e-6
+        # rise_paired_*: a whole-map lead paired with a lead on the newest points, over a rival scored on
+        # rise_rival_min_scored or more (traces before it: NaN, never)
+        paired = (s["lead"] >= paired_lead[0] and s["newest_lead"] >= paired_lead[1]
+                  and (s["rival_scored"] is None or s["rival_scored"] >= rival_min_scored))
         rises = (stable > 0 and supported and state["run"] >= state["needs"]
-                 and (margin >= min_margin or s["lead"] >= rise_lead) and fit_passes and seasoned)
+                 and (margin >= min_margin or s["lead"] >= rise_lead or paired) and fit_passes and seasoned)
         held = flag and kept and place_supported and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
         return rises or held
     return rule
@@ -255,6 +261,9 @@ def main():
     ap.add_argument("--unsupported-hold-scans", type=int, default=20)
     ap.add_argument("--rise-lead", type=float, default=0.25,
                     help="the whole-map lead that also passes the rise's margin test (inf: off)")
+    ap.add_argument("--paired-lead", default="0.15,0.25",
+                    help="WHOLE,NEWEST: the whole-map lead and the lead on the newest points that together pass the "
+                         "margin (rise_paired_whole_map_lead, rise_paired_newest_lead; 9,9: off)")
     ap.add_argument("--rival-min-scored", type=float, default=250,
                     help="below this N a rival's margin also needs the whole-map lead (rise_rival_min_scored; 0: off)")
     ap.add_argument("--weak-support", help="C/N,N,MARGIN,LEAD,EVIDENCE: a weaker support test replayed beside "
@@ -276,6 +285,7 @@ def main():
                  evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
                                supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans,
                                rise_lead=a.rise_lead, rival_min_scored=a.rival_min_scored,
+                               paired_lead=tuple(float(v) for v in a.paired_lead.split(",")),
                                weak_support=[float(v) for v in a.weak_support.split(",")] if a.weak_support else None))
     buildings = sorted({b for b, _, _ in runs})
     everything = []

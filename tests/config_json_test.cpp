@@ -34,6 +34,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.localizer.report.confidence.rival_memory_scans = 9;
   c.localizer.report.confidence.rival_twin_turn_deg = 75.0;
   c.localizer.report.confidence.rise_rival_min_scored = 120;
+  c.localizer.report.confidence.rise_paired_newest_lead = 0.35;
   c.localizer.report.confidence.rise_scored_per_kept_scan = 7.5;
   c.localizer.report.confidence.rise_max_scored = 600;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
@@ -51,6 +52,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_EQ(back.localizer.report.confidence.rival_memory_scans, 9u);
   EXPECT_EQ(back.localizer.report.confidence.rival_twin_turn_deg, 75.0);
   EXPECT_EQ(back.localizer.report.confidence.rise_rival_min_scored, 120u);
+  EXPECT_EQ(back.localizer.report.confidence.rise_paired_newest_lead, 0.35);
   EXPECT_EQ(back.localizer.report.confidence.rise_scored_per_kept_scan, 7.5);
   EXPECT_EQ(back.localizer.report.confidence.rise_max_scored, 600u);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);

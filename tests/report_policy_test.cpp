@@ -19,30 +19,35 @@ namespace {
 class FakeSample final : public SampleScorer {
  public:
   std::function<double(const Hypothesis&)> score_of = [](const Hypothesis&) { return 0.0; };
+  /// The newest data-points' scores, when they differ from the rest.
+  std::function<double(const Hypothesis&)> newest_score_of;
   std::size_t draws = 0;  ///< samples drawn at random (not taken newest or spread)
 
   std::size_t draw(std::size_t, std::size_t n) override {
     ++draws;
-    return take(n);
+    return take(n, false);
   }
-  std::size_t take_newest(std::size_t n) override { return take(n); }
-  std::size_t take_spread(std::size_t n) override { return take(n); }
+  std::size_t take_newest(std::size_t n) override { return take(n, true); }
+  std::size_t take_spread(std::size_t n) override { return take(n, false); }
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
+    const auto& of = newest_ && newest_score_of ? newest_score_of : score_of;
     sums.assign(hypotheses.size(), 0.0);
-    for (std::size_t j = 0; j < hypotheses.size(); ++j) sums[j] = score_of(hypotheses[j]) * static_cast<double>(n_);
+    for (std::size_t j = 0; j < hypotheses.size(); ++j) sums[j] = of(hypotheses[j]) * static_cast<double>(n_);
     if (pair != nullptr) {
-      const double d = score_of(hypotheses[0]) - score_of(hypotheses[1]);
+      const double d = of(hypotheses[0]) - of(hypotheses[1]);
       pair->squared_difference = d * d * static_cast<double>(n_);
-      pair->second_absolute = std::abs(score_of(hypotheses[1])) * static_cast<double>(n_);
+      pair->second_absolute = std::abs(of(hypotheses[1])) * static_cast<double>(n_);
     }
   }
 
  private:
-  std::size_t take(std::size_t n) {
+  std::size_t take(std::size_t n, bool newest) {
     n_ = n;
+    newest_ = newest;
     return n;
   }
   std::size_t n_ = 0;
+  bool newest_ = false;
 };
 
 Hypothesis at(std::uint32_t submap, double x, double y = 0.0, double theta = 0.0) {
@@ -236,6 +241,37 @@ TEST(ReportPolicy, AMarginOverARivalScoredOnFewPointsNeedsTheWholeMapLeadToo) {
     e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.4, 100)}, sample);
   EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-9);
   EXPECT_TRUE(e.localized);
+}
+
+TEST(ReportPolicy, AWholeMapLeadPairedWithALeadOnTheNewestPointsPassesTheMargin) {
+  // iRANSAC's margin is 0.1 (< min_margin); on the whole-map points the
+  // place leads the rival by 0.2 (< rise_margin_whole_map_lead alone).
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
+  const auto replay = [&](double rival_newest_score, double paired_newest_lead, std::uint32_t rival_n = 1000) {
+    ReportPolicyConfig config = plain();
+    EXPECT_EQ(config.confidence.rise_paired_whole_map_lead, 0.15);
+    config.confidence.rise_paired_newest_lead = paired_newest_lead;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? 0.3 : 0.5; };
+    sample.newest_score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? rival_newest_score : 0.5; };
+    LocalizationEstimate e;
+    for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) {
+      e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.5, rival_n)}, sample);
+      EXPECT_NEAR(e.margin, 0.1, 1e-9);
+      EXPECT_NEAR(e.newest_fit, 0.5, 1e-12);
+      EXPECT_NEAR(e.newest_lead, 0.5 - rival_newest_score, 1e-12);
+      if (i + 1 < config.confidence.stable_scans) {
+        EXPECT_FALSE(e.localized) << "scan " << i;
+      }
+    }
+    EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
+    return e.localized;
+  };
+  EXPECT_TRUE(replay(0.2, 0.25));        // the newest points: a lead of 0.3
+  EXPECT_FALSE(replay(0.4, 0.25));       // ... of 0.1: the rival fits where the robot went as well
+  EXPECT_FALSE(replay(0.2, 3.0));        // the paired test off
+  EXPECT_FALSE(replay(0.2, 0.25, 100));  // over a rival scored on 100 points the leads do not pass the margin
 }
 
 TEST(ReportPolicy, AtALongKeptPlaceANewHypothesisRisesOnlyOnceScoredOnEnoughPoints) {
@@ -444,6 +480,7 @@ TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
   EXPECT_FALSE(e.localized);
   ReportPolicyConfig never = plain();
   never.confidence.rise_margin_whole_map_lead = 3.0;
+  never.confidence.rise_paired_newest_lead = 3.0;  // the newest points here lead as the whole map does
   EXPECT_FALSE(flag_after(never, 0.2).localized);
 }
 

@@ -55,6 +55,11 @@ void ReportPolicyConfig::validate() const {
   require(std::isfinite(confidence.rise_margin_whole_map_lead),
           "ReportPolicyConfig.confidence.rise_margin_whole_map_lead", "a finite number",
           confidence.rise_margin_whole_map_lead);
+  require(std::isfinite(confidence.rise_paired_whole_map_lead),
+          "ReportPolicyConfig.confidence.rise_paired_whole_map_lead", "a finite number",
+          confidence.rise_paired_whole_map_lead);
+  require(std::isfinite(confidence.rise_paired_newest_lead), "ReportPolicyConfig.confidence.rise_paired_newest_lead",
+          "a finite number", confidence.rise_paired_newest_lead);
   require(std::isfinite(confidence.rise_min_whole_map_lead), "ReportPolicyConfig.confidence.rise_min_whole_map_lead",
           "a finite number", confidence.rise_min_whole_map_lead);
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
@@ -273,11 +278,13 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     const std::size_t taken = sample.take_newest(cc.newest_points);
     sample_has_newest = taken > 0;
     if (taken > 0) {
-      const std::array<Hypothesis, 2> twice{*reported_, *reported_};
+      // The place twice (its evidence comes as the pair's second), then the rival.
+      const std::array<Hypothesis, 3> newest{*reported_, *reported_, standing ? standing->hypothesis : *reported_};
       SampleScorer::PairSums pair;
-      sample.score(twice, sums_, &pair);
+      sample.score(std::span(newest).first(standing ? 3 : 2), sums_, &pair);
       e.newest_fit = sums_[0] / static_cast<double>(taken);
       e.newest_evidence = pair.second_absolute / static_cast<double>(taken);
+      e.newest_lead = standing ? (sums_[0] - sums_[2]) / static_cast<double>(taken) : e.newest_fit;
     }
   }
   e.stable = stable;
@@ -321,12 +328,16 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool relative_support_decides = rise_but_support && !e.supported && cc.rise_on_whole_map_lead &&
                                         best->scored >= cc.min_scored && cc.whole_map_points > 0;
   const bool support_holds = e.supported && supported_run_ >= run_needs_;
+  const bool paired_rule =
+      sample_has_newest && cc.rise_paired_whole_map_lead <= 2.0 && cc.rise_paired_newest_lead <= 2.0;
   // Only where it decides the flag: a held flag needs no rise.
   const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.rise_margin < cc.min_margin &&
-                                   cc.whole_map_points > 0 && cc.rise_margin_whole_map_lead <= 2.0;
+                                   cc.whole_map_points > 0 && (cc.rise_margin_whole_map_lead <= 2.0 || paired_rule);
+  // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N:
+  // a margin over it needs the whole-map lead, and the paired leads over it do not count.
+  const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
   // Only where it decides the flag, as above: a margin over a young rival, confirmed on the same points.
-  const bool margin_needs_lead = !held && rise_but_support && support_holds && standing != nullptr &&
-                                 standing->scored < cc.rise_rival_min_scored && cc.whole_map_points > 0;
+  const bool margin_needs_lead = !held && rise_but_support && support_holds && young_rival && cc.whole_map_points > 0;
   bool whole_map_known = false;
   if (cc.whole_map_points > 0 &&
       (cc.always_score_whole_map || relative_support_decides || lead_decides_margin || margin_needs_lead)) {
@@ -343,7 +354,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool rises = (rise_but_support && margin_confirmed &&
                       (support_holds || (relative_support_decides && whole_map_known &&
                                          e.whole_map_lead >= cc.rise_min_whole_map_lead))) ||
-                     (lead_decides_margin && whole_map_known && e.whole_map_lead >= cc.rise_margin_whole_map_lead);
+                     (lead_decides_margin && whole_map_known &&
+                      (e.whole_map_lead >= cc.rise_margin_whole_map_lead ||
+                       (paired_rule && e.whole_map_lead >= cc.rise_paired_whole_map_lead &&
+                        e.newest_lead >= cc.rise_paired_newest_lead && !young_rival)));
   // A hypothesis much younger than the place it stands for rises only once it has caught up.
   const bool seasoned = static_cast<double>(best->scored) >=
                         std::min(cc.rise_scored_per_kept_scan * kept_scans_, static_cast<double>(cc.rise_max_scored));

@@ -177,6 +177,16 @@ struct ConfidenceConfig {
   /// added; at 0.18 fr079 gains 51 (docs/results/confidence.md). Above 2
   /// (scores lie in [-1, 1]): never.
   double rise_margin_whole_map_lead = 0.25;
+  /// ... or when it leads that rival by rise_paired_whole_map_lead on the
+  /// whole-map points and by rise_paired_newest_lead on the newest_points
+  /// newest data-points (LocalizationEstimate::newest_lead): a look-alike
+  /// that fits the older scans well stops fitting where the robot goes next.
+  /// Not over a rival scored on fewer than rise_rival_min_scored: such a
+  /// one may have displaced a well-scored rival as the best elsewhere by
+  /// C/N (fr079's look-alike rose so in a seeded order). Chosen on fr079
+  /// and intel (docs/results/confidence.md). Above 2: never.
+  double rise_paired_whole_map_lead = 0.15;
+  double rise_paired_newest_lead = 0.25;
   std::size_t whole_map_points = 1000;
   /// Score the whole-map comparison on every scan (traces), not only when
   /// the rise hinges on it (it costs about 0.2 ms per scan).
@@ -234,6 +244,9 @@ struct LocalizationEstimate {
   Pose2 rival_pose;
   double rival_mean_score = 0.0;
   std::uint32_t rival_scored = 0;
+  /// The reported place's lead over that rival on the newest_points newest
+  /// data-points (newest_fit when there is no rival).
+  double newest_lead = 0.0;
   bool stable = false;     ///< iRANSAC's best stayed at one place the last stable_scans scans
   bool supported = false;  ///< the best hypothesis meets min_scored and min_mean_score
   /// The reported place has met min_scored and min_mean_score since the
