@@ -351,13 +351,13 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     }
   }
   const bool margin_confirmed = !margin_needs_lead || (whole_map_known && e.whole_map_lead >= cc.min_margin);
-  const bool rises = (rise_but_support && margin_confirmed &&
-                      (support_holds || (relative_support_decides && whole_map_known &&
-                                         e.whole_map_lead >= cc.rise_min_whole_map_lead))) ||
-                     (lead_decides_margin && whole_map_known &&
-                      (e.whole_map_lead >= cc.rise_margin_whole_map_lead ||
-                       (paired_rule && e.whole_map_lead >= cc.rise_paired_whole_map_lead &&
-                        e.newest_lead >= cc.rise_paired_newest_lead && !young_rival)));
+  const bool support_passes =
+      support_holds || (relative_support_decides && whole_map_known && e.whole_map_lead >= cc.rise_min_whole_map_lead);
+  const bool paired_leads = paired_rule && !young_rival && e.whole_map_lead >= cc.rise_paired_whole_map_lead &&
+                            e.newest_lead >= cc.rise_paired_newest_lead;
+  const bool leads_pass_margin =
+      lead_decides_margin && whole_map_known && (e.whole_map_lead >= cc.rise_margin_whole_map_lead || paired_leads);
+  const bool rises = (rise_but_support && margin_confirmed && support_passes) || leads_pass_margin;
   // A hypothesis much younger than the place it stands for rises only once it has caught up.
   const bool seasoned = static_cast<double>(best->scored) >=
                         std::min(cc.rise_scored_per_kept_scan * kept_scans_, static_cast<double>(cc.rise_max_scored));
