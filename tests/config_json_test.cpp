@@ -37,6 +37,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.localizer.report.confidence.rise_paired_newest_lead = 0.35;
   c.localizer.report.confidence.rise_scored_per_kept_scan = 7.5;
   c.localizer.report.confidence.rise_max_scored = 600;
+  c.localizer.report.confidence.flag_threshold = 0.9;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
   c.localizer.hypothesis_source = HypothesisSource::kRandomMapFeatures;
   c.map_share_before_target = 0.5;
@@ -55,6 +56,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_EQ(back.localizer.report.confidence.rise_paired_newest_lead, 0.35);
   EXPECT_EQ(back.localizer.report.confidence.rise_scored_per_kept_scan, 7.5);
   EXPECT_EQ(back.localizer.report.confidence.rise_max_scored, 600u);
+  EXPECT_EQ(back.localizer.report.confidence.flag_threshold, 0.9);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);
   EXPECT_EQ(back.localizer.hypothesis_source, HypothesisSource::kRandomMapFeatures);
   EXPECT_EQ(j["localizer"]["ransac"]["order_rule"], "uniform");

@@ -519,6 +519,39 @@ TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {
   EXPECT_LE(eg.confidence, 1.0);
 }
 
+TEST(ReportPolicy, TheFlagIsTheValueAtOrAboveTheFlagThreshold) {
+  // The model rates every estimate high (bias +20) in one policy and low
+  // (bias -20) in the other; the flag alone decides the side of the threshold.
+  for (const double bias : {20.0, -20.0}) {
+    ReportPolicyConfig config = plain();
+    config.confidence.value_weights = {bias, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    config.confidence.flag_threshold = 0.9;
+    ReportPolicy policy(config, kPreference);
+    FakeSample fits, breaks;
+    fits.score_of = [](const Hypothesis&) { return 0.5; };
+    breaks.score_of = [](const Hypothesis&) { return -1.0; };  // the map contradicts the newest points
+    const Hypothesis place = at(1, 4.0);
+    std::vector<bool> flags;
+    for (int i = 0; i < 14; ++i) {
+      const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000)}, i < 10 ? fits : breaks);
+      flags.push_back(e.localized);
+      EXPECT_EQ(e.localized, e.confidence >= 0.9) << "bias " << bias << " scan " << i;
+      if (e.localized) {
+        EXPECT_NEAR(e.confidence, bias > 0 ? 1.0 : 0.9, 1e-8);
+      } else {
+        EXPECT_LE(e.confidence, bias > 0 ? 0.899 + 1e-12 : 1e-8);
+      }
+    }
+    // The run saw the flag rise and drop.
+    EXPECT_FALSE(flags.front());
+    EXPECT_TRUE(flags[9]);
+    EXPECT_FALSE(flags.back());
+  }
+  ReportPolicyConfig bad = plain();
+  bad.confidence.flag_threshold = 0.0005;
+  EXPECT_THROW(bad.validate(), Error);
+}
+
 TEST(ReportPolicy, HysteresisKeepsTheReportedPlaceAgainstASmallLead) {
   ReportPolicy policy(plain(), kPreference);
   FakeSample sample;

@@ -100,7 +100,7 @@ LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, riv
                    same_place_m, same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
                    hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,
                    rise_min_whole_map_lead, rise_margin_whole_map_lead, rise_paired_whole_map_lead,
-                   rise_paired_newest_lead, whole_map_points, always_score_whole_map, value_weights)
+                   rise_paired_newest_lead, whole_map_points, always_score_whole_map, value_weights, flag_threshold)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_heading_rad, window_scans)

@@ -12,6 +12,9 @@ namespace {
 
 double radians(double deg) { return deg * std::numbers::pi / 180.0; }
 
+// An unflagged value stays this far under the flag threshold: the CSVs print 4 decimals.
+constexpr double kUnflaggedValueGap = 0.001;
+
 }  // namespace
 
 bool same_place(const Hypothesis& a, const RobotPlace& b, const Pose2& local, double dist_m, double angle_rad) {
@@ -64,6 +67,8 @@ void ReportPolicyConfig::validate() const {
           "a finite number", confidence.rise_min_whole_map_lead);
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
           "ReportPolicyConfig.confidence.contradiction_smoothing", "in (0, 1]", confidence.contradiction_smoothing);
+  require(confidence.flag_threshold > kUnflaggedValueGap && confidence.flag_threshold <= 1.0,
+          "ReportPolicyConfig.confidence.flag_threshold", "in (0.001, 1]", confidence.flag_threshold);
   for (double w : confidence.value_weights)
     require(std::isfinite(w), "ReportPolicyConfig.confidence.value_weights", "finite numbers", w);
   if (refine_points == 0) return;
@@ -363,6 +368,8 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
                         std::min(cc.rise_scored_per_kept_scan * kept_scans_, static_cast<double>(cc.rise_max_scored));
   flag_ = (rises && seasoned) || held;
   e.localized = flag_;
+  e.confidence = flag_ ? std::max(e.confidence, cc.flag_threshold)
+                       : std::min(e.confidence, cc.flag_threshold - kUnflaggedValueGap);
   return e;
 }
 
