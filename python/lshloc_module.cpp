@@ -406,7 +406,8 @@ PYBIND11_MODULE(lshloc, m) {
           },
           py::arg("scan"),
           "Localizes one target scan (odometry in scan.odometry); returns a dict: has_estimate, localized "
-          "(the confidence flag), confidence (the calibrated value in [0, 1]), stamp_clash (an earlier scan stamped "
+          "(the confidence flag), confidence (the calibrated value in [0, 1]; at least flag_threshold, 0.95 by "
+          "default, exactly when localized), stamp_clash (an earlier scan stamped "
           "within 5 ms is estimated elsewhere), confident (localized and no stamp clash: the pose can be used by "
           "its time stamp), submap, submap_name, pose (x, y, theta of the laser in the submap), mean_score, margin");
 }
