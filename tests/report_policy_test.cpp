@@ -9,6 +9,7 @@
 #include <numbers>
 #include <vector>
 
+#include "lshloc/common/error.hpp"
 #include "lshloc/localization/report_policy.hpp"
 
 namespace lshloc {
