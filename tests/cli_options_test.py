@@ -68,11 +68,15 @@ def sweep(work):
     grid = os.path.join(work, "grid.yaml")
     saved = os.path.join(work, "base.map")
     subprocess.run([LSHLOC, "map", "build", corrected, "--out", saved], check=True, capture_output=True)
+    coarse = os.path.join(work, "coarse.map")
+    subprocess.run([LSHLOC, "map", "from-grid", grid, "--out", coarse, "--grid-spacing", "3"], check=True,
+                   capture_output=True)
 
     # Each command with the smallest arguments that make a valid, short run (grids ray-cast coarsely).
     commands = {
         ("demo",): ["--buildings", "2", "--target", "1", "--map-scans", "150", "--target-scans", "30"],
-        ("localize",): ["--map", corrected, "--map", grid, "--target", raw, "--length", "20", "--grid-spacing", "3"],
+        # A grid map saved once, coarsely ray-cast: localize sets no lattice itself.
+        ("localize",): ["--map", coarse, "--map", corrected, "--target", raw, "--length", "20"],
         ("simulate",): ["--out", os.path.join(work, "simout"), "--scans", "40"],
         ("bench", "matching"): ["--viewpoints", "300", "--warm-up", "10"],
         ("bench", "scale"): ["--submaps", "1", "--map-scans", "100", "--target-scans", "20", "--targets", "1",

@@ -50,6 +50,26 @@ TEST(Figures, DrawsAReliabilityDiagram) {
   EXPECT_NE(test::read_file(svg).find("<svg"), std::string::npos);
 }
 
+TEST(Figures, DrawsTheConfidenceOverARun) {
+  ConfidenceSeries s;
+  s.flag_threshold = 0.9;
+  for (int i = 0; i < 100; ++i) {
+    s.scan.push_back(i);
+    s.value.push_back(i < 40 ? 0.01 * i : 0.97);
+    s.mean_score.push_back(0.005 * i);
+    s.confident.push_back(i >= 40);
+  }
+  const std::string png = test::temp_path(".png"), svg = test::temp_path(".svg");
+  plot_confidence(png, "confidence over the run", s);
+  plot_confidence(svg, "confidence over the run", s);
+  EXPECT_EQ(test::read_file(png).substr(1, 3), "PNG");
+  EXPECT_NE(test::read_file(svg).find("<svg"), std::string::npos);
+  // An empty run still makes a figure, not a crash.
+  const std::string empty = test::temp_path(".png");
+  plot_confidence(empty, "no scans", ConfidenceSeries{});
+  EXPECT_EQ(test::read_file(empty).substr(1, 3), "PNG");
+}
+
 TEST(Figures, RejectsUnknownFormatsAndUnwritablePaths) {
   EXPECT_THROW(plot_error_curves(test::temp_path(".jpg"), "t", {}), Error);
   EXPECT_THROW(plot_error_curves("/nonexistent/dir/x.png", "t", {}), Error);

@@ -180,7 +180,7 @@ std::string log_stem(const std::string& path) {
 /// log's scans or grid, or its features for a saved map) and the confidence
 /// over time.
 void write_plots(const std::string& dir, const std::string& target_path, const GlobalMap& map,
-                 const MapSources& sources, const ScenarioRun& run) {
+                 const MapSources& sources, const ScenarioRun& run, double flag_threshold) {
   io::require_writable_directory(dir, "the figure directory");
   const std::string stem = dir + "/" + log_stem(target_path);
   const auto& last = run.estimates.back();
@@ -195,9 +195,11 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
   }
   thin_to_voxels(fig.map_points, 0.05);
   io::ConfidenceSeries confidence;
+  confidence.flag_threshold = flag_threshold;
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     confidence.scan.push_back(static_cast<double>(i));
+    confidence.value.push_back(e.confidence);
     confidence.mean_score.push_back(e.has_estimate ? e.mean_score : 0.0);
     confidence.confident.push_back(e.confident());
     if (e.has_estimate && e.submap == submap)
@@ -309,8 +311,10 @@ void print_answer(const nlohmann::json& j) {
         "are not marked confident (stamp_clash in the CSV)\n",
         clashes, 1e3 * j["stamp_clash_tolerance_s"].get<double>());
   std::printf(
-      "  confidence at the last scan: mean score %.3f over %u points, lead %.3f over the best place elsewhere\n",
-      j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(), j["final_margin"].get<double>());
+      "  confidence at the last scan: %.3f (mean score %.3f over %u points, lead %.3f over the best place "
+      "elsewhere)\n",
+      j["confidence"].get<double>(), j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(),
+      j["final_margin"].get<double>());
   std::printf(
       "  cost: %.0f scans (%.1f s of log) in %.2f s CPU: %.2f ms per scan, %.0fx real time; the map took %.1f s\n",
       scans, j["log_s"].get<double>(), j["localize_cpu_s"].get<double>(), j["ms_per_scan"].get<double>(),
@@ -428,7 +432,9 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "(or --map-slam) poses a raw log by lshloc's SLAM, --map LOG,POSES takes the poses from a\n"
       "`timestamp x y theta` file (laser poses) or a TUM trajectory (robot poses, as `lshloc slam\n"
       "--out` writes); --map MAP.yaml builds a submap from a ROS occupancy grid (map_server's YAML + PGM,\n"
-      "as gmapping, slam_toolbox and Cartographer save it); --map FILE.map loads a saved map.\n"
+      "as gmapping, slam_toolbox and Cartographer save it: ray-cast with the target's laser from a 1 m\n"
+      "lattice, 8 headings; `lshloc map from-grid` sets those and saves the map); --map FILE.map loads\n"
+      "a saved map.\n"
       "Prints where the robot is (submap, x, y, heading of its laser), since when it is confident and\n"
       "what it cost; --json prints the same as one JSON line. --out T.tum writes T.tum.csv (one row per\n"
       "target scan, laser poses) and T.tum: the confident robot poses (the laser mount taken off) in\n"
@@ -482,7 +488,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
                 "map logs given without a poses file are raw logs: pose their scans by lshloc's SLAM (scan matching "
                 "and loop closure) instead of taking their FLASER poses");
   add_localizer_options(*cmd, opt->localizer);
-  add_grid_map_options(*cmd, opt->grid);
+  add_grid_map_options(*cmd, opt->grid, /*laser_of_only=*/true);
   cmd->callback([opt, map_option, target_option, &global] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
@@ -581,7 +587,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     for (std::size_t k = 0; k < targets.size(); ++k) {
       runs[k].map_build_s = map_s;
       if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
-      if (!opt->plot_dir.empty()) write_plots(opt->plot_dir, paths[k], *map, sources, runs[k]);
+      if (!opt->plot_dir.empty())
+        write_plots(opt->plot_dir, paths[k], *map, sources, runs[k], config.localizer.report.confidence.flag_threshold);
       nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
       j["stamp_clash_tolerance_s"] = config.localizer.stamp_clash.tolerance_s;
       if (follower) {

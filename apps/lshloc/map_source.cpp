@@ -225,8 +225,12 @@ GridSubmapConfig GridMapOptions::resolve(const LaserScan* like) const {
   return c;
 }
 
-void add_grid_map_options(CLI::App& cmd, GridMapOptions& o) {
+void add_grid_map_options(CLI::App& cmd, GridMapOptions& o, bool laser_of_only) {
   const std::string group = "Maps from occupancy grids (MAP.yaml)";
+  cmd.add_option("--grid-laser-of", o.laser_of,
+                 "a log of the robot that will localize: its laser (beams, field of view, range) is the virtual one")
+      ->group(group);
+  if (laser_of_only) return;
   cmd.add_option("--grid-spacing", o.config.pose_spacing, "[m] between virtual laser positions")
       ->capture_default_str()
       ->check(within(0.01, 1000))
@@ -238,9 +242,6 @@ void add_grid_map_options(CLI::App& cmd, GridMapOptions& o) {
   cmd.add_option("--grid-clearance", o.config.clearance, "[m] virtual positions keep this far from walls and unknown")
       ->capture_default_str()
       ->check(within(0, 100))
-      ->group(group);
-  cmd.add_option("--grid-laser-of", o.laser_of,
-                 "a log of the robot that will localize: its laser (beams, field of view, range) is the virtual one")
       ->group(group);
   cmd.add_option("--grid-beams", o.beams, "virtual laser beams (default: the target's laser, else 181)")
       ->check(within(2, 100000))

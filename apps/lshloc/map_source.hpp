@@ -77,7 +77,9 @@ struct GridMapOptions {
   /// where none was given.
   GridSubmapConfig resolve(const LaserScan* like) const;
 };
-void add_grid_map_options(CLI::App& cmd, GridMapOptions& options);
+/// The --grid-* options; with `laser_of_only` just --grid-laser-of (localize: the
+/// lattice and an explicit virtual laser are set where a map is built, `map from-grid`).
+void add_grid_map_options(CLI::App& cmd, GridMapOptions& options, bool laser_of_only = false);
 
 /// The submaps that map arguments (logs or ROS map YAMLs) added to a map,
 /// with what each was made from (for figures).

@@ -6,6 +6,7 @@
 #include <cairo.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
@@ -207,22 +208,39 @@ void plot_confidence(const std::string& path, const std::string& title, const Co
   for (double x : s.scan) xmax = std::max(xmax, x);
   for (double y : s.mean_score) ymax = std::max(ymax, y);
   const Axes ax{0, xmax, 0, ymax * 1.1, false, false};
-  ax.draw(f, title, "target scan", "mean score of the answer (green band: confident)");
+  ax.draw(f, title, "target scan", "confidence value, mean score (green band: confident)");
   cairo_t* cr = f.cr();
   cairo_set_source_rgb(cr, 0.1, 0.6, 0.1);
   const double step = (ax.tx(xmax) - ax.tx(0)) / std::max<double>(1.0, static_cast<double>(s.scan.size()));
   for (std::size_t i = 0; i < s.scan.size() && i < s.confident.size(); ++i)
     if (s.confident[i]) cairo_rectangle(cr, ax.tx(s.scan[i]) - step / 2, ax.ty(ax.y1), step + 0.5, 8);
   cairo_fill(cr);
-  cairo_set_source_rgb(cr, 0.12, 0.47, 0.71);
-  cairo_set_line_width(cr, 1.4);
-  for (std::size_t i = 0; i < s.scan.size() && i < s.mean_score.size(); ++i) {
-    if (i == 0)
-      cairo_move_to(cr, ax.tx(s.scan[i]), ax.ty(s.mean_score[i]));
-    else
-      cairo_line_to(cr, ax.tx(s.scan[i]), ax.ty(s.mean_score[i]));
-  }
+  // The flag threshold: the value lies on or above it exactly where the flag is up.
+  cairo_set_source_rgb(cr, 0.2, 0.2, 0.2);
+  cairo_set_line_width(cr, 1.0);
+  const double dash = 5;
+  cairo_set_dash(cr, &dash, 1, 0);
+  cairo_move_to(cr, ax.tx(0), ax.ty(s.flag_threshold));
+  cairo_line_to(cr, ax.tx(xmax), ax.ty(s.flag_threshold));
   cairo_stroke(cr);
+  cairo_set_dash(cr, nullptr, 0, 0);
+  char label[64];
+  std::snprintf(label, sizeof label, "flag threshold %.2f", s.flag_threshold);
+  f.text(ax.tx(0) + 6, ax.ty(s.flag_threshold) - 5, label, 11);
+  const std::array<const std::vector<double>*, 2> lines{&s.value, &s.mean_score};
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    const std::vector<double>& y = *lines[k];
+    cairo_set_source_rgb(cr, kPalette[k].r, kPalette[k].g, kPalette[k].b);
+    cairo_set_line_width(cr, k == 0 ? 1.6 : 1.0);
+    for (std::size_t i = 0; i < s.scan.size() && i < y.size(); ++i) {
+      if (i == 0)
+        cairo_move_to(cr, ax.tx(s.scan[i]), ax.ty(y[i]));
+      else
+        cairo_line_to(cr, ax.tx(s.scan[i]), ax.ty(y[i]));
+    }
+    cairo_stroke(cr);
+  }
+  legend(f, {"confidence value", "mean score C/N"});
   f.close();
 }
 

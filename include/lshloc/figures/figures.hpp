@@ -40,15 +40,19 @@ struct MapFigure {
 
 void plot_map_figure(const std::string& path, const MapFigure& figure);
 
-/// A localization run's confidence over time: per target scan the mean
-/// score of the reported hypothesis, and whether the answer was confident.
+/// A localization run's confidence over time: per target scan the calibrated
+/// confidence value, the mean score of the reported hypothesis, and whether
+/// the answer was confident.
 struct ConfidenceSeries {
   std::vector<double> scan;
+  std::vector<double> value;  ///< the calibrated confidence value, in [0, 1]
   std::vector<double> mean_score;
   std::vector<bool> confident;
+  double flag_threshold = 0.95;  ///< the value at or above which the flag is up (a dashed line)
 };
-/// The mean score against the scan (a line), with a green band along the top
-/// where the answer was confident.
+/// The confidence value and the mean score against the scan (lines), the
+/// flag threshold (dashed), and a green band along the top where the answer
+/// was confident.
 void plot_confidence(const std::string& path, const std::string& title, const ConfidenceSeries& series);
 
 /// Per-feature cost against map size (the paper's Fig. 4): one series per cost.
