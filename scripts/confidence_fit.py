@@ -3,6 +3,7 @@
 
     scripts/confidence_fit.py TRACE_DIR [--train fr079,intel] [--up P] [--hold P]
                               [--weights W0,W1,...] [--diagram OUT.csv]
+                              [--unmapped DIR] [--unmapped-share S] [--flag-threshold T]
 
 TRACE_DIR holds `lshloc eval --trace` CSVs (scripts/sweep.sh with TRACE_DIR=...),
 named after their arguments (the building follows "--building"). The value is
@@ -16,6 +17,15 @@ as the acceptance check counts them; --flag evidence replays the localizer's
 own flag rule from the evidence columns instead, with its parameters as
 options (how they were chosen: docs/results/confidence.md). With --weights,
 judges those instead of fitting. --diagram writes the reliability diagram's bins (all buildings).
+
+--unmapped DIR holds `lshloc localize --out` CSVs named BUILDING.tum.csv of a
+building's log localized in a map without that building
+(scripts/unmapped_buildings.sh): every estimate there is wrong. Those of the
+training buildings join the fit as negatives, together weighing
+--unmapped-share of it (the share of scans a robot takes where the map does
+not reach); every one is reported with its mean value, which a calibrated
+value keeps near 0. The value judged is the localizer's: raised to
+--flag-threshold where the trace's flag is up, held under it elsewhere.
 """
 import argparse
 import csv
@@ -57,10 +67,31 @@ def load(trace_dir):
                               "rival_scored": float(r["rival_scored"]) if has and r.get("rival_scored") else None,
                               "newest_lead": float(r.get("newest_lead") or "nan") if has else math.nan,
                               "x": features(r) if has else None, "truth": truth, "err": err,
+                              "flag": r["localized"] == "1",
                               "right": truth and has and err <= 2.0 and head <= 10.0,
                               "correct": truth and has and err < 1.0})
         runs.append((building, path, scans))
     return runs
+
+
+def load_unmapped(directory):
+    """{building: scans} from `localize --out` CSVs of buildings the map lacks (all estimates wrong)."""
+    out = {}
+    for path in sorted(glob.glob(os.path.join(directory, "*.tum.csv"))):
+        scans = []
+        with open(path) as f:
+            for r in csv.DictReader(f):
+                if r["score"] == "":
+                    continue  # no estimate
+                r = dict(r, mean_score=r["score"])
+                scans.append({"x": features(r), "flag": r["localized"] == "1"})
+        out[os.path.basename(path)[:-len(".tum.csv")]] = scans
+    return out
+
+
+def reported(p, flag, threshold):
+    """The localizer's value: the flag decides the side of the threshold (ConfidenceConfig::flag_threshold)."""
+    return max(p, threshold) if flag else min(p, threshold - 0.001)
 
 
 def sigmoid(z):
@@ -266,10 +297,16 @@ def main():
                          "margin (rise_paired_whole_map_lead, rise_paired_newest_lead; 9,9: off)")
     ap.add_argument("--rival-min-scored", type=float, default=250,
                     help="below this N a rival's margin also needs the whole-map lead (rise_rival_min_scored; 0: off)")
+    ap.add_argument("--unmapped", help="directory of localize CSVs in buildings the map lacks (BUILDING.tum.csv)")
+    ap.add_argument("--unmapped-share", type=float, default=0.1,
+                    help="the training weight of the training buildings' unmapped runs, as a share of the whole")
+    ap.add_argument("--flag-threshold", type=float, default=0.95,
+                    help="ConfidenceConfig::flag_threshold (the flag lifts the value to it; > 1: the raw model)")
     ap.add_argument("--weak-support", help="C/N,N,MARGIN,LEAD,EVIDENCE: a weaker support test replayed beside "
                     "the localizer's (evidence_flag; not built)")
     a = ap.parse_args()
     runs = load(a.trace_dir)
+    unmapped = load_unmapped(a.unmapped) if a.unmapped else {}
     train = set(a.train.split(","))
     if a.weights:
         w = [float(v) for v in a.weights.split(",")]
@@ -278,8 +315,15 @@ def main():
         # scans its windows hold (fr079 has ~40x intel's).
         rows = {b: [(s["x"], 1.0 if s["right"] else 0.0) for bb, _, scans in runs if bb == b for s in scans
                     if s["truth"] and s["x"] is not None] for b in train}
-        total = sum(len(r) for r in rows.values())
-        w = fit([(x, y, total / (len(rows) * len(r))) for r in rows.values() for x, y in r])
+        weighted = [(x, y, 1.0 / (len(rows) * len(r))) for r in rows.values() for x, y in r]
+        negatives = {b: v for b, v in unmapped.items() if b in train and v}
+        if negatives:
+            # The buildings' own scans keep 1 - share, the unmapped runs share the rest equally.
+            share = a.unmapped_share
+            weighted = [(x, y, c * (1.0 - share)) for x, y, c in weighted]
+            weighted += [(s["x"], 0.0, share / (len(negatives) * len(v))) for v in negatives.values() for s in v]
+        total = sum(len(r) for r in rows.values()) + sum(len(v) for v in negatives.values())
+        w = fit([(x, y, c * total) for x, y, c in weighted])
     print("weights (" + ", ".join(FEATURES) + "): " + ",".join(f"{v:.4f}" for v in w))
     flag_rule = (value_flag(w, a.up, a.hold) if a.flag == "value" else
                  evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
@@ -290,14 +334,19 @@ def main():
     buildings = sorted({b for b, _, _ in runs})
     everything = []
     for b in buildings:
-        pairs = [(value(w, s["x"]), 1.0 if s["right"] else 0.0) for bb, _, scans in runs if bb == b for s in scans
-                 if s["truth"]]
+        pairs = [(reported(value(w, s["x"]), s["flag"], a.flag_threshold), 1.0 if s["right"] else 0.0)
+                 for bb, _, scans in runs if bb == b for s in scans if s["truth"]]
         everything += pairs
         e, _ = ece(pairs)
         results = [judge_run(scans, flag_rule) for bb, _, scans in runs if bb == b]
         summary(f"{b} ({'train' if b in train else 'unseen'}, ECE {e:.4f})", results)
     e, table = ece(everything)
     summary(f"all (ECE {e:.4f})", [judge_run(scans, flag_rule) for _, _, scans in runs])
+    for b, scans in unmapped.items():
+        values = [reported(value(w, s["x"]), s["flag"], a.flag_threshold) for s in scans]
+        print(f"{b} unmapped ({'train' if b in train else 'unseen'}): {len(values)} estimates, all wrong; "
+              f"mean value {statistics.mean(values) if values else float('nan'):.3f}, flagged "
+              f"{sum(s['flag'] for s in scans)}")
     if a.diagram:
         with open(a.diagram, "w") as f:
             f.write("lo,hi,count,mean_value,share_right\n")
