@@ -5,7 +5,8 @@
 # before the run, a raw log as a map gets its warning, a TUM trajectory is
 # read as robot poses, maps from ROS occupancy grids localize, two targets
 # localized at once on one map equal their lone runs, --print-config needs no
-# inputs, --version answers, and scans stamped together at different poses are never confident.
+# inputs, --version answers, scans stamped together at different poses are never confident, and a
+# target in a building the map lacks is never flagged.
 # Usage: cli_localize_test.sh LSHLOC
 set -euo pipefail
 LSHLOC=$1
@@ -294,6 +295,22 @@ for args in "localize --map $d/m.map" "localize --target $b/sim-3-001.log.gz" "m
   grep -q "is required" "$d/err.txt" || fail "$args: $(cat "$d/err.txt")"
 done
 [ ! -e "$d/x.map" ] || fail "map build without logs wrote a map"
+
+# A robot in a building the map lacks: every estimate is wrong, so the flag never rises and the
+# calibrated value stays low (the real buildings: scripts/unmapped_buildings.sh).
+"$LSHLOC" simulate --out "$d/sim3" --buildings 3 --seed 5 --scans 400 >/dev/null
+"$LSHLOC" localize --map "$d/sim3/sim-5-000/sim-5-000-corrected.log.gz" \
+  --map "$d/sim3/sim-5-001/sim-5-001-corrected.log.gz" --target "$d/sim3/sim-5-002/sim-5-002.log.gz" \
+  --out "$d/unmapped.tum" --json >"$d/unmapped.json" 2>/dev/null || fail "localize in an unmapped building"
+python3 - "$d/unmapped.json" "$d/unmapped.tum.csv" <<'PY' || fail "flagged or confident in a building the map lacks"
+import csv, json, statistics, sys
+j = json.load(open(sys.argv[1]))
+rows = list(csv.DictReader(open(sys.argv[2])))
+assert len(rows) == 400 and j["confident_scans"] == 0 and not j["localized"], j
+assert not any(r["localized"] == "1" for r in rows)
+values = [float(r["confidence"]) for r in rows]
+assert max(values) < 0.95 and statistics.mean(values) < 0.3, (max(values), statistics.mean(values))
+PY
 
 "$LSHLOC" --version | grep -q "^lshloc [0-9]" || fail "--version"
 echo "cli_localize_test: all checks passed"
