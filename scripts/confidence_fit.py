@@ -90,7 +90,10 @@ def load_unmapped(directory):
 
 
 def reported(p, flag, threshold):
-    """The localizer's value: the flag decides the side of the threshold (ConfidenceConfig::flag_threshold)."""
+    """The localizer's value: the flag decides the side of the threshold (ConfidenceConfig::flag_threshold);
+    a threshold above 1 leaves the model's value as it is."""
+    if threshold > 1.0:
+        return p
     return max(p, threshold) if flag else min(p, threshold - 0.001)
 
 
