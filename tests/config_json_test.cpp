@@ -40,6 +40,8 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.localizer.report.confidence.flag_threshold = 0.9;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
   c.localizer.hypothesis_source = HypothesisSource::kRandomMapFeatures;
+  c.localizer.newly_mapped_touched = 300;
+  c.localizer.newly_mapped_halvings = 2;
   c.map_share_before_target = 0.5;
   const nlohmann::json j = c;
   const ScenarioRunConfig back = j.get<ScenarioRunConfig>();
@@ -59,6 +61,8 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_EQ(back.localizer.report.confidence.flag_threshold, 0.9);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);
   EXPECT_EQ(back.localizer.hypothesis_source, HypothesisSource::kRandomMapFeatures);
+  EXPECT_EQ(back.localizer.newly_mapped_touched, 300u);
+  EXPECT_EQ(back.localizer.newly_mapped_halvings, 2u);
   EXPECT_EQ(j["localizer"]["ransac"]["order_rule"], "uniform");
 }
 

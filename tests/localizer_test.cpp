@@ -282,12 +282,10 @@ TEST(Localizer, APlaceMappedAfterTheTargetSawItStillProposesHypotheses) {
   // others_first: the other buildings are mapped before the tour (the
   // target's features then reuse its queries' keys); else the map is empty
   // until after it (the features are hashed for themselves).
-  const auto final_estimate = [&](std::size_t newly_mapped_candidates, LocalizerStats& stats, bool others_first) {
+  const auto final_estimate = [&](LocalizerConfig config, LocalizerStats& stats, bool others_first) {
     GlobalMap map;
     MapFeeder feeder(map, others);
     if (others_first) feeder.feed_until(1.0);
-    LocalizerConfig config;
-    config.newly_mapped_candidates = newly_mapped_candidates;
     config.scan_matcher.laser_offset = sc.target.laser_offset;
     Localizer localizer(map, config);
     for (const LaserScan& s : sc.target.scans) localizer.add_scan(s);
@@ -305,8 +303,7 @@ TEST(Localizer, APlaceMappedAfterTheTargetSawItStillProposesHypotheses) {
   };
   LocalizerStats with_stats, without_stats;
   for (const bool others_first : {true, false}) {
-    const LocalizationEstimate with =
-        final_estimate(LocalizerConfig{}.newly_mapped_candidates, with_stats, others_first);
+    const LocalizationEstimate with = final_estimate(LocalizerConfig{}, with_stats, others_first);
     // The whole building lands between two target scans: the newest
     // newly_mapped_per_scan of its features are looked up, the rest missed.
     EXPECT_EQ(with_stats.newly_mapped_features, LocalizerConfig{}.newly_mapped_per_scan) << others_first;
@@ -316,7 +313,21 @@ TEST(Localizer, APlaceMappedAfterTheTargetSawItStillProposesHypotheses) {
     EXPECT_EQ(with.submap, target) << others_first;
     EXPECT_LT(translation_distance(with.pose, *last_truth), 0.5) << others_first;
   }
-  const LocalizationEstimate without = final_estimate(0, without_stats, true);
+  // The prescoring's rounds and each lookup's reach are costs, not the
+  // method: fewer halvings, or lookups reading all the map database would.
+  for (const auto& [halvings, touched] : {std::pair<std::size_t, std::size_t>{1, 75}, {2, 75}, {6, 75}, {3, 600}}) {
+    LocalizerConfig config;
+    config.newly_mapped_halvings = halvings;
+    config.newly_mapped_touched = touched;
+    LocalizerStats stats;
+    const LocalizationEstimate with = final_estimate(config, stats, true);
+    ASSERT_TRUE(with.has_estimate) << halvings << " " << touched;
+    EXPECT_EQ(with.submap, target) << halvings << " " << touched;
+    EXPECT_LT(translation_distance(with.pose, *last_truth), 0.5) << halvings << " " << touched;
+  }
+  LocalizerConfig off;
+  off.newly_mapped_candidates = 0;
+  const LocalizationEstimate without = final_estimate(off, without_stats, true);
   EXPECT_EQ(without_stats.newly_mapped_pairs, 0u);
   EXPECT_FALSE(without.has_estimate && without.submap == target &&
                translation_distance(without.pose, *last_truth) < 0.5)

@@ -107,8 +107,9 @@ LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_h
 LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty,
                    return_support, contested_penalty, context_scans, context_spacing, data_point_spacing,
                    free_points_per_surface_point, free_point_fraction, free_point_margin, hypothesis_source,
-                   newly_mapped_candidates, newly_mapped_per_scan, newly_mapped_share, newly_mapped_scan_window,
-                   newly_mapped_points, newly_mapped_reach_scans, seen_features_kept, report, stamp_clash, seed)
+                   newly_mapped_candidates, newly_mapped_per_scan, newly_mapped_touched, newly_mapped_share,
+                   newly_mapped_scan_window, newly_mapped_points, newly_mapped_halvings, newly_mapped_reach_scans,
+                   seen_features_kept, report, stamp_clash, seed)
 
 }  // namespace lshloc
 

@@ -1,6 +1,7 @@
 #include "lshloc/localization/localizer.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <span>
 
@@ -92,6 +93,9 @@ void LocalizerConfig::validate() const {
   require(free_space_penalty >= 0.0, "LocalizerConfig.free_space_penalty", ">= 0", free_space_penalty);
   require(return_support >= 0.0, "LocalizerConfig.return_support", ">= 0", return_support);
   require(contested_penalty >= 0.0, "LocalizerConfig.contested_penalty", ">= 0", contested_penalty);
+  require(newly_mapped_halvings >= 1 && newly_mapped_halvings <= 8, "LocalizerConfig.newly_mapped_halvings", "1..8",
+          newly_mapped_halvings);
+  require(newly_mapped_touched >= 1, "LocalizerConfig.newly_mapped_touched", ">= 1", newly_mapped_touched);
   require(seen_features_kept >= 2, "LocalizerConfig.seen_features_kept", ">= 2", seen_features_kept);
   require(newly_mapped_share >= 0.0 && newly_mapped_share <= 1.0, "LocalizerConfig.newly_mapped_share", "in [0, 1]",
           newly_mapped_share);
@@ -277,7 +281,9 @@ void Localizer::remember_features(const std::vector<Feature>& features) {
   if (config_.newly_mapped_candidates == 0 || features.empty()) return;
   if (!seen_[0] || seen_[0]->features.size() + features.size() > config_.seen_features_kept / 2) {
     seen_[1] = std::move(seen_[0]);
-    seen_[0] = std::make_unique<SeenFeatures>(map_.config().database);
+    LshConfig database = map_.config().database;
+    database.max_candidates = std::min(database.max_candidates, config_.newly_mapped_touched);
+    seen_[0] = std::make_unique<SeenFeatures>(database);
   }
   SeenFeatures& seen = *seen_[0];
   // The forward queries' keys when there were any (an empty map has none).
@@ -385,53 +391,69 @@ void Localizer::prescore_newly_mapped() {
     }
     g = e;
   }
-  // Every hypothesis on every 4th of its data-points (evenly spread over the
-  // scans), then the better half on the rest: the others are iRANSAC's to
-  // preempt anyway, and the prescoring is most of a live scan's extra cost.
-  // The k-th data-points of all groups go as one batch of pairs.
+  // Successive halving, as preemptive RANSAC does: every hypothesis on a
+  // slice of its data-points (evenly spread over the scans), the better half
+  // on the next slice, ..., the last survivors on the rest; the others are
+  // iRANSAC's to preempt anyway, and the prescoring is most of a live scan's
+  // extra cost. A round goes as one batch of pairs (small batches leave each
+  // grid lookup waiting alone), summed in the order of its data-points.
   prescore_hypotheses_.clear();
   for (const ScoredHypothesis& h : scored_newly_mapped_) prescore_hypotheses_.push_back(h.hypothesis);
   const HypothesisBatch batch = batch_.assign(prescore_hypotheses_);
   std::size_t most_points = 0;
   for (const PrescoreGroup& pg : prescore_groups_) most_points = std::max(most_points, pg.n);
-  const auto score_pass = [&](bool first_quarter, const std::vector<std::uint8_t>* keep) {
-    for (std::size_t k = 0; k < most_points; ++k) {
-      if ((k % 4 == 0) != first_quarter) continue;
-      pair_points_.clear(), pair_hypotheses_.clear();
-      for (const PrescoreGroup& pg : prescore_groups_) {
-        if (k >= pg.n) continue;
+  const std::size_t halvings = config_.newly_mapped_halvings, slices = std::size_t{2} << halvings;
+  // Each round's data-point numbers k, ascending: 1 in `slices` in the first
+  // and the second round, twice as many in each round after, the rest in the
+  // last (listed once: a scan's groups are many, often one hypothesis each).
+  round_points_.resize(halvings + 1);
+  for (auto& ks : round_points_) ks.clear();
+  for (std::size_t k = 0; k < most_points; ++k) {
+    const std::size_t slice = k % slices;
+    round_points_[slice == 0 ? 0 : std::min(halvings, halvings + 1 - static_cast<std::size_t>(std::countr_zero(slice)))]
+        .push_back(static_cast<std::uint32_t>(k));
+  }
+  prescore_keep_.assign(scored_newly_mapped_.size(), 1);
+  for (std::size_t round = 0; round <= halvings; ++round) {
+    if (round > 0) {  // the better half of those still in
+      prescore_means_.clear();
+      for (std::size_t i = 0; i < scored_newly_mapped_.size(); ++i) {
+        const ScoredHypothesis& h = scored_newly_mapped_[i];
+        if (prescore_keep_[i] && h.scored > 0) prescore_means_.push_back(h.score / h.scored);
+      }
+      if (prescore_means_.empty()) break;
+      const auto middle = prescore_means_.begin() + static_cast<std::ptrdiff_t>((prescore_means_.size() - 1) / 2);
+      std::nth_element(prescore_means_.begin(), middle, prescore_means_.end(), std::greater<>());
+      const double median = *middle;
+      for (std::size_t i = 0; i < scored_newly_mapped_.size(); ++i) {
+        const ScoredHypothesis& h = scored_newly_mapped_[i];
+        prescore_keep_[i] = prescore_keep_[i] && h.scored > 0 && h.score / h.scored >= median;
+      }
+    }
+    // Each hypothesis's pairs in ascending k: its sum adds up in that order.
+    pair_points_.clear(), pair_hypotheses_.clear();
+    for (const PrescoreGroup& pg : prescore_groups_) {
+      if (std::none_of(prescore_keep_.begin() + static_cast<std::ptrdiff_t>(pg.begin),
+                       prescore_keep_.begin() + static_cast<std::ptrdiff_t>(pg.end), [](std::uint8_t k) { return k; }))
+        continue;  // none of its hypotheses is still in
+      std::uint32_t count = 0;
+      for (const std::uint32_t k : round_points_[round]) {
+        if (k >= pg.n) break;
+        ++count;
         const LocalPoint& point = points[pg.kept_begin + k * (pg.kept_end - pg.kept_begin) / pg.n];
         for (std::size_t i = pg.begin; i < pg.end; ++i) {
-          if (keep && !(*keep)[i]) continue;
+          if (!prescore_keep_[i]) continue;
           pair_points_.push_back(point);
           pair_hypotheses_.push_back(static_cast<std::uint32_t>(i));
         }
       }
-      prescore_.resize(pair_points_.size());
-      scorer_.score_pairs(pair_points_, pair_hypotheses_, batch, prescore_.data());
-      for (std::size_t j = 0; j < pair_hypotheses_.size(); ++j)
-        scored_newly_mapped_[pair_hypotheses_[j]].score += prescore_[j];
-    }
-    for (const PrescoreGroup& pg : prescore_groups_) {
-      const auto count = static_cast<std::uint32_t>(first_quarter ? (pg.n + 3) / 4 : pg.n - (pg.n + 3) / 4);
       for (std::size_t i = pg.begin; i < pg.end; ++i)
-        if (!keep || (*keep)[i]) scored_newly_mapped_[i].scored += count;
+        if (prescore_keep_[i]) scored_newly_mapped_[i].scored += count;
     }
-  };
-  score_pass(true, nullptr);
-  prescore_means_.clear();
-  for (const ScoredHypothesis& h : scored_newly_mapped_)
-    if (h.scored > 0) prescore_means_.push_back(h.score / h.scored);
-  if (!prescore_means_.empty()) {
-    const auto middle = prescore_means_.begin() + static_cast<std::ptrdiff_t>((prescore_means_.size() - 1) / 2);
-    std::nth_element(prescore_means_.begin(), middle, prescore_means_.end(), std::greater<>());
-    const double median = *middle;
-    prescore_keep_.assign(scored_newly_mapped_.size(), 0);
-    for (std::size_t i = 0; i < scored_newly_mapped_.size(); ++i) {
-      const ScoredHypothesis& h = scored_newly_mapped_[i];
-      prescore_keep_[i] = h.scored > 0 && h.score / h.scored >= median;
-    }
-    score_pass(false, &prescore_keep_);
+    prescore_.resize(pair_points_.size());
+    if (!prescore_.empty()) scorer_.score_pairs(pair_points_, pair_hypotheses_, batch, prescore_.data());
+    for (std::size_t j = 0; j < pair_hypotheses_.size(); ++j)
+      scored_newly_mapped_[pair_hypotheses_[j]].score += prescore_[j];
   }
   ransac_.add_scored_hypotheses(scored_newly_mapped_);
 }

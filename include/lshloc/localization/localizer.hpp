@@ -85,7 +85,10 @@ struct LocalizerConfig {
   /// after the target saw it still proposes hypotheses. k of each lookup
   /// (0: off). A map complete before the first scan never adds any.
   std::size_t newly_mapped_candidates = 10;
-  std::size_t newly_mapped_per_scan = 100;  ///< at most this many (the newest) are looked up per scan
+  std::size_t newly_mapped_per_scan = 50;  ///< at most this many (the newest) are looked up per scan
+  /// Each lookup reads at most this many ids of the target's features (the
+  /// map database's `max_candidates` for its own queries).
+  std::size_t newly_mapped_touched = 75;
   /// Of iRANSAC's |V_new| per scan, at most this share goes to newly mapped
   /// candidates, and at least the rest to the current scan's (the current
   /// scan's many candidates would otherwise crowd them out).
@@ -95,6 +98,9 @@ struct LocalizerConfig {
   /// one whose feature proposed it (the newest data-points may lie elsewhere).
   std::size_t newly_mapped_scan_window = 100;
   std::size_t newly_mapped_points = 400;
+  /// ... by successive halving: all of them on 1/2^(h+1) of those points,
+  /// the better half on as many more, ..., the last survivors on the rest.
+  std::size_t newly_mapped_halvings = 3;
   /// For this many scans after newly mapped hypotheses arrive, iRANSAC's
   /// order rule reaches back to the data-points they were scored on (which
   /// the recent window may have left behind).
@@ -238,6 +244,7 @@ class Localizer {
   std::vector<PrescoreGroup> prescore_groups_;
   std::vector<double> prescore_means_;
   std::vector<std::uint8_t> prescore_keep_;
+  std::vector<std::vector<std::uint32_t>> round_points_;  ///< prescore_newly_mapped(): each round's data-point numbers
   std::vector<float> prescore_;
   std::vector<std::size_t> data_points_end_;    ///< data-points added to iRANSAC's U by the end of each scan
   std::optional<std::size_t> reach_back_from_;  ///< the oldest data-point newly mapped hypotheses need
