@@ -13,24 +13,17 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 lshloc=${LSHLOC:-$here/build/bin/lshloc}
 data=${LSHLOC_DATA:-$here/../shared/data}
 [ -d "$data" ] || { echo "unmapped_buildings: no data directory $data" >&2; exit 1; }
-corrected() {
-  case $1 in
-    fr079) echo "$data/fr079/fr079-complete.gfs.log.gz" ;;
-    intel) echo "$data/intel/intel.gfs.log.gz" ;;
-    fr101) echo "$data/fr101/fr101.carmen.gfs.log.gz" ;;
-    aces) echo "$data/aces/aces-corrected.log.gz" ;;
-    mit-csail) echo "$data/mit-csail/csail.corrected.log.gz" ;;
-  esac
+# The buildings' files as the tool's dataset catalog knows them.
+catalog=$(LSHLOC_DATA="$data" "$lshloc" info --buildings)
+file_of() {  # file_of BUILDING FIELD: a path, or nothing
+  printf '%s\n' "$catalog" | python3 -c '
+import json, sys
+b, field = sys.argv[1:]
+for r in map(json.loads, sys.stdin):
+    if r["building"] == b and r[field]: print(r[field])' "$1" "$2"
 }
-raw() {
-  case $1 in
-    fr079) echo "$data/fr079/fr079.recon-from-bag.log.gz" ;;
-    intel) echo "$data/intel/intel.recon-from-bag.log.gz" ;;
-    fr101) echo "$data/fr101/fr101.carmen.log.gz" ;;
-    aces) echo "$data/aces/aces.recon-from-bag.log.gz" ;;
-    mit-csail) echo "$data/mit-csail/mit-csail.clf.gz" ;;
-  esac
-}
+corrected() { file_of "$1" corrected_log; }
+raw() { file_of "$1" raw_log; }
 all=(fr079 intel fr101 aces mit-csail)
 [ $# -gt 0 ] || set -- "${all[@]}"
 mkdir -p "$out"

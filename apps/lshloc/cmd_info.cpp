@@ -1,6 +1,8 @@
 // `lshloc info LOG...`: one JSON line per CARMEN log (scan and odometry counts,
-// beam counts, duration).
+// beam counts, duration); `lshloc info --buildings`: the data directory's
+// buildings and their files, one JSON line each (scripts read it).
 #include <cstdio>
+#include <filesystem>
 #include <set>
 
 #include <nlohmann/json.hpp>
@@ -54,6 +56,19 @@ nlohmann::json summarize_log(const std::string& path) {
           {"warnings", warnings}};
 }
 
+nlohmann::json building_files(const io::BuildingFiles& b) {
+  const auto path = [](const std::string& p) {
+    std::error_code ec;
+    return p.empty() || !std::filesystem::is_regular_file(p, ec) ? nlohmann::json() : nlohmann::json(p);
+  };
+  return {{"building", b.name},
+          {"raw_log", path(b.raw_log)},
+          {"corrected_log", path(b.corrected_log)},
+          {"poses", path(b.poses)},
+          {"relations", path(b.relations)},
+          {"laser_offset_x_m", b.laser_offset_x ? nlohmann::json(*b.laser_offset_x) : nlohmann::json()}};
+}
+
 }  // namespace
 
 void add_info_command(CLI::App& app, GlobalOptions& global) {
@@ -62,8 +77,19 @@ void add_info_command(CLI::App& app, GlobalOptions& global) {
                                  "ROBOTLASER1), odometry count (ODOM), distinct beam counts and duration.\n"
                                  "With no LOG, every log of the data directory is summarized.");
   auto logs = std::make_shared<std::vector<std::string>>();
+  auto buildings = std::make_shared<bool>(false);
   cmd->add_option("LOG", *logs, "CARMEN log files, plain or .gz");
-  cmd->callback([&global, logs] {
+  cmd->add_flag("--buildings", *buildings,
+                "list the data directory's buildings instead: one JSON line each with the paths of its raw log, "
+                "corrected log, ground-truth poses and relations (null where it has none on disk)")
+      ->excludes("LOG");
+  cmd->callback([&global, logs, buildings] {
+    if (*buildings) {
+      const io::DatasetCatalog catalog(global.resolved_data_dir());
+      for (const io::BuildingFiles& b : catalog.buildings())
+        std::printf("%s\n", io::json_text(building_files(b)).c_str());
+      return;
+    }
     std::vector<std::string> files = *logs;
     if (files.empty()) {
       const io::DatasetCatalog catalog(global.resolved_data_dir());
