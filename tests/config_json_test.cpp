@@ -38,6 +38,10 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.localizer.report.confidence.rise_scored_per_kept_scan = 7.5;
   c.localizer.report.confidence.rise_max_scored = 600;
   c.localizer.report.confidence.flag_threshold = 0.9;
+  c.localizer.report.confidence.weak_support = false;
+  c.localizer.report.confidence.weak_support_min_scored = 2000;
+  c.localizer.report.confidence.weak_support_max_newest_evidence = 0.02;
+  c.localizer.scan_matcher.match_stalled_odometry = false;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
   c.localizer.hypothesis_source = HypothesisSource::kRandomMapFeatures;
   c.localizer.newly_mapped_touched = 300;
@@ -59,6 +63,10 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_EQ(back.localizer.report.confidence.rise_scored_per_kept_scan, 7.5);
   EXPECT_EQ(back.localizer.report.confidence.rise_max_scored, 600u);
   EXPECT_EQ(back.localizer.report.confidence.flag_threshold, 0.9);
+  EXPECT_FALSE(back.localizer.report.confidence.weak_support);
+  EXPECT_EQ(back.localizer.report.confidence.weak_support_min_scored, 2000u);
+  EXPECT_EQ(back.localizer.report.confidence.weak_support_max_newest_evidence, 0.02);
+  EXPECT_FALSE(back.localizer.scan_matcher.match_stalled_odometry);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);
   EXPECT_EQ(back.localizer.hypothesis_source, HypothesisSource::kRandomMapFeatures);
   EXPECT_EQ(back.localizer.newly_mapped_touched, 300u);

@@ -335,6 +335,40 @@ TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
   for (std::size_t i = 0; i < lasting.size(); ++i) EXPECT_EQ(lasting[i], i >= first) << "scan " << i;
 }
 
+TEST(ReportPolicy, WeakSupportRaisesTheFlagWhereTheMapScoresEveryPlaceLow) {
+  // A thin map: the true place scores C/N 0.25 (under min_mean_score) on
+  // 3500 data-points, its rival elsewhere 0.04.
+  ReportPolicyConfig config = plain();
+  const ConfidenceConfig& cc = config.confidence;
+  ASSERT_TRUE(cc.weak_support);
+  ASSERT_LT(0.25, cc.min_mean_score);
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
+  const std::size_t stable = cc.stable_scans;
+  // The flags over stable + 20 scans; whole-map and newest points score the
+  // place `fit` and the rival `rival_fit`, the place scored on `n`.
+  const auto flags = [&](const ReportPolicyConfig& c, double fit, double rival_fit, std::uint32_t n) {
+    FakeSample sample;
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? fit : rival_fit; };
+    ReportPolicy policy(c, kPreference);
+    std::vector<bool> out;
+    for (std::size_t i = 0; i < stable + 20; ++i)
+      out.push_back(step(policy, {scored(place, 0.25, n), scored(rival, 0.04, 3500)}, sample).localized);
+    return out;
+  };
+  // A whole-map lead of 0.2 (>= weak_support_min_whole_map_lead): up once
+  // stable, and held on.
+  const std::vector<bool> up = flags(config, 0.3, 0.1, 3500);
+  for (std::size_t i = 0; i < up.size(); ++i) EXPECT_EQ(up[i], i + 1 >= stable) << "scan " << i;
+  // A lead of 0.1, or N under weak_support_min_scored: never.
+  for (const auto& f : {flags(config, 0.3, 0.2, 3500), flags(config, 0.3, 0.1, cc.weak_support_min_scored - 100)})
+    EXPECT_EQ(std::count(f.begin(), f.end(), true), 0);
+  // Off: C/N 0.25 never supports.
+  ReportPolicyConfig off = config;
+  off.confidence.weak_support = false;
+  const std::vector<bool> never = flags(off, 0.3, 0.1, 3500);
+  EXPECT_EQ(std::count(never.begin(), never.end(), true), 0);
+}
+
 TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnContradiction) {
   ReportPolicyConfig config = plain();
   config.confidence.rival_memory_scans = 0;  // the held flag's rival does not stand against the later rises
@@ -342,9 +376,17 @@ TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnCo
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   FakeSample sample;
   // Stable, strong, unrivalled support but the newest points score nothing
-  // at the place (newest fit 0 < rise_min_newest_fit): the flag stays down.
+  // at the place (newest fit 0 < rise_min_newest_fit): without weak support
+  // the flag stays down ...
+  config.confidence.weak_support = false;
   ReportPolicy silent(config, kPreference);
   for (std::size_t i = 0; i < stable + 3; ++i) EXPECT_FALSE(step(silent, {scored(place, 0.6, 1000)}, sample).localized);
+  // ... with it, a map silent about the newest points is no evidence against the place.
+  config.confidence.weak_support = true;
+  ReportPolicy silence_passes(config, kPreference);
+  for (std::size_t i = 0; i < stable; ++i) {
+    EXPECT_EQ(step(silence_passes, {scored(place, 0.6, 1000)}, sample).localized, i + 1 == stable) << "scan " << i;
+  }
   // With a newest fit of 0.5 it rises ...
   ReportPolicy policy(config, kPreference);
   double newest = 0.5;

@@ -358,6 +358,36 @@ TEST(ScanMatcher, StandingStillSkipsMatchingButReportsEveryScan) {
   EXPECT_EQ(matcher.stats().stationary, 4u);
 }
 
+TEST(ScanMatcher, StalledOdometryIsMatchedWhileTheRobotDrivesOn) {
+  // The robot drives 0.15 m and turns 4 degrees a scan; odometry holds still
+  // for scans 8-11 and then catches up at once (mit-csail's raw log).
+  std::vector<Pose2> truth{Pose2(2.5, 4.0, 0.0)};
+  for (int i = 1; i < 18; ++i) truth.push_back(truth.back() * Pose2(0.15, 0.0, 4.0 * kDeg));
+  test::LaserSim sim(test::test_room());
+  const auto run = [&](bool match_stalled) {
+    ScanMatcherConfig c;
+    c.match_stalled_odometry = match_stalled;
+    ScanMatcher matcher(c);
+    std::vector<ScanMatchResult> results;
+    for (int i = 0; i < static_cast<int>(truth.size()); ++i) {
+      const Pose2& odometry = truth[i >= 8 && i <= 11 ? 7 : i];
+      results.push_back(matcher.add_scan(sim.scan(truth[i], odometry, 0.2 * i)));
+    }
+    return std::make_pair(results, matcher.stats());
+  };
+  const auto [matched, stats] = run(true);
+  for (int i = 1; i < static_cast<int>(truth.size()); ++i) {
+    EXPECT_EQ(matched[i].source, ScanMatchSource::kMatched) << "scan " << i;
+    expect_pose_near(matched[i].laser_pose, truth[0].between(truth[i]), 0.02, 0.5 * kDeg, "scan " + std::to_string(i));
+  }
+  EXPECT_EQ(stats.stationary, 0u);
+  EXPECT_GE(stats.velocity_retries, 4u);
+  // Off: the four stalled scans stand still where the robot drove 0.6 m.
+  const auto [still, stats_off] = run(false);
+  EXPECT_EQ(stats_off.stationary, 4u);
+  EXPECT_GT(translation_distance(still[11].laser_pose, truth[0].between(truth[11])), 0.4);
+}
+
 TEST(ScanMatcher, LaserOffsetMapsLaserMotionToRobotMotion) {
   // A laser mounted 0.3 m ahead, 0.1 m left, turned 10 degrees: turning the
   // robot swings the laser sideways, which the matcher must account for.

@@ -81,7 +81,8 @@ LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_v
                    max_iterations, robust_scale, converged_translation, converged_rotation, rotation_length,
                    degeneracy_threshold, inlier_distance, min_quality, min_correspondences, max_correction_translation,
                    max_correction_rotation, velocity_guess_difference, turn_retries, per_scan_velocity_on_odd_stamps,
-                   experimental, reject_unconverged, odometry, stationary_translation, stationary_rotation)
+                   experimental, reject_unconverged, odometry, match_stalled_odometry, stationary_translation,
+                   stationary_rotation)
 LSHLOC_JSON_FIELDS(PoseGraphConfig, max_iterations, converged_step, robust_scale)
 LSHLOC_JSON_FIELDS(CorrelativeMatcherConfig, cell, sigma, block, angle_step_deg, max_query_points, runner_up_distance)
 LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement, node_distance, node_angle, node_voxel,
@@ -100,7 +101,9 @@ LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, riv
                    same_place_m, same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
                    hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,
                    rise_min_whole_map_lead, rise_margin_whole_map_lead, rise_paired_whole_map_lead,
-                   rise_paired_newest_lead, whole_map_points, always_score_whole_map, value_weights, flag_threshold)
+                   rise_paired_newest_lead, whole_map_points, weak_support, weak_support_min_scored,
+                   weak_support_min_mean_score, weak_support_min_margin, weak_support_min_whole_map_lead,
+                   weak_support_max_newest_evidence, always_score_whole_map, value_weights, flag_threshold)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_heading_rad, window_scans)

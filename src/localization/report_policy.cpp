@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <string>
+#include <utility>
 
 #include "lshloc/common/error.hpp"
 
@@ -65,6 +67,12 @@ void ReportPolicyConfig::validate() const {
           "a finite number", confidence.rise_paired_newest_lead);
   require(std::isfinite(confidence.rise_min_whole_map_lead), "ReportPolicyConfig.confidence.rise_min_whole_map_lead",
           "a finite number", confidence.rise_min_whole_map_lead);
+  for (const auto& [name, v] : {std::pair{"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
+                                {"weak_support_min_margin", confidence.weak_support_min_margin},
+                                {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
+                                {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence}}) {
+    require(std::isfinite(v), std::string("ReportPolicyConfig.confidence.") + name, "a finite number", v);
+  }
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
           "ReportPolicyConfig.confidence.contradiction_smoothing", "in (0, 1]", confidence.contradiction_smoothing);
   require(confidence.flag_threshold > kUnflaggedValueGap && confidence.flag_threshold <= 1.0,
@@ -209,6 +217,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     flag_ = false;
     supported_run_ = 0;
     place_qualified_ = false;
+    weakly_supported_place_ = false;
     last_rival_.reset();
     dropped_rival_.reset();
     return e;
@@ -294,8 +303,28 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   }
   e.stable = stable;
   e.supported = supported(*best);
+  bool whole_map_known = false;
+  const auto score_whole_map = [&] {
+    const std::size_t taken = sample.take_spread(cc.whole_map_points);
+    whole_map_known = taken > 0;
+    if (taken > 0) {
+      const std::array<Hypothesis, 2> pair{*reported_, standing ? standing->hypothesis : *reported_};
+      sample.score(std::span(pair).first(standing ? 2 : 1), sums_);
+      e.whole_map_fit = sums_[0] / static_cast<double>(taken);
+      e.whole_map_lead = standing ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
+    }
+  };
+  // Weak support needs the whole-map lead on every scan that meets its other parts.
+  const bool weak_candidate = cc.weak_support && !e.supported && best->scored >= cc.weak_support_min_scored &&
+                              e.mean_score >= cc.weak_support_min_mean_score &&
+                              e.rise_margin >= cc.weak_support_min_margin && cc.whole_map_points > 0;
+  if (weak_candidate) score_whole_map();
+  const bool weakly_supported =
+      weak_candidate && whole_map_known && e.whole_map_lead >= cc.weak_support_min_whole_map_lead;
+  weakly_supported_place_ = kept && (weakly_supported_place_ || weakly_supported);
+  const bool counts_supported = e.supported || weakly_supported;
   if (!kept) place_qualified_ = false;
-  if (e.supported) {
+  if (counts_supported) {
     if (supported_run_ == 0) {
       const bool long_unsupported = kept_scans_ >= cc.unsupported_hold_scans && !place_qualified_;
       run_needs_ = long_unsupported ? static_cast<std::uint32_t>(cc.rise_supported_scans) : 1;
@@ -326,13 +355,14 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   mean_contradiction_ =
       flag_ ? (1.0 - cc.contradiction_smoothing) * mean_contradiction_ + cc.contradiction_smoothing * contradiction
             : contradiction;
-  const bool held = flag_ && kept && reported_supported_ && contradiction <= cc.hold_max_contradiction &&
-                    mean_contradiction_ <= cc.hold_max_mean_contradiction;
-  const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit;
+  const bool held = flag_ && kept && (reported_supported_ || weakly_supported_place_) &&
+                    contradiction <= cc.hold_max_contradiction && mean_contradiction_ <= cc.hold_max_mean_contradiction;
+  const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit ||
+                           (cc.weak_support && e.newest_evidence <= cc.weak_support_max_newest_evidence);
   const bool rise_but_support = stable && e.rise_margin >= cc.min_margin && newest_fits;
   const bool relative_support_decides = rise_but_support && !e.supported && cc.rise_on_whole_map_lead &&
                                         best->scored >= cc.min_scored && cc.whole_map_points > 0;
-  const bool support_holds = e.supported && supported_run_ >= run_needs_;
+  const bool support_holds = counts_supported && supported_run_ >= run_needs_;
   const bool paired_rule =
       sample_has_newest && cc.rise_paired_whole_map_lead <= 2.0 && cc.rise_paired_newest_lead <= 2.0;
   // Only where it decides the flag: a held flag needs no rise.
@@ -343,17 +373,9 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
   // Only where it decides the flag, as above: a margin over a young rival, confirmed on the same points.
   const bool margin_needs_lead = !held && rise_but_support && support_holds && young_rival && cc.whole_map_points > 0;
-  bool whole_map_known = false;
-  if (cc.whole_map_points > 0 &&
+  if (!whole_map_known && cc.whole_map_points > 0 &&
       (cc.always_score_whole_map || relative_support_decides || lead_decides_margin || margin_needs_lead)) {
-    const std::size_t taken = sample.take_spread(cc.whole_map_points);
-    whole_map_known = taken > 0;
-    if (taken > 0) {
-      const std::array<Hypothesis, 2> pair{*reported_, standing ? standing->hypothesis : *reported_};
-      sample.score(std::span(pair).first(standing ? 2 : 1), sums_);
-      e.whole_map_fit = sums_[0] / static_cast<double>(taken);
-      e.whole_map_lead = standing ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
-    }
+    score_whole_map();
   }
   const bool margin_confirmed = !margin_needs_lead || (whole_map_known && e.whole_map_lead >= cc.min_margin);
   const bool support_passes =

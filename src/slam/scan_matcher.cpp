@@ -374,8 +374,25 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
     const Pose2 laser_step = offset.inverse() * robot_step * offset;
     const Pose2 guess = previous_laser_pose_ * laser_step;
     result.laser_pose = guess;
-    if (std::hypot(robot_step.x, robot_step.y) < config_.stationary_translation &&
-        std::abs(robot_step.theta) < config_.stationary_rotation) {
+    // The constant-velocity prediction: the last step, scaled by the gaps
+    // between stamps where they are credible.
+    const double dt = scan.timestamp - previous_timestamp_;
+    const bool gaps_credible = previous_dt_ > 0.0 && dt > 0.0 && dt <= 3.0 * previous_dt_ && 3.0 * dt >= previous_dt_;
+    const bool has_velocity = config_.per_scan_velocity_on_odd_stamps || (previous_dt_ > 0.0 && dt > 0.0);
+    const double k = gaps_credible                             ? dt / previous_dt_
+                     : config_.per_scan_velocity_on_odd_stamps ? 1.0
+                                                               : std::clamp(dt / previous_dt_, 0.0, 3.0);
+    const Pose2 velocity_step =
+        has_velocity ? Pose2(k * previous_laser_step_.x, k * previous_laser_step_.y, k * previous_laser_step_.theta)
+                     : Pose2::identity();
+    const Pose2 velocity_vs_odometry = laser_step.between(velocity_step);
+    const bool velocity_differs =
+        has_velocity &&
+        (std::hypot(velocity_vs_odometry.x, velocity_vs_odometry.y) > config_.velocity_guess_difference ||
+         std::abs(velocity_vs_odometry.theta) > config_.velocity_guess_difference);
+    const bool odometry_still = std::hypot(robot_step.x, robot_step.y) < config_.stationary_translation &&
+                                std::abs(robot_step.theta) < config_.stationary_rotation;
+    if (odometry_still && !(config_.match_stalled_odometry && velocity_differs)) {
       result.source = ScanMatchSource::kStationary;
       ++stats_.stationary;
     } else {
@@ -387,27 +404,15 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
         // fr079 log integrates backward driving as forward motion, and ICP
         // then settles next to the wrong guess): where the constant-velocity
         // prediction disagrees, match from it too and keep the better fit.
-        const double dt = scan.timestamp - previous_timestamp_;
-        const bool gaps_credible =
-            previous_dt_ > 0.0 && dt > 0.0 && dt <= 3.0 * previous_dt_ && 3.0 * dt >= previous_dt_;
-        if (config_.per_scan_velocity_on_odd_stamps || (previous_dt_ > 0.0 && dt > 0.0)) {
-          const double k = gaps_credible                             ? dt / previous_dt_
-                           : config_.per_scan_velocity_on_odd_stamps ? 1.0
-                                                                     : std::clamp(dt / previous_dt_, 0.0, 3.0);
-          const Pose2 velocity_step(k * previous_laser_step_.x, k * previous_laser_step_.y,
-                                    k * previous_laser_step_.theta);
-          const Pose2 d = laser_step.between(velocity_step);
-          if (std::hypot(d.x, d.y) > config_.velocity_guess_difference ||
-              std::abs(d.theta) > config_.velocity_guess_difference) {
-            ++stats_.velocity_retries;
-            ScanMatchResult retry = result;
-            retry.laser_pose = guess;
-            if (match(previous_laser_pose_ * velocity_step, velocity_step, retry) &&
-                (!ok || retry.quality > result.quality)) {
-              ++stats_.velocity_matches;
-              result = retry;
-              ok = true;
-            }
+        if (velocity_differs) {
+          ++stats_.velocity_retries;
+          ScanMatchResult retry = result;
+          retry.laser_pose = guess;
+          if (match(previous_laser_pose_ * velocity_step, velocity_step, retry) &&
+              (!ok || retry.quality > result.quality)) {
+            ++stats_.velocity_matches;
+            result = retry;
+            ok = true;
           }
         }
         const bool stamp_ran_back = scan.timestamp <= previous_timestamp_;

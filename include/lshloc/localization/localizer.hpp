@@ -35,13 +35,15 @@ enum class HypothesisSource : std::uint8_t {
 /// normals from 3 points, so that far walls' sparse returns still match; and
 /// where stamps run back or bunch, a per-scan velocity guess and turn
 /// retries, so that odometry read at such stamps does not leave a heading
-/// error of tens of degrees in the local map (intel's raw log).
+/// error of tens of degrees in the local map (intel's raw log); and scans
+/// whose odometry stalls while the robot drives on are matched (mit-csail's).
 inline ScanMatcherConfig local_map_matcher() {
   ScanMatcherConfig c;
   c.scan_voxel = 0.05;
   c.normal_min_points = 3;
   c.turn_retries = true;
   c.per_scan_velocity_on_odd_stamps = true;
+  c.match_stalled_odometry = true;
   return c;
 }
 

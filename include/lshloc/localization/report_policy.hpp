@@ -190,6 +190,22 @@ struct ConfidenceConfig {
   double rise_paired_whole_map_lead = 0.15;
   double rise_paired_newest_lead = 0.25;
   std::size_t whole_map_points = 1000;
+  /// Weak support, for a building whose map scores even the true place low
+  /// (a thin map: mit-csail's true places score C/N 0.23 on median). A scan
+  /// whose best hypothesis has N >= weak_support_min_scored, C/N >=
+  /// weak_support_min_mean_score, a rise margin >= weak_support_min_margin
+  /// and a whole-map lead >= weak_support_min_whole_map_lead also counts as
+  /// supported for the rise, and makes a kept place supported for the hold
+  /// (not for the duels: no estimate moves). With it, the rise's newest-fit
+  /// test also passes where the map scores at most
+  /// weak_support_max_newest_evidence of the newest points: a robot driving
+  /// where its map is silent. docs/results/confidence.md. false: off.
+  bool weak_support = true;
+  std::uint32_t weak_support_min_scored = 3000;
+  double weak_support_min_mean_score = 0.2;
+  double weak_support_min_margin = 0.2;
+  double weak_support_min_whole_map_lead = 0.15;
+  double weak_support_max_newest_evidence = 0.05;
   /// Score the whole-map comparison on every scan (traces), not only when
   /// the rise hinges on it (it costs about 0.2 ms per scan).
   bool always_score_whole_map = false;
@@ -388,13 +404,14 @@ class ReportPolicy {
   /// The reported place has met the confidence test's absolute part
   /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
   bool reported_supported_ = false;
-  std::uint32_t kept_scans_ = 0;     ///< scans in a row the reported place has been kept
-  std::uint32_t supported_run_ = 0;  ///< scans in a row the best was supported
-  std::uint32_t run_needs_ = 1;      ///< scans of support the current run needs to raise the flag
-  bool place_qualified_ = false;     ///< the kept place had a run of support that could raise the flag
-  bool flag_ = false;                ///< the confidence flag of the last report
-  double mean_contradiction_ = 0.0;  ///< exponential mean of the newest points' penalty while flagged
-  std::size_t last_drawn_ = 0;       ///< size of the sample last drawn
+  std::uint32_t kept_scans_ = 0;         ///< scans in a row the reported place has been kept
+  std::uint32_t supported_run_ = 0;      ///< scans in a row the best was supported
+  std::uint32_t run_needs_ = 1;          ///< scans of support the current run needs to raise the flag
+  bool place_qualified_ = false;         ///< the kept place had a run of support that could raise the flag
+  bool weakly_supported_place_ = false;  ///< the kept place met ConfidenceConfig::weak_support's test
+  bool flag_ = false;                    ///< the confidence flag of the last report
+  double mean_contradiction_ = 0.0;      ///< exponential mean of the newest points' penalty while flagged
+  std::size_t last_drawn_ = 0;           ///< size of the sample last drawn
   std::array<Hypothesis, 6> children_;
   /// young_place_rivals' challengers (into the active list of one call) and their hypotheses
   std::vector<const ScoredHypothesis*> ranked_, rivals_;

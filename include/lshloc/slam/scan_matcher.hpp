@@ -92,6 +92,13 @@ struct ScanMatcherConfig {
   /// never change): every scan is matched, from the constant-velocity
   /// prediction and, failing that, from standing still.
   bool odometry = true;
+  /// With odometry, a scan whose odometry did not move is still matched (from
+  /// standing still and from the constant-velocity prediction) where that
+  /// prediction moves by more than velocity_guess_difference: odometry that
+  /// stalls while the robot drives on (mit-csail's raw log holds its odometry
+  /// for 4 scans, then steps 0.95 m at once). Off: every such scan stands
+  /// still (the localizer turns it on, LocalizerConfig::scan_matcher).
+  bool match_stalled_odometry = false;
   double stationary_translation = 1e-3;  ///< [m] odometry step below which matching is skipped ...
   double stationary_rotation = 1e-3;     ///< [rad] ... (the pose still moves with odometry)
 
