@@ -24,14 +24,25 @@ class FakeSample final : public SampleScorer {
   std::function<double(const Hypothesis&)> newest_score_of;
   std::size_t draws = 0;  ///< samples drawn at random (not taken newest or spread)
 
-  std::size_t draw(std::size_t, std::size_t n) override {
+  /// The recent window's data-points' scores (a draw from a window), when they differ.
+  std::function<double(const Hypothesis&)> recent_score_of;
+  std::size_t draw(std::size_t window, std::size_t n) override {
     ++draws;
+    recent_ = window > 0;
     return take(n, false);
   }
-  std::size_t take_newest(std::size_t n) override { return take(n, true); }
-  std::size_t take_spread(std::size_t n) override { return take(n, false); }
+  std::size_t take_newest(std::size_t n) override {
+    recent_ = false;
+    return take(n, true);
+  }
+  std::size_t take_spread(std::size_t n) override {
+    recent_ = false;
+    return take(n, false);
+  }
   void score(std::span<const Hypothesis> hypotheses, std::vector<double>& sums, PairSums* pair) override {
-    const auto& of = newest_ && newest_score_of ? newest_score_of : score_of;
+    const auto& of = newest_ && newest_score_of   ? newest_score_of
+                     : recent_ && recent_score_of ? recent_score_of
+                                                  : score_of;
     sums.assign(hypotheses.size(), 0.0);
     for (std::size_t j = 0; j < hypotheses.size(); ++j) sums[j] = of(hypotheses[j]) * static_cast<double>(n_);
     if (pair != nullptr) {
@@ -49,6 +60,7 @@ class FakeSample final : public SampleScorer {
   }
   std::size_t n_ = 0;
   bool newest_ = false;
+  bool recent_ = false;
 };
 
 Hypothesis at(std::uint32_t submap, double x, double y = 0.0, double theta = 0.0) {
@@ -647,6 +659,28 @@ TEST(ReportPolicy, AWellSupportedPlaceYieldsToAnUnsupportedChallengerOnlyOnALarg
       EXPECT_EQ(e.submap, moves ? 1u : 0u) << "challenger_needs_support " << rule << ", lead " << lead;
     }
   }
+}
+
+TEST(ReportPolicy, AOnceSupportedPlaceWhoseMapIsSilentYieldsOnlyToALargeRecentLead) {
+  // a was well supported; iRANSAC has dropped it and prefers the supported
+  // b. On the whole local map they tie; on the recent data-points a's map
+  // says nothing (scores 0) and b scores `recent`.
+  const Hypothesis a = at(0, 0.0), b = at(1, 0.0);
+  const auto moves = [&](double recent, double silent_margin) {
+    ReportPolicyConfig config = plain();
+    config.confidence.duel_recent_silent_margin = silent_margin;
+    ReportPolicy policy(config, kPreference);
+    FakeSample sample;
+    sample.score_of = [](const Hypothesis&) { return 0.3; };
+    sample.recent_score_of = [&](const Hypothesis& h) { return h.submap == 1 ? recent : 0.0; };
+    step(policy, {scored(a, 0.5, 1000)}, sample);
+    return step(policy, {scored(b, 0.5, 1000)}, sample).submap == 1;
+  };
+  ASSERT_EQ(plain().confidence.duel_recent_silent_margin, 0.3);
+  EXPECT_TRUE(moves(0.4, 0.3));
+  // A lead over duel_recent_margin but under the silent margin: a's silence is no evidence against it.
+  EXPECT_FALSE(moves(0.2, 0.3));
+  EXPECT_FALSE(moves(0.4, 9.0));  // off
 }
 
 TEST(ReportPolicy, APlaceNeverSupportedIsChallengedByTheRivalPlaceThatFitsTheWholeLocalMap) {

@@ -96,7 +96,7 @@ LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, e
 LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, rival_memory_scans, rival_twin_turn_deg,
                    rise_rival_min_scored, rise_scored_per_kept_scan, rise_max_scored, stable_scans,
                    rise_supported_scans, unsupported_hold_scans, switch_margin, duel_points, duel_margin, duel_z,
-                   duel_recent_margin, duel_recent_min_evidence, challenger_needs_support,
+                   duel_recent_margin, duel_recent_min_evidence, duel_recent_silent_margin, challenger_needs_support,
                    unsupported_challenger_margin, young_place_rivals, young_place_scans, young_refined_margin,
                    same_place_m, same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
                    hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,

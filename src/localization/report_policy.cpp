@@ -178,7 +178,8 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
     // was once well supported and its map knows almost nothing about them.
     const Duel recent = duel(best->hypothesis, incumbents, ransac_.recent_window, sample);
     won = wins(recent, cc.duel_recent_margin) &&
-          (!reported_supported_ || recent.incumbent_evidence >= cc.duel_recent_min_evidence);
+          (!reported_supported_ || recent.incumbent_evidence >= cc.duel_recent_min_evidence ||
+           wins(recent, cc.duel_recent_silent_margin));
   }
   // The fallback below stands for the incumbent on the duels' sample size, not the refined retry's.
   const auto n = static_cast<std::uint32_t>(last_drawn_);

@@ -90,6 +90,12 @@ struct ConfidenceConfig {
   /// evidence against it (a robot driving into a corridor the mappers saw
   /// only from far away: a fully mapped look-alike fits those scans better).
   double duel_recent_min_evidence = 0.1;
+  /// ... unless the challenger leads it there by this much: a wrong place
+  /// the robot drove out of, whose map is silent about where it is now,
+  /// against a supported true place that fits the recent scans outright
+  /// (aces start 3354 held such a place 160 scans against a lead of
+  /// 0.3-0.4; docs/results/confidence.md). Above 2: never.
+  double duel_recent_silent_margin = 0.3;
   /// A reported place that was once well supported is given up, by either
   /// duel, only for a challenger that iRANSAC supports as well (min_scored
   /// data-points at a mean of min_mean_score). A look-alike that fits the
