@@ -182,9 +182,12 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
     rise_margin_whole_map_lead, rise_paired_whole_map_lead and rise_paired_newest_lead (paired_lead),
     rise_scored_per_kept_scan, rise_max_scored, rise_rival_min_scored;
     rival_memory_scans and rival_twin_turn_deg through the trace's rise_margin) replayed from a trace's evidence columns (a trace scores the whole-map
-    lead on every scan). weak_support (not in the localizer): (C/N, N, margin, whole-map lead, newest
-    evidence): a scan meeting the first four also counts as supported (and makes its place supported),
-    and its rise passes the newest-fit test when the map scores at most that share of the newest points."""
+    lead on every scan). weak_support (ConfidenceConfig::weak_support, weak_support_min_mean_score,
+    _min_scored, _min_margin, _min_whole_map_lead, silent_newest_evidence, weak_support_max_newest_evidence;
+    None: off): (C/N, N, margin, whole-map lead, silent evidence[, max newest evidence]): a scan meeting
+    the first four (and the last, where given: the map scores at most that share of the newest points)
+    also counts as supported (and makes its place supported), and a rise passes the newest-fit test when
+    the map scores at most the silent evidence's share of the newest points."""
     def rule(s, flag, state):
         x = s["x"]
         if x is None:
@@ -197,7 +200,8 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
             state["qualified"] = False
             state["weak_place"] = False
         weak = weak_support is not None and (x[1] >= weak_support[0] and math.expm1(x[3]) >= weak_support[1]
-                                             and margin >= weak_support[2] and s["lead"] >= weak_support[3])
+                                             and margin >= weak_support[2] and s["lead"] >= weak_support[3]
+                                             and (len(weak_support) < 6 or x[9] <= weak_support[5]))
         if weak and kept:
             state["weak_place"] = True
         place_supported = place_supported > 0 or state.get("weak_place", False)
@@ -305,8 +309,9 @@ def main():
                     help="the training weight of the training buildings' unmapped runs, as a share of the whole")
     ap.add_argument("--flag-threshold", type=float, default=0.95,
                     help="ConfidenceConfig::flag_threshold (the flag lifts the value to it; > 1: the raw model)")
-    ap.add_argument("--weak-support", help="C/N,N,MARGIN,LEAD,EVIDENCE: a weaker support test replayed beside "
-                    "the localizer's (evidence_flag; not built)")
+    ap.add_argument("--weak-support", default="0.2,3000,0.2,0.15,0.05,0.2",
+                    help="C/N,N,MARGIN,LEAD,SILENT,EVIDENCE: the weak support test (ConfidenceConfig::weak_support_*, "
+                    "silent_newest_evidence; 'off': without it)")
     a = ap.parse_args()
     runs = load(a.trace_dir)
     unmapped = load_unmapped(a.unmapped) if a.unmapped else {}
@@ -333,7 +338,7 @@ def main():
                                supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans,
                                rise_lead=a.rise_lead, rival_min_scored=a.rival_min_scored,
                                paired_lead=tuple(float(v) for v in a.paired_lead.split(",")),
-                               weak_support=[float(v) for v in a.weak_support.split(",")] if a.weak_support else None))
+                               weak_support=None if a.weak_support == "off" else [float(v) for v in a.weak_support.split(",")]))
     buildings = sorted({b for b, _, _ in runs})
     everything = []
     for b in buildings:

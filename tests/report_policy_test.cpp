@@ -356,11 +356,14 @@ TEST(ReportPolicy, WeakSupportRaisesTheFlagWhereTheMapScoresEveryPlaceLow) {
   ASSERT_LT(0.25, cc.min_mean_score);
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   const std::size_t stable = cc.stable_scans;
-  // The flags over stable + 20 scans; whole-map and newest points score the
-  // place `fit` and the rival `rival_fit`, the place scored on `n`.
-  const auto flags = [&](const ReportPolicyConfig& c, double fit, double rival_fit, std::uint32_t n) {
+  // The flags over stable + 20 scans; the whole-map points score the place
+  // `fit` and the rival `rival_fit`, the newest points the place `newest`
+  // (the map knows that share of them), the place scored on `n`.
+  const auto flags = [&](const ReportPolicyConfig& c, double fit, double rival_fit, std::uint32_t n,
+                         double newest = 0.15) {
     FakeSample sample;
     sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? fit : rival_fit; };
+    sample.newest_score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? newest : 0.0; };
     ReportPolicy policy(c, kPreference);
     std::vector<bool> out;
     for (std::size_t i = 0; i < stable + 20; ++i)
@@ -371,8 +374,12 @@ TEST(ReportPolicy, WeakSupportRaisesTheFlagWhereTheMapScoresEveryPlaceLow) {
   // stable, and held on.
   const std::vector<bool> up = flags(config, 0.3, 0.1, 3500);
   for (std::size_t i = 0; i < up.size(); ++i) EXPECT_EQ(up[i], i + 1 >= stable) << "scan " << i;
-  // A lead of 0.1, or N under weak_support_min_scored: never.
-  for (const auto& f : {flags(config, 0.3, 0.2, 3500), flags(config, 0.3, 0.1, cc.weak_support_min_scored - 100)})
+  // A lead of 0.1, N under weak_support_min_scored, or a map that knows
+  // 30% of the newest points (> weak_support_max_newest_evidence: a
+  // look-alike in a well-mapped building): never.
+  ASSERT_LT(cc.weak_support_max_newest_evidence, 0.3);
+  for (const auto& f : {flags(config, 0.3, 0.2, 3500), flags(config, 0.3, 0.1, cc.weak_support_min_scored - 100),
+                        flags(config, 0.3, 0.1, 3500, 0.3)})
     EXPECT_EQ(std::count(f.begin(), f.end(), true), 0);
   // Off: C/N 0.25 never supports.
   ReportPolicyConfig off = config;
@@ -676,11 +683,11 @@ TEST(ReportPolicy, AOnceSupportedPlaceWhoseMapIsSilentYieldsOnlyToALargeRecentLe
     step(policy, {scored(a, 0.5, 1000)}, sample);
     return step(policy, {scored(b, 0.5, 1000)}, sample).submap == 1;
   };
-  ASSERT_EQ(plain().confidence.duel_recent_silent_margin, 0.3);
-  EXPECT_TRUE(moves(0.4, 0.3));
+  ASSERT_EQ(plain().confidence.duel_recent_silent_margin, 0.4);
+  EXPECT_TRUE(moves(0.45, 0.4));
   // A lead over duel_recent_margin but under the silent margin: a's silence is no evidence against it.
-  EXPECT_FALSE(moves(0.2, 0.3));
-  EXPECT_FALSE(moves(0.4, 9.0));  // off
+  EXPECT_FALSE(moves(0.3, 0.4));
+  EXPECT_FALSE(moves(0.45, 9.0));  // off
 }
 
 TEST(ReportPolicy, APlaceNeverSupportedIsChallengedByTheRivalPlaceThatFitsTheWholeLocalMap) {

@@ -70,7 +70,8 @@ void ReportPolicyConfig::validate() const {
   for (const auto& [name, v] : {std::pair{"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
                                 {"weak_support_min_margin", confidence.weak_support_min_margin},
                                 {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
-                                {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence}}) {
+                                {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence},
+                                {"silent_newest_evidence", confidence.silent_newest_evidence}}) {
     require(std::isfinite(v), std::string("ReportPolicyConfig.confidence.") + name, "a finite number", v);
   }
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
@@ -318,7 +319,8 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   // Weak support needs the whole-map lead on every scan that meets its other parts.
   const bool weak_candidate = cc.weak_support && !e.supported && best->scored >= cc.weak_support_min_scored &&
                               e.mean_score >= cc.weak_support_min_mean_score &&
-                              e.rise_margin >= cc.weak_support_min_margin && cc.whole_map_points > 0;
+                              e.rise_margin >= cc.weak_support_min_margin && sample_has_newest &&
+                              e.newest_evidence <= cc.weak_support_max_newest_evidence && cc.whole_map_points > 0;
   if (weak_candidate) score_whole_map();
   const bool weakly_supported =
       weak_candidate && whole_map_known && e.whole_map_lead >= cc.weak_support_min_whole_map_lead;
@@ -359,7 +361,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool held = flag_ && kept && (reported_supported_ || weakly_supported_place_) &&
                     contradiction <= cc.hold_max_contradiction && mean_contradiction_ <= cc.hold_max_mean_contradiction;
   const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit ||
-                           (cc.weak_support && e.newest_evidence <= cc.weak_support_max_newest_evidence);
+                           (cc.weak_support && e.newest_evidence <= cc.silent_newest_evidence);
   const bool rise_but_support = stable && e.rise_margin >= cc.min_margin && newest_fits;
   const bool relative_support_decides = rise_but_support && !e.supported && cc.rise_on_whole_map_lead &&
                                         best->scored >= cc.min_scored && cc.whole_map_points > 0;

@@ -94,8 +94,9 @@ struct ConfidenceConfig {
   /// the robot drove out of, whose map is silent about where it is now,
   /// against a supported true place that fits the recent scans outright
   /// (aces start 3354 held such a place 160 scans against a lead of
-  /// 0.3-0.4; docs/results/confidence.md). Above 2: never.
-  double duel_recent_silent_margin = 0.3;
+  /// 0.3-0.4; at 0.3 intel's raw log in a map without intel moved to a
+  /// look-alike and flagged it; docs/results/confidence.md). Above 2: never.
+  double duel_recent_silent_margin = 0.4;
   /// A reported place that was once well supported is given up, by either
   /// duel, only for a challenger that iRANSAC supports as well (min_scored
   /// data-points at a mean of min_mean_score). A look-alike that fits the
@@ -200,18 +201,22 @@ struct ConfidenceConfig {
   /// (a thin map: mit-csail's true places score C/N 0.23 on median). A scan
   /// whose best hypothesis has N >= weak_support_min_scored, C/N >=
   /// weak_support_min_mean_score, a rise margin >= weak_support_min_margin
-  /// and a whole-map lead >= weak_support_min_whole_map_lead also counts as
-  /// supported for the rise, and makes a kept place supported for the hold
-  /// (not for the duels: no estimate moves). With it, the rise's newest-fit
-  /// test also passes where the map scores at most
-  /// weak_support_max_newest_evidence of the newest points: a robot driving
-  /// where its map is silent. docs/results/confidence.md. false: off.
+  /// and a whole-map lead >= weak_support_min_whole_map_lead, where the map
+  /// scores at most weak_support_max_newest_evidence of the newest points
+  /// (the map is thin where the robot is: a look-alike in a fully mapped
+  /// building scores far more of them), also counts as supported for the
+  /// rise, and makes a kept place supported for the hold (not for the duels:
+  /// no estimate moves). With it, the rise's newest-fit test also passes
+  /// where the map scores at most silent_newest_evidence of the newest
+  /// points: a robot driving where its map is silent.
+  /// docs/results/confidence.md. false: off.
   bool weak_support = true;
   std::uint32_t weak_support_min_scored = 3000;
   double weak_support_min_mean_score = 0.2;
   double weak_support_min_margin = 0.2;
   double weak_support_min_whole_map_lead = 0.15;
-  double weak_support_max_newest_evidence = 0.05;
+  double weak_support_max_newest_evidence = 0.2;
+  double silent_newest_evidence = 0.05;
   /// Score the whole-map comparison on every scan (traces), not only when
   /// the rise hinges on it (it costs about 0.2 ms per scan).
   bool always_score_whole_map = false;
