@@ -379,7 +379,8 @@ ScanMatchResult ScanMatcher::add_scan(const LaserScan& scan) {
     const double dt = scan.timestamp - previous_timestamp_;
     const bool gaps_credible = previous_dt_ > 0.0 && dt > 0.0 && dt <= 3.0 * previous_dt_ && 3.0 * dt >= previous_dt_;
     const bool has_velocity = config_.per_scan_velocity_on_odd_stamps || (previous_dt_ > 0.0 && dt > 0.0);
-    const double k = gaps_credible                             ? dt / previous_dt_
+    const double k = !has_velocity                             ? 0.0
+                     : gaps_credible                           ? dt / previous_dt_
                      : config_.per_scan_velocity_on_odd_stamps ? 1.0
                                                                : std::clamp(dt / previous_dt_, 0.0, 3.0);
     const Pose2 velocity_step =
