@@ -23,6 +23,11 @@ for r in map(json.loads, sys.stdin):
     if r["building"] == b and r[field]: print(r[field])' "$1" "$2"
 }
 corrected() { file_of "$1" corrected_log; }
+# The buildings known only by a corrected log (the eight Radish maps).
+mapfile -t radish < <(printf '%s\n' "$catalog" | python3 -c '
+import json, sys
+for r in map(json.loads, sys.stdin):
+    if r["corrected_log"] and not r["raw_log"]: print(r["corrected_log"])')
 raw() { file_of "$1" raw_log; }
 all=(fr079 intel fr101 aces mit-csail)
 [ $# -gt 0 ] || set -- "${all[@]}"
@@ -31,7 +36,7 @@ for b in "$@"; do
   [ -n "$(raw "$b")" ] || { echo "unmapped_buildings: unknown building $b (one of ${all[*]})" >&2; exit 1; }
   maps=()
   for o in "${all[@]}"; do [ "$o" = "$b" ] || maps+=(--map "$(corrected "$o")"); done
-  for r in "$data"/radish-gfs-corrected/*.log.gz; do maps+=(--map "$r"); done
+  for r in "${radish[@]}"; do maps+=(--map "$r"); done
   echo "unmapped_buildings: $b in a map of $(( ${#maps[@]} / 2 )) other buildings" >&2
   "$lshloc" localize "${maps[@]}" --target "$(raw "$b")" --out "$out/$b.tum" --json >"$out/$b.json"
 done
