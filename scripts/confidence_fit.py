@@ -176,7 +176,8 @@ def value_flag(w, up, hold):
 
 def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
                   unsupported_hold=20, rise_lead=math.inf, weak_support=None, scored_per_kept_scan=12.5,
-                  max_scored=750, rival_min_scored=250, paired_lead=(0.15, 0.25)):
+                  max_scored=750, rival_min_scored=250, paired_lead=(0.15, 0.25), relative_support=None,
+                  young_rival_lead=math.inf):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
     hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans,
     rise_margin_whole_map_lead, rise_paired_whole_map_lead and rise_paired_newest_lead (paired_lead),
@@ -187,7 +188,11 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
     None: off): (C/N, N, margin, whole-map lead, silent evidence[, max newest evidence]): a scan meeting
     the first four (and the last, where given: the map scores at most that share of the newest points)
     also counts as supported (and makes its place supported), and a rise passes the newest-fit test when
-    the map scores at most the silent evidence's share of the newest points."""
+    the map scores at most the silent evidence's share of the newest points. relative_support
+    (ConfidenceConfig::relative_support_min_mean_score, _min_scored, _min_margin, _min_whole_map_lead;
+    None: off): (C/N, N, margin, whole-map lead): a scan meeting all four counts as weak support does.
+    young_rival_lead (rise_young_rival_whole_map_lead): the whole-map lead that passes the margin over a
+    rival scored on fewer than rival_min_scored (rise_lead over any other)."""
     def rule(s, flag, state):
         x = s["x"]
         if x is None:
@@ -202,6 +207,9 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
         weak = weak_support is not None and (x[1] >= weak_support[0] and math.expm1(x[3]) >= weak_support[1]
                                              and margin >= weak_support[2] and s["lead"] >= weak_support[3]
                                              and (len(weak_support) < 6 or x[9] <= weak_support[5]))
+        weak = weak or (relative_support is not None and x[1] >= relative_support[0]
+                        and math.expm1(x[3]) >= relative_support[1] and margin >= relative_support[2]
+                        and s["lead"] >= relative_support[3])
         if weak and kept:
             state["weak_place"] = True
         place_supported = place_supported > 0 or state.get("weak_place", False)
@@ -217,8 +225,10 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
             state["run"] = 0
         penalty = 0.5 * (evidence - fit)
         state["mean"] = (1 - smoothing) * state.get("mean", 0.0) + smoothing * penalty if flag else penalty
-        # rise_rival_min_scored: over a rival scored on few points the margin needs the whole-map lead too
-        if s["rival_scored"] is not None and s["rival_scored"] < rival_min_scored:
+        # rise_rival_min_scored: over a rival scored on few points the margin needs the whole-map lead too,
+        # and a lead alone must reach rise_young_rival_whole_map_lead
+        young = s["rival_scored"] is not None and s["rival_scored"] < rival_min_scored
+        if young:
             margin = min(margin, s["lead"])
         # rise_scored_per_kept_scan, rise_max_scored: a new hypothesis at a long-kept place waits
         seasoned = math.expm1(x[3]) >= min(scored_per_kept_scan * kept_scans, max_scored) - 1e-6
@@ -227,7 +237,8 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
         paired = (s["lead"] >= paired_lead[0] and s["newest_lead"] >= paired_lead[1]
                   and (s["rival_scored"] is None or s["rival_scored"] >= rival_min_scored))
         rises = (stable > 0 and supported and state["run"] >= state["needs"]
-                 and (margin >= min_margin or s["lead"] >= rise_lead or paired) and fit_passes and seasoned)
+                 and (margin >= min_margin or s["lead"] >= (young_rival_lead if young else rise_lead) or paired)
+                 and fit_passes and seasoned)
         held = flag and kept and place_supported and penalty <= hold_penalty and state["mean"] <= hold_mean_penalty
         return rises or held
     return rule
@@ -297,8 +308,13 @@ def main():
     ap.add_argument("--smoothing", type=float, default=0.3)
     ap.add_argument("--rise-supported-scans", type=int, default=3)
     ap.add_argument("--unsupported-hold-scans", type=int, default=20)
-    ap.add_argument("--rise-lead", type=float, default=0.25,
+    ap.add_argument("--rise-lead", type=float, default=0.2,
                     help="the whole-map lead that also passes the rise's margin test (inf: off)")
+    ap.add_argument("--young-rival-lead", type=float, default=0.25,
+                    help="... over a rival scored on fewer than --rival-min-scored (rise_young_rival_whole_map_lead)")
+    ap.add_argument("--relative-support", default="0.25,300,0.05,0.2",
+                    help="C/N,N,MARGIN,LEAD: the relative support test (ConfidenceConfig::relative_support_*; "
+                    "'off': without it)")
     ap.add_argument("--paired-lead", default="0.15,0.25",
                     help="WHOLE,NEWEST: the whole-map lead and the lead on the newest points that together pass the "
                          "margin (rise_paired_whole_map_lead, rise_paired_newest_lead; 9,9: off)")
@@ -337,6 +353,9 @@ def main():
                  evidence_flag(a.rise_fit, a.hold_penalty, a.hold_mean_penalty, a.smoothing,
                                supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans,
                                rise_lead=a.rise_lead, rival_min_scored=a.rival_min_scored,
+                               young_rival_lead=a.young_rival_lead,
+                               relative_support=None if a.relative_support == "off" else
+                               [float(v) for v in a.relative_support.split(",")],
                                paired_lead=tuple(float(v) for v in a.paired_lead.split(",")),
                                weak_support=None if a.weak_support == "off" else [float(v) for v in a.weak_support.split(",")]))
     buildings = sorted({b for b, _, _ in runs})

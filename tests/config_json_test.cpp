@@ -41,6 +41,9 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.localizer.report.confidence.weak_support = false;
   c.localizer.report.confidence.weak_support_min_scored = 2000;
   c.localizer.report.confidence.weak_support_max_newest_evidence = 0.02;
+  c.localizer.report.confidence.relative_support = false;
+  c.localizer.report.confidence.relative_support_min_scored = 450;
+  c.localizer.report.confidence.rise_young_rival_whole_map_lead = 0.3;
   c.localizer.scan_matcher.match_stalled_odometry = false;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
   c.localizer.hypothesis_source = HypothesisSource::kRandomMapFeatures;
@@ -66,6 +69,9 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_FALSE(back.localizer.report.confidence.weak_support);
   EXPECT_EQ(back.localizer.report.confidence.weak_support_min_scored, 2000u);
   EXPECT_EQ(back.localizer.report.confidence.weak_support_max_newest_evidence, 0.02);
+  EXPECT_FALSE(back.localizer.report.confidence.relative_support);
+  EXPECT_EQ(back.localizer.report.confidence.relative_support_min_scored, 450u);
+  EXPECT_EQ(back.localizer.report.confidence.rise_young_rival_whole_map_lead, 0.3);
   EXPECT_FALSE(back.localizer.scan_matcher.match_stalled_odometry);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);
   EXPECT_EQ(back.localizer.hypothesis_source, HypothesisSource::kRandomMapFeatures);

@@ -110,8 +110,11 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
     EXPECT_NEAR(e.pose.x, 10.0, 1e-12);
     EXPECT_EQ(e.localized, i + 1 == stable) << "scan " << i;
   }
-  // Too few data-points (N below min_scored): not confident.
-  ReportPolicy young(plain(), kPreference);
+  // Too few data-points (N below min_scored): not confident (relative
+  // support, which asks for fewer, off: its own test is below).
+  ReportPolicyConfig absolute = plain();
+  absolute.confidence.relative_support = false;
+  ReportPolicy young(absolute, kPreference);
   for (std::size_t i = 0; i < stable + 2; ++i) EXPECT_FALSE(step(young, {scored(place, 0.6, 400)}, sample).localized);
   // A rival elsewhere within min_margin of C/N: not confident.
   ReportPolicy rivalled(plain(), kPreference);
@@ -258,7 +261,7 @@ TEST(ReportPolicy, AMarginOverARivalScoredOnFewPointsNeedsTheWholeMapLeadToo) {
 
 TEST(ReportPolicy, AWholeMapLeadPairedWithALeadOnTheNewestPointsPassesTheMargin) {
   // iRANSAC's margin is 0.1 (< min_margin); on the whole-map points the
-  // place leads the rival by 0.2 (< rise_margin_whole_map_lead alone).
+  // place leads the rival by 0.17 (< rise_margin_whole_map_lead alone).
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   const auto replay = [&](double rival_newest_score, double paired_newest_lead, std::uint32_t rival_n = 1000) {
     ReportPolicyConfig config = plain();
@@ -266,7 +269,7 @@ TEST(ReportPolicy, AWholeMapLeadPairedWithALeadOnTheNewestPointsPassesTheMargin)
     config.confidence.rise_paired_newest_lead = paired_newest_lead;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
-    sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? 0.3 : 0.5; };
+    sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? 0.33 : 0.5; };
     sample.newest_score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? rival_newest_score : 0.5; };
     LocalizationEstimate e;
     for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) {
@@ -278,7 +281,7 @@ TEST(ReportPolicy, AWholeMapLeadPairedWithALeadOnTheNewestPointsPassesTheMargin)
         EXPECT_FALSE(e.localized) << "scan " << i;
       }
     }
-    EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
+    EXPECT_NEAR(e.whole_map_lead, 0.17, 1e-12);
     return e.localized;
   };
   EXPECT_TRUE(replay(0.2, 0.25));        // the newest points: a lead of 0.3
@@ -321,8 +324,10 @@ TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
   // A place held long without support (C/N 0.29, as a look-alike whose own
   // building is not mapped yet) whose best hypothesis crosses the support
   // test for fewer scans than rise_supported_scans: the flag stays down.
-  // (A place found fresh rises at once: the test above.)
-  const ReportPolicyConfig config = plain();
+  // (A place found fresh rises at once: the test above.) Relative support
+  // off: the look-alike here has no rival, so its whole-map fit is its lead.
+  ReportPolicyConfig config = plain();
+  config.confidence.relative_support = false;
   const std::size_t run = config.confidence.rise_supported_scans;
   ASSERT_GE(run, 2u);
   const Hypothesis place = at(1, 7.0, 2.0, 0.1);
@@ -349,8 +354,10 @@ TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
 
 TEST(ReportPolicy, WeakSupportRaisesTheFlagWhereTheMapScoresEveryPlaceLow) {
   // A thin map: the true place scores C/N 0.25 (under min_mean_score) on
-  // 3500 data-points, its rival elsewhere 0.04.
+  // 3500 data-points, its rival elsewhere 0.04. Relative support, which
+  // would pass at C/N 0.25 without the newest-evidence cap, off.
   ReportPolicyConfig config = plain();
+  config.confidence.relative_support = false;
   const ConfidenceConfig& cc = config.confidence;
   ASSERT_TRUE(cc.weak_support);
   ASSERT_LT(0.25, cc.min_mean_score);
@@ -494,52 +501,61 @@ LocalizationEstimate after_steady_scans(const ReportPolicyConfig& config, const 
   return e;
 }
 
-TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresEveryPlaceWeakly) {
-  // C/N 0.3 is under min_mean_score (0.35): only a clear lead over the rival
-  // on the same whole-map points lets the flag rise.
+TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTheAbsoluteTest) {
+  // C/N 0.3 is under min_mean_score (0.35): the flag rises only on a lead of
+  // relative_support_min_whole_map_lead (0.2) over the rival on the same
+  // whole-map points, with N and C/N at least relative_support_min_*.
   const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
-  const std::vector<ScoredHypothesis> active{scored(place, 0.3, 1000), scored(rival, 0.1, 1000)};
-  const auto flag_after = [&](const ReportPolicyConfig& config, double rival_score) {
-    const LocalizationEstimate e = after_steady_scans(config, active, place.submap, 0.3, rival_score);
+  const auto flag_after = [&](const ReportPolicyConfig& config, double place_mean, std::uint32_t scored_n,
+                              double rival_score) {
+    const std::vector<ScoredHypothesis> active{scored(place, place_mean, scored_n), scored(rival, 0.1, 1000)};
+    const LocalizationEstimate e = after_steady_scans(config, active, place.submap, place_mean, rival_score);
     EXPECT_FALSE(e.supported);
     EXPECT_FALSE(e.place_supported);
     return e;
   };
-  ReportPolicyConfig relative = plain();
-  relative.confidence.rise_on_whole_map_lead = true;
-  LocalizationEstimate e = flag_after(relative, 0.0);
+  const ConfidenceConfig& cc = plain().confidence;
+  ASSERT_TRUE(cc.relative_support);
+  LocalizationEstimate e = flag_after(plain(), 0.3, 1000, 0.0);
   EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12);
   EXPECT_TRUE(e.localized);
-  e = flag_after(relative, 0.1);  // a lead of 0.2 < rise_min_whole_map_lead
-  EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
+  e = flag_after(plain(), 0.3, 1000, 0.15);  // a lead of 0.15 < relative_support_min_whole_map_lead
+  EXPECT_NEAR(e.whole_map_lead, 0.15, 1e-12);
   EXPECT_FALSE(e.localized);
-  EXPECT_FALSE(flag_after(plain(), 0.0).localized);  // off by default
-  // Too few data-points scored (N < min_scored): no rise on any lead.
-  ReportPolicy young(relative, kPreference);
-  FakeSample sample;
-  sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.3 : 0.0; };
-  for (int i = 0; i < 8; ++i) e = step(young, {scored(place, 0.3, 400), scored(rival, 0.1, 400)}, sample);
-  EXPECT_FALSE(e.localized);
+  // C/N under relative_support_min_mean_score, or N under relative_support_min_scored: no rise on any lead.
+  EXPECT_FALSE(flag_after(plain(), cc.relative_support_min_mean_score - 0.05, 1000, 0.0).localized);
+  EXPECT_FALSE(flag_after(plain(), 0.3, cc.relative_support_min_scored - 50, 0.0).localized);
+  ReportPolicyConfig off = plain();
+  off.confidence.relative_support = false;
+  EXPECT_FALSE(flag_after(off, 0.3, 1000, 0.0).localized);
 }
 
 TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
   // A supported place whose C/N leads a rival elsewhere by 0.05 only (under
   // min_margin, 0.15): the flag rises once the place leads the rival by
-  // rise_margin_whole_map_lead (0.25) on the same whole-map points.
+  // rise_margin_whole_map_lead (0.2) on the same whole-map points, or by
+  // rise_young_rival_whole_map_lead (0.25) over a rival scored on few points.
   const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
-  const std::vector<ScoredHypothesis> active{scored(place, 0.5, 1000), scored(rival, 0.45, 1000)};
-  const auto flag_after = [&](const ReportPolicyConfig& config, double rival_score) {
+  const auto flag_after = [&](const ReportPolicyConfig& config, double rival_score, std::uint32_t rival_n = 1000) {
+    const std::vector<ScoredHypothesis> active{scored(place, 0.5, 1000), scored(rival, 0.45, rival_n)};
     const LocalizationEstimate e = after_steady_scans(config, active, place.submap, 0.5, rival_score);
     EXPECT_TRUE(e.supported);
     EXPECT_NEAR(e.margin, 0.05, 1e-9);
     return e;
   };
-  ASSERT_EQ(plain().confidence.rise_margin_whole_map_lead, 0.25);
+  const ConfidenceConfig& cc = plain().confidence;
+  ASSERT_EQ(cc.rise_margin_whole_map_lead, 0.2);
   // Risen on the lead, then held (the hold does not need the comparison).
-  EXPECT_TRUE(flag_after(plain(), 0.2).localized);
-  const LocalizationEstimate e = flag_after(plain(), 0.3);  // a lead of 0.2, compared on every scan
+  EXPECT_TRUE(flag_after(plain(), 0.3).localized);
+  LocalizationEstimate e = flag_after(plain(), 0.35);  // a lead of 0.15, compared on every scan
+  EXPECT_NEAR(e.whole_map_lead, 0.15, 1e-12);
+  EXPECT_FALSE(e.localized);
+  // A rival scored on fewer than rise_rival_min_scored: a lead of 0.2 is not enough, 0.25 is.
+  const std::uint32_t young = cc.rise_rival_min_scored - 150;
+  e = flag_after(plain(), 0.3, young);
   EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
   EXPECT_FALSE(e.localized);
+  EXPECT_TRUE(flag_after(plain(), 0.25, young).localized);
   ReportPolicyConfig never = plain();
   never.confidence.rise_margin_whole_map_lead = 3.0;
   never.confidence.rise_paired_newest_lead = 3.0;  // the newest points here lead as the whole map does

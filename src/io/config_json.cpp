@@ -99,12 +99,13 @@ LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, riv
                    duel_recent_margin, duel_recent_min_evidence, duel_recent_silent_margin, challenger_needs_support,
                    unsupported_challenger_margin, young_place_rivals, young_place_scans, young_refined_margin,
                    same_place_m, same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
-                   hold_max_mean_contradiction, contradiction_smoothing, rise_on_whole_map_lead,
-                   rise_min_whole_map_lead, rise_margin_whole_map_lead, rise_paired_whole_map_lead,
-                   rise_paired_newest_lead, whole_map_points, weak_support, weak_support_min_scored,
-                   weak_support_min_mean_score, weak_support_min_margin, weak_support_min_whole_map_lead,
-                   weak_support_max_newest_evidence, silent_newest_evidence, always_score_whole_map, value_weights,
-                   flag_threshold)
+                   hold_max_mean_contradiction, contradiction_smoothing, rise_margin_whole_map_lead,
+                   rise_young_rival_whole_map_lead, rise_paired_whole_map_lead, rise_paired_newest_lead,
+                   whole_map_points, weak_support, weak_support_min_scored, weak_support_min_mean_score,
+                   weak_support_min_margin, weak_support_min_whole_map_lead, weak_support_max_newest_evidence,
+                   silent_newest_evidence, relative_support, relative_support_min_scored,
+                   relative_support_min_mean_score, relative_support_min_margin, relative_support_min_whole_map_lead,
+                   always_score_whole_map, value_weights, flag_threshold)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_heading_rad, window_scans)

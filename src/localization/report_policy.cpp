@@ -65,13 +65,16 @@ void ReportPolicyConfig::validate() const {
           confidence.rise_paired_whole_map_lead);
   require(std::isfinite(confidence.rise_paired_newest_lead), "ReportPolicyConfig.confidence.rise_paired_newest_lead",
           "a finite number", confidence.rise_paired_newest_lead);
-  require(std::isfinite(confidence.rise_min_whole_map_lead), "ReportPolicyConfig.confidence.rise_min_whole_map_lead",
-          "a finite number", confidence.rise_min_whole_map_lead);
-  for (const auto& [name, v] : {std::pair{"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
-                                {"weak_support_min_margin", confidence.weak_support_min_margin},
-                                {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
-                                {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence},
-                                {"silent_newest_evidence", confidence.silent_newest_evidence}}) {
+  for (const auto& [name, v] :
+       {std::pair{"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
+        {"weak_support_min_margin", confidence.weak_support_min_margin},
+        {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
+        {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence},
+        {"silent_newest_evidence", confidence.silent_newest_evidence},
+        {"rise_young_rival_whole_map_lead", confidence.rise_young_rival_whole_map_lead},
+        {"relative_support_min_mean_score", confidence.relative_support_min_mean_score},
+        {"relative_support_min_margin", confidence.relative_support_min_margin},
+        {"relative_support_min_whole_map_lead", confidence.relative_support_min_whole_map_lead}}) {
     require(std::isfinite(v), std::string("ReportPolicyConfig.confidence.") + name, "a finite number", v);
   }
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
@@ -316,14 +319,19 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       e.whole_map_lead = standing ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   };
-  // Weak support needs the whole-map lead on every scan that meets its other parts.
+  // Weak and relative support need the whole-map lead on every scan that meets their other parts.
   const bool weak_candidate = cc.weak_support && !e.supported && best->scored >= cc.weak_support_min_scored &&
                               e.mean_score >= cc.weak_support_min_mean_score &&
                               e.rise_margin >= cc.weak_support_min_margin && sample_has_newest &&
                               e.newest_evidence <= cc.weak_support_max_newest_evidence && cc.whole_map_points > 0;
-  if (weak_candidate) score_whole_map();
+  const bool relative_candidate = cc.relative_support && !e.supported &&
+                                  best->scored >= cc.relative_support_min_scored &&
+                                  e.mean_score >= cc.relative_support_min_mean_score &&
+                                  e.rise_margin >= cc.relative_support_min_margin && cc.whole_map_points > 0;
+  if (weak_candidate || relative_candidate) score_whole_map();
   const bool weakly_supported =
-      weak_candidate && whole_map_known && e.whole_map_lead >= cc.weak_support_min_whole_map_lead;
+      whole_map_known && ((weak_candidate && e.whole_map_lead >= cc.weak_support_min_whole_map_lead) ||
+                          (relative_candidate && e.whole_map_lead >= cc.relative_support_min_whole_map_lead));
   weakly_supported_place_ = kept && (weakly_supported_place_ || weakly_supported);
   const bool counts_supported = e.supported || weakly_supported;
   if (!kept) place_qualified_ = false;
@@ -363,31 +371,28 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit ||
                            (cc.weak_support && e.newest_evidence <= cc.silent_newest_evidence);
   const bool rise_but_support = stable && e.rise_margin >= cc.min_margin && newest_fits;
-  const bool relative_support_decides = rise_but_support && !e.supported && cc.rise_on_whole_map_lead &&
-                                        best->scored >= cc.min_scored && cc.whole_map_points > 0;
   const bool support_holds = counts_supported && supported_run_ >= run_needs_;
   const bool paired_rule =
       sample_has_newest && cc.rise_paired_whole_map_lead <= 2.0 && cc.rise_paired_newest_lead <= 2.0;
+  // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N:
+  // a margin over it needs the whole-map lead, a lead alone must be larger, and the paired leads do not count.
+  const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
+  const double margin_lead = young_rival ? cc.rise_young_rival_whole_map_lead : cc.rise_margin_whole_map_lead;
   // Only where it decides the flag: a held flag needs no rise.
   const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.rise_margin < cc.min_margin &&
-                                   cc.whole_map_points > 0 && (cc.rise_margin_whole_map_lead <= 2.0 || paired_rule);
-  // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N:
-  // a margin over it needs the whole-map lead, and the paired leads over it do not count.
-  const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
+                                   cc.whole_map_points > 0 && (margin_lead <= 2.0 || paired_rule);
   // Only where it decides the flag, as above: a margin over a young rival, confirmed on the same points.
   const bool margin_needs_lead = !held && rise_but_support && support_holds && young_rival && cc.whole_map_points > 0;
   if (!whole_map_known && cc.whole_map_points > 0 &&
-      (cc.always_score_whole_map || relative_support_decides || lead_decides_margin || margin_needs_lead)) {
+      (cc.always_score_whole_map || lead_decides_margin || margin_needs_lead)) {
     score_whole_map();
   }
   const bool margin_confirmed = !margin_needs_lead || (whole_map_known && e.whole_map_lead >= cc.min_margin);
-  const bool support_passes =
-      support_holds || (relative_support_decides && whole_map_known && e.whole_map_lead >= cc.rise_min_whole_map_lead);
   const bool paired_leads = paired_rule && !young_rival && e.whole_map_lead >= cc.rise_paired_whole_map_lead &&
                             e.newest_lead >= cc.rise_paired_newest_lead;
   const bool leads_pass_margin =
-      lead_decides_margin && whole_map_known && (e.whole_map_lead >= cc.rise_margin_whole_map_lead || paired_leads);
-  const bool rises = (rise_but_support && margin_confirmed && support_passes) || leads_pass_margin;
+      lead_decides_margin && whole_map_known && (e.whole_map_lead >= margin_lead || paired_leads);
+  const bool rises = (rise_but_support && margin_confirmed && support_holds) || leads_pass_margin;
   // A hypothesis much younger than the place it stands for rises only once it has caught up.
   const bool seasoned = static_cast<double>(best->scored) >=
                         std::min(cc.rise_scored_per_kept_scan * kept_scans_, static_cast<double>(cc.rise_max_scored));
