@@ -190,7 +190,8 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
     also counts as supported (and makes its place supported), and a rise passes the newest-fit test when
     the map scores at most the silent evidence's share of the newest points. relative_support
     (ConfidenceConfig::relative_support_min_mean_score, _min_scored, _min_margin, _min_whole_map_lead;
-    None: off): (C/N, N, margin, whole-map lead): a scan meeting all four counts as weak support does.
+    None: off): (C/N, N, margin, whole-map lead, newest lead): a scan meeting all five, over a rival scored
+    on rival_min_scored or more, counts as weak support does.
     young_rival_lead (rise_young_rival_whole_map_lead): the whole-map lead that passes the margin over a
     rival scored on fewer than rival_min_scored (rise_lead over any other)."""
     def rule(s, flag, state):
@@ -204,12 +205,13 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
         if not kept:
             state["qualified"] = False
             state["weak_place"] = False
-        weak = weak_support is not None and (x[1] >= weak_support[0] and math.expm1(x[3]) >= weak_support[1]
+        weak = weak_support is not None and (x[1] >= weak_support[0] and round(math.expm1(x[3])) >= weak_support[1]
                                              and margin >= weak_support[2] and s["lead"] >= weak_support[3]
                                              and (len(weak_support) < 6 or x[9] <= weak_support[5]))
         weak = weak or (relative_support is not None and x[1] >= relative_support[0]
-                        and math.expm1(x[3]) >= relative_support[1] and margin >= relative_support[2]
-                        and s["lead"] >= relative_support[3])
+                        and round(math.expm1(x[3])) >= relative_support[1] and margin >= relative_support[2]
+                        and s["lead"] >= relative_support[3] and s["newest_lead"] >= relative_support[4]
+                        and (s["rival_scored"] is None or s["rival_scored"] >= rival_min_scored))
         if weak and kept:
             state["weak_place"] = True
         place_supported = place_supported > 0 or state.get("weak_place", False)
@@ -231,7 +233,7 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
         if young:
             margin = min(margin, s["lead"])
         # rise_scored_per_kept_scan, rise_max_scored: a new hypothesis at a long-kept place waits
-        seasoned = math.expm1(x[3]) >= min(scored_per_kept_scan * kept_scans, max_scored) - 1e-6
+        seasoned = round(math.expm1(x[3])) >= min(scored_per_kept_scan * kept_scans, max_scored) - 1e-6
         # rise_paired_*: a whole-map lead paired with a lead on the newest points, over a rival scored on
         # rise_rival_min_scored or more (traces before it: NaN, never)
         paired = (s["lead"] >= paired_lead[0] and s["newest_lead"] >= paired_lead[1]
@@ -312,8 +314,8 @@ def main():
                     help="the whole-map lead that also passes the rise's margin test (inf: off)")
     ap.add_argument("--young-rival-lead", type=float, default=0.25,
                     help="... over a rival scored on fewer than --rival-min-scored (rise_young_rival_whole_map_lead)")
-    ap.add_argument("--relative-support", default="0.25,300,0.05,0.2",
-                    help="C/N,N,MARGIN,LEAD: the relative support test (ConfidenceConfig::relative_support_*; "
+    ap.add_argument("--relative-support", default="0.25,300,0.05,0.2,0.1",
+                    help="C/N,N,MARGIN,LEAD,NEWEST_LEAD: the relative support test (ConfidenceConfig::relative_support_*; "
                     "'off': without it)")
     ap.add_argument("--paired-lead", default="0.15,0.25",
                     help="WHOLE,NEWEST: the whole-map lead and the lead on the newest points that together pass the "

@@ -43,6 +43,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.localizer.report.confidence.weak_support_max_newest_evidence = 0.02;
   c.localizer.report.confidence.relative_support = false;
   c.localizer.report.confidence.relative_support_min_scored = 450;
+  c.localizer.report.confidence.relative_support_min_newest_lead = 0.2;
   c.localizer.report.confidence.rise_young_rival_whole_map_lead = 0.3;
   c.localizer.scan_matcher.match_stalled_odometry = false;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
@@ -71,6 +72,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_EQ(back.localizer.report.confidence.weak_support_max_newest_evidence, 0.02);
   EXPECT_FALSE(back.localizer.report.confidence.relative_support);
   EXPECT_EQ(back.localizer.report.confidence.relative_support_min_scored, 450u);
+  EXPECT_EQ(back.localizer.report.confidence.relative_support_min_newest_lead, 0.2);
   EXPECT_EQ(back.localizer.report.confidence.rise_young_rival_whole_map_lead, 0.3);
   EXPECT_FALSE(back.localizer.scan_matcher.match_stalled_odometry);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <functional>
 #include <numbers>
+#include <optional>
 #include <vector>
 
 #include "lshloc/common/error.hpp"
@@ -490,12 +491,19 @@ TEST(ReportPolicy, TheWholeMapLeadComparesTheReportedPlaceAndItsRivalOnTheSamePo
 }
 
 /// The estimate after stable_scans + 2 scans of `active`, the sample scoring
-/// every hypothesis in `place_submap` `place_score` and any other `other_score`.
+/// every hypothesis in `place_submap` `place_score` and any other `other_score`
+/// (on the newest points `other_newest_score`, where given).
 LocalizationEstimate after_steady_scans(const ReportPolicyConfig& config, const std::vector<ScoredHypothesis>& active,
-                                        std::uint32_t place_submap, double place_score, double other_score) {
+                                        std::uint32_t place_submap, double place_score, double other_score,
+                                        std::optional<double> other_newest_score = std::nullopt) {
   ReportPolicy policy(config, kPreference);
   FakeSample sample;
   sample.score_of = [&](const Hypothesis& h) { return h.submap == place_submap ? place_score : other_score; };
+  if (other_newest_score) {
+    sample.newest_score_of = [&](const Hypothesis& h) {
+      return h.submap == place_submap ? place_score : *other_newest_score;
+    };
+  }
   LocalizationEstimate e;
   for (std::size_t i = 0; i < config.confidence.stable_scans + 2; ++i) e = step(policy, active, sample);
   return e;
@@ -504,12 +512,16 @@ LocalizationEstimate after_steady_scans(const ReportPolicyConfig& config, const 
 TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTheAbsoluteTest) {
   // C/N 0.3 is under min_mean_score (0.35): the flag rises only on a lead of
   // relative_support_min_whole_map_lead (0.2) over the rival on the same
-  // whole-map points, with N and C/N at least relative_support_min_*.
+  // whole-map points and of relative_support_min_newest_lead (0.1) on the
+  // newest ones, with N and C/N at least relative_support_min_*, over a rival
+  // scored on rise_rival_min_scored points or more.
   const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
   const auto flag_after = [&](const ReportPolicyConfig& config, double place_mean, std::uint32_t scored_n,
-                              double rival_score) {
-    const std::vector<ScoredHypothesis> active{scored(place, place_mean, scored_n), scored(rival, 0.1, 1000)};
-    const LocalizationEstimate e = after_steady_scans(config, active, place.submap, place_mean, rival_score);
+                              double rival_score, std::optional<double> rival_newest = std::nullopt,
+                              std::uint32_t rival_n = 1000, double rival_mean = 0.1) {
+    const std::vector<ScoredHypothesis> active{scored(place, place_mean, scored_n), scored(rival, rival_mean, rival_n)};
+    const LocalizationEstimate e =
+        after_steady_scans(config, active, place.submap, place_mean, rival_score, rival_newest);
     EXPECT_FALSE(e.supported);
     EXPECT_FALSE(e.place_supported);
     return e;
@@ -525,6 +537,16 @@ TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTh
   // C/N under relative_support_min_mean_score, or N under relative_support_min_scored: no rise on any lead.
   EXPECT_FALSE(flag_after(plain(), cc.relative_support_min_mean_score - 0.05, 1000, 0.0).localized);
   EXPECT_FALSE(flag_after(plain(), 0.3, cc.relative_support_min_scored - 50, 0.0).localized);
+  // The rival fits the newest points about as well (a lead of 0.05 there): no rise.
+  e = flag_after(plain(), 0.3, 1000, 0.0, 0.25);
+  EXPECT_NEAR(e.newest_lead, 0.05, 1e-12);
+  EXPECT_FALSE(e.localized);
+  // Over a rival scored on 200 points (< rise_rival_min_scored), C/N 0.2: no rise on any lead.
+  ASSERT_GT(cc.rise_rival_min_scored, 200u);
+  e = flag_after(plain(), 0.3, 1000, 0.0, std::nullopt, 200, 0.2);
+  EXPECT_EQ(e.rival_scored, 200u);
+  EXPECT_NEAR(e.rise_margin, 0.1, 1e-9);
+  EXPECT_FALSE(e.localized);
   ReportPolicyConfig off = plain();
   off.confidence.relative_support = false;
   EXPECT_FALSE(flag_after(off, 0.3, 1000, 0.0).localized);

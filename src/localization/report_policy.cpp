@@ -65,16 +65,16 @@ void ReportPolicyConfig::validate() const {
           confidence.rise_paired_whole_map_lead);
   require(std::isfinite(confidence.rise_paired_newest_lead), "ReportPolicyConfig.confidence.rise_paired_newest_lead",
           "a finite number", confidence.rise_paired_newest_lead);
-  for (const auto& [name, v] :
-       {std::pair{"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
-        {"weak_support_min_margin", confidence.weak_support_min_margin},
-        {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
-        {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence},
-        {"silent_newest_evidence", confidence.silent_newest_evidence},
-        {"rise_young_rival_whole_map_lead", confidence.rise_young_rival_whole_map_lead},
-        {"relative_support_min_mean_score", confidence.relative_support_min_mean_score},
-        {"relative_support_min_margin", confidence.relative_support_min_margin},
-        {"relative_support_min_whole_map_lead", confidence.relative_support_min_whole_map_lead}}) {
+  for (const auto& [name, v] : {std::pair{"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
+                                {"weak_support_min_margin", confidence.weak_support_min_margin},
+                                {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
+                                {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence},
+                                {"silent_newest_evidence", confidence.silent_newest_evidence},
+                                {"rise_young_rival_whole_map_lead", confidence.rise_young_rival_whole_map_lead},
+                                {"relative_support_min_mean_score", confidence.relative_support_min_mean_score},
+                                {"relative_support_min_margin", confidence.relative_support_min_margin},
+                                {"relative_support_min_whole_map_lead", confidence.relative_support_min_whole_map_lead},
+                                {"relative_support_min_newest_lead", confidence.relative_support_min_newest_lead}}) {
     require(std::isfinite(v), std::string("ReportPolicyConfig.confidence.") + name, "a finite number", v);
   }
   require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
@@ -324,10 +324,14 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
                               e.mean_score >= cc.weak_support_min_mean_score &&
                               e.rise_margin >= cc.weak_support_min_margin && sample_has_newest &&
                               e.newest_evidence <= cc.weak_support_max_newest_evidence && cc.whole_map_points > 0;
-  const bool relative_candidate = cc.relative_support && !e.supported &&
-                                  best->scored >= cc.relative_support_min_scored &&
-                                  e.mean_score >= cc.relative_support_min_mean_score &&
-                                  e.rise_margin >= cc.relative_support_min_margin && cc.whole_map_points > 0;
+  // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N:
+  // a margin over it needs the whole-map lead, a lead alone must be larger, and the paired leads and
+  // relative support do not count.
+  const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
+  const bool relative_candidate =
+      cc.relative_support && !e.supported && !young_rival && best->scored >= cc.relative_support_min_scored &&
+      e.mean_score >= cc.relative_support_min_mean_score && e.rise_margin >= cc.relative_support_min_margin &&
+      sample_has_newest && e.newest_lead >= cc.relative_support_min_newest_lead && cc.whole_map_points > 0;
   if (weak_candidate || relative_candidate) score_whole_map();
   const bool weakly_supported =
       whole_map_known && ((weak_candidate && e.whole_map_lead >= cc.weak_support_min_whole_map_lead) ||
@@ -374,9 +378,6 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool support_holds = counts_supported && supported_run_ >= run_needs_;
   const bool paired_rule =
       sample_has_newest && cc.rise_paired_whole_map_lead <= 2.0 && cc.rise_paired_newest_lead <= 2.0;
-  // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N:
-  // a margin over it needs the whole-map lead, a lead alone must be larger, and the paired leads do not count.
-  const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
   const double margin_lead = young_rival ? cc.rise_young_rival_whole_map_lead : cc.rise_margin_whole_map_lead;
   // Only where it decides the flag: a held flag needs no rise.
   const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.rise_margin < cc.min_margin &&

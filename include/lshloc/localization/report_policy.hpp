@@ -219,17 +219,24 @@ struct ConfidenceConfig {
   /// relative_support_min_mean_score and a rise margin >=
   /// relative_support_min_margin, and whose reported place leads its best
   /// rival by relative_support_min_whole_map_lead on the same
-  /// whole_map_points data-points spread over the whole local map, counts
-  /// as supported like weak support (the rise and the hold, not the duels).
+  /// whole_map_points data-points spread over the whole local map and by
+  /// relative_support_min_newest_lead on the newest_points newest ones,
+  /// counts as supported like weak support (the rise and the hold, not the
+  /// duels). Not over a rival scored on fewer than rise_rival_min_scored.
   /// On fr079 and intel it brings the first flag forward (median lag 13 ->
-  /// 7.5 scans) with no confident-but-wrong scan added at any whole-map lead
-  /// from 0.15; at 0.15 aces 5367 flagged its mirror image from scan 7, so
-  /// 0.2, the lead that also passes the margin (docs/results/confidence.md).
+  /// 10 scans) with no confident-but-wrong scan added at any whole-map lead
+  /// from 0.15. Chosen with aces, which the tuning never saw: at 0.15 aces
+  /// 5367 flagged its mirror image from scan 7, so 0.2, the lead that also
+  /// passes the margin; over a rival scored on 100 points its mirror rose at
+  /// scan 6 (seed 1); and live, before aces was mapped, a look-alike rose on
+  /// a whole-map lead of 0.21 with a newest lead of 0.04 (5703). See
+  /// docs/results/confidence.md.
   bool relative_support = true;
   std::uint32_t relative_support_min_scored = 300;
   double relative_support_min_mean_score = 0.25;
   double relative_support_min_margin = 0.05;
   double relative_support_min_whole_map_lead = 0.2;
+  double relative_support_min_newest_lead = 0.1;
   /// Score the whole-map comparison on every scan (traces), not only when
   /// the rise hinges on it (it costs about 0.2 ms per scan).
   bool always_score_whole_map = false;
