@@ -173,9 +173,9 @@ struct ConfidenceConfig {
   /// holds (stable, supported, newest fit). Replayed on the 100 starts'
   /// traces: the median lag 24 -> 19 scans with no confident-but-wrong scan
   /// added; at 0.18 fr079 gains 51 (docs/results/confidence.md). Above 2
-  /// (scores lie in [-1, 1]): never. 0.25 until the thirtieth session; at
-  /// 0.2 the 100 starts' traces gain aces 4696 flagged on half and no wrong
-  /// scan; fr079 and intel do not tell 0.2 from 0.25.
+  /// (scores lie in [-1, 1]): never. fr079 and intel do not tell 0.2 from
+  /// 0.25; at 0.2 one more start (aces 4696) is flagged on half, no wrong
+  /// scan added.
   double rise_margin_whole_map_lead = 0.2;
   /// ... over a rival scored on fewer than rise_rival_min_scored the lead
   /// must be this large: such a rival may have displaced a well-scored
@@ -223,14 +223,11 @@ struct ConfidenceConfig {
   /// relative_support_min_newest_lead on the newest_points newest ones,
   /// counts as supported like weak support (the rise and the hold, not the
   /// duels). Not over a rival scored on fewer than rise_rival_min_scored.
-  /// On fr079 and intel it brings the first flag forward (median lag 13 ->
-  /// 10 scans) with no confident-but-wrong scan added at any whole-map lead
-  /// from 0.15. Chosen with aces, which the tuning never saw: at 0.15 aces
-  /// 5367 flagged its mirror image from scan 7, so 0.2, the lead that also
-  /// passes the margin; over a rival scored on 100 points its mirror rose at
-  /// scan 6 (seed 1); and live, before aces was mapped, a look-alike rose on
-  /// a whole-map lead of 0.21 with a newest lead of 0.04 (5703). See
-  /// docs/results/confidence.md.
+  /// It brings the first flag forward where C/N or N falls short of the
+  /// absolute test. N from fr079 and intel; the whole-map lead, the newest
+  /// lead and the rival's N each stop an aces look-alike that rose without
+  /// them (its mirror image; live, a building not yet mapped), which fr079
+  /// and intel do not decide (docs/results/confidence.md).
   bool relative_support = true;
   std::uint32_t relative_support_min_scored = 300;
   double relative_support_min_mean_score = 0.25;
