@@ -177,7 +177,7 @@ def value_flag(w, up, hold):
 def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_margin=0.15, supported_scans=3,
                   unsupported_hold=20, rise_lead=math.inf, weak_support=None, scored_per_kept_scan=12.5,
                   max_scored=750, rival_min_scored=250, paired_lead=(0.15, 0.25), relative_support=None,
-                  young_rival_lead=math.inf):
+                  young_rival_lead=math.inf, extra_support=None):
     """The localizer's flag (ConfidenceConfig: rise_min_newest_fit, hold_max_contradiction,
     hold_max_mean_contradiction, contradiction_smoothing, rise_supported_scans, unsupported_hold_scans,
     rise_margin_whole_map_lead, rise_paired_whole_map_lead and rise_paired_newest_lead (paired_lead),
@@ -193,7 +193,9 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
     None: off): (C/N, N, margin, whole-map lead, newest lead): a scan meeting all five, over a rival scored
     on rival_min_scored or more, counts as weak support does.
     young_rival_lead (rise_young_rival_whole_map_lead): the whole-map lead that passes the margin over a
-    rival scored on fewer than rival_min_scored (rise_lead over any other)."""
+    rival scored on fewer than rival_min_scored (rise_lead over any other).
+    extra_support (what-if, no ConfidenceConfig field; None: off): (C/N, N, margin, whole-map lead): a scan
+    meeting all four also counts as weak support does."""
     def rule(s, flag, state):
         x = s["x"]
         if x is None:
@@ -212,6 +214,9 @@ def evidence_flag(rise_fit, hold_penalty, hold_mean_penalty, smoothing, min_marg
                         and round(math.expm1(x[3])) >= relative_support[1] and margin >= relative_support[2]
                         and s["lead"] >= relative_support[3] and s["newest_lead"] >= relative_support[4]
                         and (s["rival_scored"] is None or s["rival_scored"] >= rival_min_scored))
+        weak = weak or (extra_support is not None and x[1] >= extra_support[0]
+                        and round(math.expm1(x[3])) >= extra_support[1] and margin >= extra_support[2]
+                        and s["lead"] >= extra_support[3])
         if weak and kept:
             state["weak_place"] = True
         place_supported = place_supported > 0 or state.get("weak_place", False)
@@ -317,6 +322,9 @@ def main():
     ap.add_argument("--relative-support", default="0.25,300,0.05,0.2,0.1",
                     help="C/N,N,MARGIN,LEAD,NEWEST_LEAD: the relative support test (ConfidenceConfig::relative_support_*; "
                     "'off': without it)")
+    ap.add_argument("--extra-support",
+                    help="C/N,N,MARGIN,LEAD: what if a scan meeting these also counted as supported (a test the "
+                         "localizer does not have; default: off)")
     ap.add_argument("--paired-lead", default="0.15,0.25",
                     help="WHOLE,NEWEST: the whole-map lead and the lead on the newest points that together pass the "
                          "margin (rise_paired_whole_map_lead, rise_paired_newest_lead; 9,9: off)")
@@ -356,6 +364,7 @@ def main():
                                supported_scans=a.rise_supported_scans, unsupported_hold=a.unsupported_hold_scans,
                                rise_lead=a.rise_lead, rival_min_scored=a.rival_min_scored,
                                young_rival_lead=a.young_rival_lead,
+                               extra_support=[float(v) for v in a.extra_support.split(",")] if a.extra_support else None,
                                relative_support=None if a.relative_support == "off" else
                                [float(v) for v in a.relative_support.split(",")],
                                paired_lead=tuple(float(v) for v in a.paired_lead.split(",")),

@@ -40,9 +40,11 @@ cmake -G Ninja -S . -B build-sanitize -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD
   -DLSHLOC_SANITIZE=address,undefined -DLSHLOC_BUILD_FUZZERS=ON >/dev/null
 cmake --build build-sanitize -j"$(nproc)"
 echo "sanitize: built in $(($(date +%s) - start)) s"
-# Left to the Release run as well, for CI's 15 minutes: option parsing (cli_options) and four long runs whose
-# code paths shorter tests here take too (policy and equality checks on whole synthetic or real-log runs).
-long='Localizer\.(AMapCompleteBeforeTheFirstScan|GivesUpAWellSupportedPlace).*|MapStoreRealData\..*|LshDatabase\.FindsTheExactNearestNeighbourMostOfTheTime'
+# Left to the Release run as well, for CI's 15 minutes: option parsing (cli_options) and six long runs whose
+# code paths shorter tests here take too (policy and equality checks on whole synthetic or real-log runs; the
+# live insertion the Live* tests take; bench scale's trace, whose localizer runs everywhere here).
+long='Localizer\.(AMapCompleteBeforeTheFirstScan|GivesUpAWellSupportedPlace|APlaceMappedAfterTheTargetSawIt).*|'\
+'MapStoreRealData\..*|LshDatabase\.FindsTheExactNearestNeighbourMostOfTheTime|cli_bench_scale'
 ctest --test-dir build-sanitize -j"$(nproc)" --output-on-failure -E "^(format|layers|full_disk|cli_options|$long)\$"
 echo "sanitize: ctest under ASan and UBSan passed ($(($(date +%s) - start)) s so far)"
 if [ "$fuzz_time" != 0 ]; then
