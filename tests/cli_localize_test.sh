@@ -43,6 +43,33 @@ assert rows[-1]["submap"] == j["final_submap"] == "sim-3-001-corrected.log.gz"
 assert all(0.0 <= float(r["confidence"]) <= 1.0 for r in rows), "confidence outside [0, 1]"
 assert 0.0 <= j["confidence"] <= 1.0
 assert abs(float(rows[-1]["heading_deg"]) - j["final_heading_deg"]) < 1e-3
+assert j["localized"] and j["not_confident_because"] == [], j["not_confident_because"]
+PY
+
+# Eight scans in, the flag is down: the answer says why, from the last scan's evidence (the CSV's last row),
+# in the JSON and in words.
+"$LSHLOC" localize "${maps[@]}" --target "$b/sim-3-001.log.gz" --start 300 --length 8 --out "$d/short.tum" --json \
+  >"$d/short.json" 2>/dev/null || fail "a short run"
+"$LSHLOC" localize "${maps[@]}" --target "$b/sim-3-001.log.gz" --start 300 --length 8 >"$d/short.txt" 2>/dev/null
+python3 - "$d/short.json" "$d/short.tum.csv" "$d/short.txt" <<'PY' || fail "the reasons the flag is down"
+import csv, json, sys
+j = json.load(open(sys.argv[1]))
+last = list(csv.DictReader(open(sys.argv[2])))[-1]
+text = open(sys.argv[3]).read()
+reasons = j["not_confident_because"]
+assert not j["localized"] and reasons, j
+known = {"unstable", "weak_support", "few_points", "look_alike", "newest_scans", "other"}
+assert all(r["reason"] in known for r in reasons), reasons
+for r in reasons:
+    assert "  not confident because " + r["text"] in text, (r["text"], text)
+    if r["reason"] in ("few_points", "weak_support"):
+        assert r["scored"] == int(last["scored"]), (r, last["scored"])
+    if r["reason"] == "few_points":
+        assert r["scored"] < 500 and float(last["score"]) >= 0.35, (r, last)
+    if r["reason"] == "look_alike":
+        assert r["lead"] < 0.15, r
+    if r["reason"] == "unstable":
+        assert last["stable"] == "0", last
 PY
 
 # Outputs other tools read: a submap name with a comma and a quote stays one CSV

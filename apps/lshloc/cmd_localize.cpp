@@ -305,6 +305,8 @@ void print_answer(const nlohmann::json& j) {
   } else {
     std::printf("Not localized: no hypothesis in %.0f scans (is this building in the map?)\n", scans);
   }
+  for (const auto& r : j["not_confident_because"])
+    std::printf("  not confident because %s\n", r["text"].get<std::string>().c_str());
   if (const auto clashes = j["stamp_clash_scans"].get<std::size_t>(); clashes > 0)
     std::printf(
         "  %zu scans were stamped within %.0f ms of a scan estimated elsewhere (bunched time stamps): their poses "
@@ -380,9 +382,72 @@ std::vector<ScenarioRun> localize_targets(const GlobalMap& map, const std::vecto
   return runs;
 }
 
+/// Why the flag is down at the last scan, for a user deciding what to do next: the parts of the rise test
+/// (ConfidenceConfig; docs/design.md §2.3) the last estimate fails, each with its numbers. The test has more
+/// guards than these; a run failing none of them is still within those ("other").
+nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const ConfidenceConfig& c, const GlobalMap& map) {
+  nlohmann::json reasons = nlohmann::json::array();
+  if (e.localized || !e.has_estimate) return reasons;
+  auto reason = [&](const char* name, const std::string& text) {
+    reasons.push_back({{"reason", name}, {"text", text}});
+    return &reasons.back();
+  };
+  char buf[400];
+  if (!e.stable) {
+    std::snprintf(buf, sizeof buf, "the best place moved within the last %zu scans", c.stable_scans);
+    reason("unstable", buf);
+  }
+  if (e.mean_score < c.min_mean_score) {
+    std::snprintf(buf, sizeof buf,
+                  "the map explains little of the local map here: mean score %.2f on %u points (the support test "
+                  "wants %.2f; a place the map barely covers, or one that has changed)",
+                  e.mean_score, e.scored, c.min_mean_score);
+    reason("weak_support", buf)->update({{"mean_score", e.mean_score}, {"scored", e.scored}});
+  } else if (e.scored < c.min_scored) {
+    std::snprintf(buf, sizeof buf,
+                  "the best hypothesis is checked on %u points so far (the support test wants %u: a few more scans)",
+                  e.scored, c.min_scored);
+    reason("few_points", buf)->update({{"scored", e.scored}});
+  }
+  if (e.has_rival && e.rise_margin < c.min_margin) {
+    const std::string where =
+        e.rival_submap == e.submap
+            ? [&] {
+                char at[160];
+                std::snprintf(at, sizeof at, "in the same submap %.1f m away, turned %.0f deg",
+                              std::hypot(e.rival_pose.x - e.pose.x, e.rival_pose.y - e.pose.y),
+                              degrees(angle_distance(e.rival_pose.theta, e.pose.theta)));
+                return std::string(at);
+              }()
+            : "in " + map.submap_name(e.rival_submap);
+    std::snprintf(buf, sizeof buf,
+                  "a look-alike fits almost as well: %s at x %.2f m, y %.2f m, heading %.1f deg (%s) scores %.2f, "
+                  "the reported place %.2f (the test wants a lead of %.2f)",
+                  map.submap_name(e.rival_submap).c_str(), e.rival_pose.x, e.rival_pose.y, degrees(e.rival_pose.theta),
+                  where.c_str(), e.rival_mean_score, e.mean_score, c.min_margin);
+    reason("look_alike", buf)
+        ->update({{"rival_submap", map.submap_name(e.rival_submap)},
+                  {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
+                  {"rival_mean_score", e.rival_mean_score},
+                  {"lead", e.rise_margin}});
+  }
+  if (e.newest_fit < c.rise_min_newest_fit) {
+    std::snprintf(buf, sizeof buf,
+                  "the newest scans do not fit the map there: mean score %.2f on the newest points (the test wants "
+                  "%.2f; the local map may have broken in a fast turn, or the robot sees what the map lacks)",
+                  e.newest_fit, c.rise_min_newest_fit);
+    reason("newest_scans", buf)->update({{"newest_fit", e.newest_fit}});
+  }
+  if (reasons.empty())
+    reason("other",
+           "the rise test's other guards hold it (a young hypothesis at a long-kept place, or support not yet held "
+           "for long enough)");
+  return reasons;
+}
+
 /// The answer for one target, as --json prints it.
 nlohmann::json answer_json(const std::string& path, const TargetRun& target, const ScenarioRun& run,
-                           const GlobalMap& map, double map_s) {
+                           const GlobalMap& map, double map_s, const ConfidenceConfig& confidence) {
   std::optional<std::size_t> first_localized;
   std::size_t confident = 0;
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
@@ -413,6 +478,7 @@ nlohmann::json answer_json(const std::string& path, const TargetRun& target, con
   j["final_mean_score"] = last.mean_score;
   j["final_scored"] = last.scored;
   j["final_margin"] = last.margin;
+  j["not_confident_because"] = not_confident_reasons(last, confidence, map);
   j["log_s"] = run.log_duration_s;
   j["localize_cpu_s"] = run.localize_cpu_s;
   j["map_s"] = map_s;
@@ -589,7 +655,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
       if (!opt->plot_dir.empty())
         write_plots(opt->plot_dir, paths[k], *map, sources, runs[k], config.localizer.report.confidence.flag_threshold);
-      nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s);
+      nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s, config.localizer.report.confidence);
       j["stamp_clash_tolerance_s"] = config.localizer.stamp_clash.tolerance_s;
       if (follower) {
         j["map_log"] = fleet_map_json(fleet_map, *map);
