@@ -71,6 +71,11 @@ for r in reasons:
     if r["reason"] == "unstable":
         assert last["stable"] == "0", last
 PY
+# The same eight scans from stdin (plain text, as the stream below) end with the same reasons.
+"$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 8 >/dev/null 2>"$d/short_stream.err" \
+  < <(zcat "$b/sim-3-001.log.gz") || fail "a short stream"
+diff <(grep "not confident because" "$d/short.txt") <(grep "not confident because" "$d/short_stream.err") ||
+  fail "the stream's reasons differ from the file run's"
 
 # Outputs other tools read: a submap name with a comma and a quote stays one CSV
 # field; the TUM holds robot poses (a declared 0.25 m laser mount taken off the

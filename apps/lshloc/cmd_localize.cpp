@@ -212,6 +212,69 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
   std::fprintf(stderr, "figures: %s-{map,confidence}.{png,svg}\n", stem.c_str());
 }
 
+/// Why the flag is down at the last scan, for a user deciding what to do next: the parts of the rise test
+/// (ConfidenceConfig; docs/design.md §2.3) the last estimate fails, each with its numbers. The test has more
+/// guards than these; a run failing none of them is still within those ("other").
+nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const ConfidenceConfig& c, const GlobalMap& map) {
+  nlohmann::json reasons = nlohmann::json::array();
+  if (e.localized || !e.has_estimate) return reasons;
+  auto reason = [&](const char* name, const std::string& text) {
+    reasons.push_back({{"reason", name}, {"text", text}});
+    return &reasons.back();
+  };
+  char buf[400];
+  if (!e.stable) {
+    std::snprintf(buf, sizeof buf, "the best place moved within the last %zu scans", c.stable_scans);
+    reason("unstable", buf);
+  }
+  if (e.mean_score < c.min_mean_score) {
+    std::snprintf(buf, sizeof buf,
+                  "the map explains little of the local map here: mean score %.2f on %u points (the support test "
+                  "wants %.2f; a place the map barely covers, or one that has changed)",
+                  e.mean_score, e.scored, c.min_mean_score);
+    reason("weak_support", buf)->update({{"mean_score", e.mean_score}, {"scored", e.scored}});
+  } else if (e.scored < c.min_scored) {
+    std::snprintf(buf, sizeof buf,
+                  "the best hypothesis is checked on %u points so far (the support test wants %u: a few more scans)",
+                  e.scored, c.min_scored);
+    reason("few_points", buf)->update({{"scored", e.scored}});
+  }
+  if (e.has_rival && e.rise_margin < c.min_margin) {
+    const std::string where =
+        e.rival_submap == e.submap
+            ? [&] {
+                char at[160];
+                std::snprintf(at, sizeof at, "in the same submap %.1f m away, turned %.0f deg",
+                              std::hypot(e.rival_pose.x - e.pose.x, e.rival_pose.y - e.pose.y),
+                              degrees(angle_distance(e.rival_pose.theta, e.pose.theta)));
+                return std::string(at);
+              }()
+            : "in " + map.submap_name(e.rival_submap);
+    std::snprintf(buf, sizeof buf,
+                  "a look-alike fits almost as well: %s at x %.2f m, y %.2f m, heading %.1f deg (%s) scores %.2f, "
+                  "the reported place %.2f (the test wants a lead of %.2f)",
+                  map.submap_name(e.rival_submap).c_str(), e.rival_pose.x, e.rival_pose.y, degrees(e.rival_pose.theta),
+                  where.c_str(), e.rival_mean_score, e.mean_score, c.min_margin);
+    reason("look_alike", buf)
+        ->update({{"rival_submap", map.submap_name(e.rival_submap)},
+                  {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
+                  {"rival_mean_score", e.rival_mean_score},
+                  {"lead", e.rise_margin}});
+  }
+  if (e.newest_fit < c.rise_min_newest_fit) {
+    std::snprintf(buf, sizeof buf,
+                  "the newest scans do not fit the map there: mean score %.2f on the newest points (the test wants "
+                  "%.2f; the local map may have broken in a fast turn, or the robot sees what the map lacks)",
+                  e.newest_fit, c.rise_min_newest_fit);
+    reason("newest_scans", buf)->update({{"newest_fit", e.newest_fit}});
+  }
+  if (reasons.empty())
+    reason("other",
+           "the rise test's other guards hold it (a young hypothesis at a long-kept place, or support not yet held "
+           "for long enough)");
+  return reasons;
+}
+
 /// The target from stdin ("-"): each scan is localized as it arrives and its
 /// estimate printed at once (a CSV row, or a JSON line with --json); the
 /// answer follows on stderr at the end of the stream.
@@ -282,6 +345,8 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                  *first_confident, confident, done);
   else
     std::fprintf(stderr, "Not localized after %zu scans\n", done);
+  for (const auto& r : not_confident_reasons(last, config.report.confidence, map))
+    std::fprintf(stderr, "  not confident because %s\n", r["text"].get<std::string>().c_str());
 }
 
 void print_answer(const nlohmann::json& j) {
@@ -380,69 +445,6 @@ std::vector<ScenarioRun> localize_targets(const GlobalMap& map, const std::vecto
   for (const auto& e : errors)
     if (e) std::rethrow_exception(e);
   return runs;
-}
-
-/// Why the flag is down at the last scan, for a user deciding what to do next: the parts of the rise test
-/// (ConfidenceConfig; docs/design.md §2.3) the last estimate fails, each with its numbers. The test has more
-/// guards than these; a run failing none of them is still within those ("other").
-nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const ConfidenceConfig& c, const GlobalMap& map) {
-  nlohmann::json reasons = nlohmann::json::array();
-  if (e.localized || !e.has_estimate) return reasons;
-  auto reason = [&](const char* name, const std::string& text) {
-    reasons.push_back({{"reason", name}, {"text", text}});
-    return &reasons.back();
-  };
-  char buf[400];
-  if (!e.stable) {
-    std::snprintf(buf, sizeof buf, "the best place moved within the last %zu scans", c.stable_scans);
-    reason("unstable", buf);
-  }
-  if (e.mean_score < c.min_mean_score) {
-    std::snprintf(buf, sizeof buf,
-                  "the map explains little of the local map here: mean score %.2f on %u points (the support test "
-                  "wants %.2f; a place the map barely covers, or one that has changed)",
-                  e.mean_score, e.scored, c.min_mean_score);
-    reason("weak_support", buf)->update({{"mean_score", e.mean_score}, {"scored", e.scored}});
-  } else if (e.scored < c.min_scored) {
-    std::snprintf(buf, sizeof buf,
-                  "the best hypothesis is checked on %u points so far (the support test wants %u: a few more scans)",
-                  e.scored, c.min_scored);
-    reason("few_points", buf)->update({{"scored", e.scored}});
-  }
-  if (e.has_rival && e.rise_margin < c.min_margin) {
-    const std::string where =
-        e.rival_submap == e.submap
-            ? [&] {
-                char at[160];
-                std::snprintf(at, sizeof at, "in the same submap %.1f m away, turned %.0f deg",
-                              std::hypot(e.rival_pose.x - e.pose.x, e.rival_pose.y - e.pose.y),
-                              degrees(angle_distance(e.rival_pose.theta, e.pose.theta)));
-                return std::string(at);
-              }()
-            : "in " + map.submap_name(e.rival_submap);
-    std::snprintf(buf, sizeof buf,
-                  "a look-alike fits almost as well: %s at x %.2f m, y %.2f m, heading %.1f deg (%s) scores %.2f, "
-                  "the reported place %.2f (the test wants a lead of %.2f)",
-                  map.submap_name(e.rival_submap).c_str(), e.rival_pose.x, e.rival_pose.y, degrees(e.rival_pose.theta),
-                  where.c_str(), e.rival_mean_score, e.mean_score, c.min_margin);
-    reason("look_alike", buf)
-        ->update({{"rival_submap", map.submap_name(e.rival_submap)},
-                  {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
-                  {"rival_mean_score", e.rival_mean_score},
-                  {"lead", e.rise_margin}});
-  }
-  if (e.newest_fit < c.rise_min_newest_fit) {
-    std::snprintf(buf, sizeof buf,
-                  "the newest scans do not fit the map there: mean score %.2f on the newest points (the test wants "
-                  "%.2f; the local map may have broken in a fast turn, or the robot sees what the map lacks)",
-                  e.newest_fit, c.rise_min_newest_fit);
-    reason("newest_scans", buf)->update({{"newest_fit", e.newest_fit}});
-  }
-  if (reasons.empty())
-    reason("other",
-           "the rise test's other guards hold it (a young hypothesis at a long-kept place, or support not yet held "
-           "for long enough)");
-  return reasons;
 }
 
 /// The answer for one target, as --json prints it.
