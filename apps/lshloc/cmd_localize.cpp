@@ -239,7 +239,8 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
                   e.scored, c.min_scored);
     reason("few_points", buf)->update({{"scored", e.scored}});
   }
-  if (e.has_rival && e.rise_margin < c.min_margin) {
+  // The margin also passes on a lead on the same whole-map points (0 where the run did not score it).
+  if (e.has_rival && e.rise_margin < c.min_margin && e.whole_map_lead < c.rise_margin_whole_map_lead) {
     const std::string where =
         e.rival_submap == e.submap
             ? [&] {
