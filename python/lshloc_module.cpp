@@ -402,6 +402,9 @@ PYBIND11_MODULE(lshloc, m) {
             d["pose"] = e.has_estimate ? py::cast(to_tuple(e.pose)) : py::none();
             d["mean_score"] = e.mean_score;
             d["margin"] = e.margin;
+            py::list because;
+            for (const char* name : e.flag_down_because.names()) because.append(name);
+            d["not_confident_because"] = because;
             return d;
           },
           py::arg("scan"),
@@ -409,5 +412,8 @@ PYBIND11_MODULE(lshloc, m) {
           "(the confidence flag), confidence (the calibrated value in [0, 1]; at least flag_threshold, 0.95 by "
           "default, exactly when localized), stamp_clash (an earlier scan stamped "
           "within 5 ms is estimated elsewhere), confident (localized and no stamp clash: the pose can be used by "
-          "its time stamp), submap, submap_name, pose (x, y, theta of the laser in the submap), mean_score, margin");
+          "its time stamp), submap, submap_name, pose (x, y, theta of the laser in the submap), mean_score, margin, "
+          "not_confident_because (the parts of the flag's test that keep it down, by name: unstable, weak_support, "
+          "few_points, support_too_short, look_alike, newest_misfit, young_hypothesis, contradicted; empty while it "
+          "is up)");
 }

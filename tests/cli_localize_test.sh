@@ -58,8 +58,10 @@ last = list(csv.DictReader(open(sys.argv[2])))[-1]
 text = open(sys.argv[3]).read()
 reasons = j["not_confident_because"]
 assert not j["localized"] and reasons, j
-known = {"unstable", "weak_support", "few_points", "look_alike", "newest_scans", "other"}
+known = {"unstable", "weak_support", "few_points", "support_too_short", "look_alike", "newest_misfit",
+         "young_hypothesis", "contradicted"}
 assert all(r["reason"] in known for r in reasons), reasons
+assert [r["reason"] for r in reasons] == last["flag_down_because"].split(";"), (reasons, last)
 for r in reasons:
     assert "  not confident because " + r["text"] in text, (r["text"], text)
     if r["reason"] in ("few_points", "weak_support"):
@@ -70,6 +72,8 @@ for r in reasons:
         assert r["lead"] < 0.15, r
     if r["reason"] == "unstable":
         assert last["stable"] == "0", last
+    if r["reason"] == "newest_misfit":
+        assert abs(r["newest_fit"] - float(last["newest_fit"])) < 1e-3 and r["newest_fit"] < 0.1, (r, last)
 PY
 # The same eight scans from stdin (plain text, as the stream below) end with the same reasons.
 "$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 8 >/dev/null 2>"$d/short_stream.err" \
@@ -93,7 +97,7 @@ python3 - "$d/n.tum.csv" "$d/n.tum" <<'PY' || fail "CSV fields or TUM robot pose
 import csv, math, sys
 text = open(sys.argv[1]).read().splitlines()
 rows = list(csv.reader(text))
-assert all(len(r) == len(rows[0]) == 21 for r in rows), {len(r) for r in rows}
+assert all(len(r) == len(rows[0]) == 22 for r in rows), {len(r) for r in rows}
 head = rows[0]
 confident = [dict(zip(head, r)) for r in rows[1:] if r[head.index("confident")] == "1"]
 assert confident and {r["submap"] for r in confident} <= {'west, "A"', 'east, "B"'}, confident[:1]

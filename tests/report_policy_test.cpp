@@ -8,6 +8,7 @@
 #include <functional>
 #include <numbers>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "lshloc/common/error.hpp"
@@ -78,6 +79,13 @@ ReportPolicyConfig plain() {
 }
 
 const RansacPreference kPreference{.preference_z = 2.0, .min_score = 30.0, .recent_window = 8000};
+
+using Names = std::vector<std::string>;
+/// The parts of the flag's test that keep it down, by name.
+Names names(const LocalizationEstimate& e) {
+  const auto n = e.flag_down_because.names();
+  return Names(n.begin(), n.end());
+}
 
 LocalizationEstimate step(ReportPolicy& policy, const std::vector<ScoredHypothesis>& active, SampleScorer& sample,
                           const Pose2& local = {}) {
@@ -310,6 +318,7 @@ TEST(ReportPolicy, AtALongKeptPlaceANewHypothesisRisesOnlyOnceScoredOnEnoughPoin
   EXPECT_EQ(e.kept_scans, 80u);
   EXPECT_TRUE(e.supported);
   EXPECT_FALSE(e.localized);
+  EXPECT_EQ(names(e), Names{"young_hypothesis"});
   // ... until it has been scored on 750.
   EXPECT_FALSE(step(policy, {scored(place, 0.6, 749)}, sample).localized);
   EXPECT_TRUE(step(policy, {scored(place, 0.6, 750)}, sample).localized);
@@ -339,8 +348,14 @@ TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
     std::vector<bool> flags;
     for (std::size_t i = 0; i < config.confidence.unsupported_hold_scans + 5; ++i)
       flags.push_back(step(policy, {scored(place, 0.29, 2500)}, sample).localized);
-    for (std::size_t i = 0; i < supported_scans; ++i)
-      flags.push_back(step(policy, {scored(place, 0.37, 500)}, sample).localized);
+    for (std::size_t i = 0; i < supported_scans; ++i) {
+      const LocalizationEstimate e = step(policy, {scored(place, 0.37, 500)}, sample);
+      flags.push_back(e.localized);
+      // Waiting for the run of support: that is the one reason the flag is down.
+      if (i + 1 < run) {
+        EXPECT_EQ(names(e), Names{"support_too_short"});
+      }
+    }
     for (std::size_t i = 0; i < 5; ++i) flags.push_back(step(policy, {scored(place, 0.33, 700)}, sample).localized);
     return flags;
   };
@@ -582,6 +597,51 @@ TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
   never.confidence.rise_margin_whole_map_lead = 3.0;
   never.confidence.rise_paired_newest_lead = 3.0;  // the newest points here lead as the whole map does
   EXPECT_FALSE(flag_after(never, 0.2).localized);
+}
+
+TEST(ReportPolicy, TheEstimateSaysWhichPartsOfTheTestKeepTheFlagDown) {
+  ReportPolicyConfig config = plain();
+  config.confidence.relative_support = false;  // the absolute support test alone
+  config.confidence.weak_support = false;
+  config.confidence.rival_memory_scans = 0;
+  const std::size_t stable = config.confidence.stable_scans;
+  const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
+  FakeSample sample;
+  double newest = 0.5;
+  sample.score_of = [&](const Hypothesis&) { return newest; };
+  // Strong, unrivalled support: unstable until stable_scans, then up with no reason.
+  ReportPolicy policy(config, kPreference);
+  for (std::size_t i = 0; i + 1 < stable; ++i)
+    EXPECT_EQ(names(step(policy, {scored(place, 0.6, 1000)}, sample)), Names{"unstable"}) << "scan " << i;
+  LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000)}, sample);
+  EXPECT_TRUE(e.localized);
+  EXPECT_FALSE(e.flag_down_because.any());
+  // The map contradicting the newest points drops it: contradicted, and they do not fit.
+  newest = -0.5;
+  e = step(policy, {scored(place, 0.6, 1000)}, sample);
+  EXPECT_FALSE(e.localized);
+  EXPECT_EQ(names(e), (Names{"newest_misfit", "contradicted"}));
+  // Next scan the flag was already down: only the misfit remains.
+  EXPECT_EQ(names(step(policy, {scored(place, 0.6, 1000)}, sample)), Names{"newest_misfit"});
+  newest = 0.5;
+  // Each failing part alone, after a stable run at the place.
+  const auto last_of_stable_run = [&](const std::vector<ScoredHypothesis>& active) {
+    ReportPolicy fresh(config, kPreference);
+    LocalizationEstimate last;
+    for (std::size_t i = 0; i < stable + 2; ++i) last = step(fresh, active, sample);
+    return last;
+  };
+  EXPECT_EQ(names(last_of_stable_run({scored(place, 0.2, 1000)})), (Names{"weak_support"}));
+  EXPECT_EQ(names(last_of_stable_run({scored(place, 0.6, 400)})), (Names{"few_points"}));
+  e = last_of_stable_run({scored(place, 0.6, 1000), scored(rival, 0.5, 1000)});
+  EXPECT_EQ(names(e), (Names{"look_alike"}));
+  EXPECT_TRUE(e.has_rival);
+  EXPECT_EQ(e.rival_submap, rival.submap);
+  // Two parts at once: weak and rivalled.
+  EXPECT_EQ(names(last_of_stable_run({scored(place, 0.3, 1000), scored(rival, 0.25, 1000)})),
+            (Names{"weak_support", "look_alike"}));
+  // No estimate: no reasons (there is nothing to be confident about).
+  EXPECT_FALSE(step(policy, {}, sample).flag_down_because.any());
 }
 
 TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {

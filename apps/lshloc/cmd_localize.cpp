@@ -104,7 +104,7 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
 constexpr const char* kCsvHeader =
     "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,confidence,score,scored,margin,stable,supported,"
     "place_supported,"
-    "kept_scans,newest_fit,newest_evidence,localized,stamp_clash\n";
+    "kept_scans,newest_fit,newest_evidence,localized,stamp_clash,flag_down_because\n";
 /// A CSV field as RFC 4180 quotes it: submap names may hold commas or quotes.
 std::string csv_field(const std::string& text) {
   if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
@@ -116,13 +116,14 @@ std::string csv_field(const std::string& text) {
 void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, double time, const GlobalMap& map,
                     const LocalizationEstimate& e) {
   if (e.has_estimate) {
-    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%d,%d\n", scan,
-                      log_scan, time, csv_field(map.submap_name(e.submap)).c_str(), e.submap, e.pose.x, e.pose.y,
+    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%d,%d,%s\n",
+                      scan, log_scan, time, csv_field(map.submap_name(e.submap)).c_str(), e.submap, e.pose.x, e.pose.y,
                       degrees(e.pose.theta), e.confident() ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin,
                       e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit,
-                      e.newest_evidence, e.localized ? 1 : 0, e.stamp_clash ? 1 : 0);
+                      e.newest_evidence, e.localized ? 1 : 0, e.stamp_clash ? 1 : 0,
+                      e.flag_down_because.joined().c_str());
   } else {
-    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,,0,0\n", scan, log_scan, time);
+    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,,0,0,\n", scan, log_scan, time);
   }
 }
 
@@ -212,35 +213,43 @@ void write_plots(const std::string& dir, const std::string& target_path, const G
   std::fprintf(stderr, "figures: %s-{map,confidence}.{png,svg}\n", stem.c_str());
 }
 
-/// Why the flag is down at the last scan, for a user deciding what to do next: the parts of the rise test
-/// (ConfidenceConfig; docs/design.md §2.3) the last estimate fails, each with its numbers. The test has more
-/// guards than these; a run failing none of them is still within those ("other").
+/// Why the flag is down at the last scan, for a user deciding what to do next: each part of the flag's
+/// test (ConfidenceConfig; docs/design.md §2.3) the report policy found failing
+/// (LocalizationEstimate::flag_down_because), in words and with its numbers.
 nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const ConfidenceConfig& c, const GlobalMap& map) {
   nlohmann::json reasons = nlohmann::json::array();
   if (e.localized || !e.has_estimate) return reasons;
+  const FlagDownReasons& why = e.flag_down_because;
   auto reason = [&](const char* name, const std::string& text) {
     reasons.push_back({{"reason", name}, {"text", text}});
     return &reasons.back();
   };
   char buf[400];
-  if (!e.stable) {
+  if (why.unstable) {
     std::snprintf(buf, sizeof buf, "the best place moved within the last %zu scans", c.stable_scans);
     reason("unstable", buf);
   }
-  if (e.mean_score < c.min_mean_score) {
+  if (why.weak_support) {
     std::snprintf(buf, sizeof buf,
                   "the map explains little of the local map here: mean score %.2f on %u points (the support test "
                   "wants %.2f; a place the map barely covers, or one that has changed)",
                   e.mean_score, e.scored, c.min_mean_score);
     reason("weak_support", buf)->update({{"mean_score", e.mean_score}, {"scored", e.scored}});
-  } else if (e.scored < c.min_scored) {
+  }
+  if (why.few_points) {
     std::snprintf(buf, sizeof buf,
                   "the best hypothesis is checked on %u points so far (the support test wants %u: a few more scans)",
                   e.scored, c.min_scored);
     reason("few_points", buf)->update({{"scored", e.scored}});
   }
-  // The margin also passes on a lead on the same whole-map points (0 where the run did not score it).
-  if (e.has_rival && e.rise_margin < c.min_margin && e.whole_map_lead < c.rise_margin_whole_map_lead) {
+  if (why.support_too_short) {
+    std::snprintf(buf, sizeof buf,
+                  "the place has been supported only on the last few scans (after a long stretch without support "
+                  "the test wants %zu scans in a row)",
+                  c.rise_supported_scans);
+    reason("support_too_short", buf);
+  }
+  if (why.look_alike && e.has_rival) {
     const std::string where =
         e.rival_submap == e.submap
             ? [&] {
@@ -261,18 +270,36 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
                   {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
                   {"rival_mean_score", e.rival_mean_score},
                   {"lead", e.rise_margin}});
+  } else if (why.look_alike) {
+    std::snprintf(buf, sizeof buf,
+                  "the reported place scores %.2f, not far enough above nothing to stand out (the test wants a "
+                  "lead of %.2f)",
+                  e.mean_score, c.min_margin);
+    reason("look_alike", buf)->update({{"lead", e.rise_margin}});
   }
-  if (e.newest_fit < c.rise_min_newest_fit) {
+  if (why.newest_misfit) {
     std::snprintf(buf, sizeof buf,
                   "the newest scans do not fit the map there: mean score %.2f on the newest points (the test wants "
                   "%.2f; the local map may have broken in a fast turn, or the robot sees what the map lacks)",
                   e.newest_fit, c.rise_min_newest_fit);
-    reason("newest_scans", buf)->update({{"newest_fit", e.newest_fit}});
+    reason("newest_misfit", buf)->update({{"newest_fit", e.newest_fit}});
   }
-  if (reasons.empty())
-    reason("other",
-           "the rise test's other guards hold it (a young hypothesis at a long-kept place, or support not yet held "
-           "for long enough)");
+  if (why.young_hypothesis) {
+    std::snprintf(buf, sizeof buf,
+                  "a new hypothesis at a place kept %u scans is checked on %u points so far (it rises once checked "
+                  "on %.1f per kept scan, up to %u)",
+                  e.kept_scans, e.scored, c.rise_scored_per_kept_scan, c.rise_max_scored);
+    reason("young_hypothesis", buf)->update({{"scored", e.scored}, {"kept_scans", e.kept_scans}});
+  }
+  if (why.contradicted) {
+    // The hold's penalty is the newest points' mean max(-score, 0).
+    const double penalty = 0.5 * (e.newest_evidence - e.newest_fit);
+    std::snprintf(buf, sizeof buf,
+                  "the flag was up and dropped: the map contradicts the newest scans there (penalty %.2f on the "
+                  "newest points; the hold allows %.2f on one scan, %.2f on average)",
+                  penalty, c.hold_max_contradiction, c.hold_max_mean_contradiction);
+    reason("contradicted", buf)->update({{"penalty", penalty}});
+  }
   return reasons;
 }
 

@@ -137,7 +137,7 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
       f,
       "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
       "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,rise_margin,"
-      "rival_submap,rival_x,rival_y,rival_theta,rival_mean_score,rival_scored,newest_lead,"
+      "rival_submap,rival_x,rival_y,rival_theta,rival_mean_score,rival_scored,newest_lead,flag_down_because,"
       "truth_x,truth_y,truth_theta,error_m,heading_error_deg\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
@@ -157,7 +157,7 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
                         e.rival_pose.theta, e.rival_mean_score, e.rival_scored);
     else
       f += ",,,,,,";
-    io::append_format(f, "%.4f,", e.newest_lead);
+    io::append_format(f, "%.4f,%s,", e.newest_lead, e.flag_down_because.joined().c_str());
     if (t) {
       io::append_format(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
       // A heading error only where the estimate is in the true submap (finite error): other frames do not compare.

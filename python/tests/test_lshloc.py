@@ -278,4 +278,7 @@ def test_a_real_scenario_gives_the_cli_estimates(tmp_path):
             assert row["submap"] == e["submap_name"]
             assert row["x"] == f"{e['pose'][0]:.4f}" and row["y"] == f"{e['pose'][1]:.4f}"
             assert row["heading_deg"] == f"{math.degrees(e['pose'][2]):.3f}"
+            # The same reasons keep the flag down, none while it is up.
+            assert row["flag_down_because"] == ";".join(e["not_confident_because"])
+            assert (e["not_confident_because"] == []) == e["localized"]
     assert e["localized"] and e["submap_name"] == "intel.gfs.log.gz"

@@ -92,6 +92,27 @@ void ReportPolicyConfig::validate() const {
 ReportPolicy::ReportPolicy(ReportPolicyConfig config, RansacPreference ransac)
     : config_((config.validate(), config)), ransac_(ransac) {}
 
+std::vector<const char*> FlagDownReasons::names() const {
+  std::vector<const char*> out;
+  const std::pair<bool, const char*> all[] = {{unstable, "unstable"},
+                                              {weak_support, "weak_support"},
+                                              {few_points, "few_points"},
+                                              {support_too_short, "support_too_short"},
+                                              {look_alike, "look_alike"},
+                                              {newest_misfit, "newest_misfit"},
+                                              {young_hypothesis, "young_hypothesis"},
+                                              {contradicted, "contradicted"}};
+  for (const auto& [set, name] : all)
+    if (set) out.push_back(name);
+  return out;
+}
+
+std::string FlagDownReasons::joined() const {
+  std::string out;
+  for (const char* name : names()) out += (out.empty() ? "" : ";") + std::string(name);
+  return out;
+}
+
 bool ReportPolicy::supported(const ScoredHypothesis& h) const {
   // The confidence test's absolute part: iRANSAC has scored the hypothesis
   // on enough data-points, at a high enough mean.
@@ -397,8 +418,22 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   // A hypothesis much younger than the place it stands for rises only once it has caught up.
   const bool seasoned = static_cast<double>(best->scored) >=
                         std::min(cc.rise_scored_per_kept_scan * kept_scans_, static_cast<double>(cc.rise_max_scored));
+  const bool was_up = flag_;
   flag_ = (rises && seasoned) || held;
   e.localized = flag_;
+  if (!flag_) {
+    FlagDownReasons& why = e.flag_down_because;
+    why.unstable = !stable;
+    why.weak_support = !counts_supported && e.mean_score < cc.min_mean_score;
+    why.few_points = !counts_supported && !why.weak_support && best->scored < cc.min_scored;
+    why.support_too_short = counts_supported && !support_holds;
+    why.look_alike = !leads_pass_margin && (e.rise_margin < cc.min_margin || (margin_needs_lead && !margin_confirmed));
+    why.newest_misfit = !newest_fits;
+    why.young_hypothesis = rises && !seasoned;
+    why.contradicted =
+        was_up && kept &&
+        (contradiction > cc.hold_max_contradiction || mean_contradiction_ > cc.hold_max_mean_contradiction);
+  }
   e.confidence = flag_ ? std::max(e.confidence, cc.flag_threshold)
                        : std::min(e.confidence, cc.flag_threshold - kUnflaggedValueGap);
   return e;

@@ -12,6 +12,7 @@
 #include <deque>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "lshloc/matching/incremental_ransac.hpp"
@@ -274,6 +275,29 @@ struct ReportPolicyConfig {
   void validate() const;
 };
 
+/// Which parts of the flag's test kept it down at a scan (all false while
+/// it is up, or without an estimate): what a robot's operator reads to know
+/// what the localizer still waits for.
+struct FlagDownReasons {
+  bool unstable = false;           ///< iRANSAC's best moved within the last stable_scans scans
+  bool weak_support = false;       ///< C/N under min_mean_score, and no weak or relative support instead
+  bool few_points = false;         ///< N under min_scored (C/N high enough), and no weak or relative support
+  bool support_too_short = false;  ///< supported, but not yet rise_supported_scans scans in a row
+  bool look_alike = false;         ///< the margin over the best place elsewhere is short, and no lead passes it
+  bool newest_misfit = false;      ///< the newest points fit the place under rise_min_newest_fit
+  bool young_hypothesis = false;   ///< a new hypothesis at a long-kept place, scored on too few points yet
+  bool contradicted = false;       ///< the flag was up: the newest points contradict the map (the hold's limits)
+
+  bool any() const {
+    return unstable || weak_support || few_points || support_too_short || look_alike || newest_misfit ||
+           young_hypothesis || contradicted;
+  }
+  /// The set reasons' names (the field names above), in that order.
+  std::vector<const char*> names() const;
+  /// Those names joined by ';' (one CSV field, needing no quotes).
+  std::string joined() const;
+};
+
 /// The localizer's answer for one target scan.
 struct LocalizationEstimate {
   bool has_estimate = false;
@@ -318,6 +342,7 @@ struct LocalizationEstimate {
   /// Another scan stamped at the same time has an estimate elsewhere
   /// (localization/stamp_clash.hpp): this pose cannot be looked up by time.
   bool stamp_clash = false;
+  FlagDownReasons flag_down_because;  ///< why `localized` is false (none while it is true)
   /// What outputs read by time stamp mark as confident: the flag, except at
   /// a stamp clash. The flag itself is the localizer's state and does not
   /// flicker with the stamps.
