@@ -118,7 +118,10 @@ LocalizerConfig localizer_config(const GlobalMap& map, const std::string& config
           "config_json");
     io::apply_config_patch(patch, c, "config_json");
   }
-  c.features = map.config().features;  // the map's, as every command does
+  // The map's descriptor settings, as every command does (the Localizer refuses others).
+  c.features = map.config().features;
+  c.context_scans = map.config().context_scans;
+  c.context_spacing = map.config().context_spacing;
   return with_target_laser_offset(c, laser_offset);
 }
 

@@ -113,6 +113,17 @@ for r in final:
     assert abs(t[1] - (float(r["x"]) - 0.25 * math.cos(th))) < 2e-4 and abs(t[2] - (float(r["y"]) - 0.25 * math.sin(th))) < 2e-4
     assert abs(math.remainder(2 * math.atan2(t[6], t[7]) - th, 2 * math.pi)) < 1e-4
 PY
+# The same mount given by a config for a log without one: the same TUM robot poses.
+zcat "$b/sim-3-001.log.gz" >"$d/unmounted.log"
+echo '{"localizer": {"scan_matcher": {"laser_offset": {"x": 0.25, "y": 0, "theta": 0}}}}' >"$d/mount.json"
+"$LSHLOC" localize --map "$d/named.map" --target "$d/unmounted.log" --start 300 --length 150 --config "$d/mount.json" \
+  --out "$d/m.tum" >/dev/null 2>&1 || fail "localize with the mount in a config"
+cmp -s "$d/n.tum" "$d/m.tum" || fail "a config's laser mount is not the one the TUM file takes off"
+# Descriptor settings asked of the localizer alone would be dropped: refused, pointing at map.features.
+echo '{"localizer": {"features": {"max_keypoints": 20}}}' >"$d/features.json"
+if "$LSHLOC" localize --map "$d/named.map" --target "$d/unmounted.log" --length 5 --config "$d/features.json" \
+  >/dev/null 2>"$d/features.err"; then fail "localizer.features in a config was taken silently"; fi
+grep -q "map.features" "$d/features.err" || fail "the refusal of localizer.features does not say where they go"
 
 # A submap name that is not UTF-8 (file names are bytes) still gives valid JSON.
 "$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" --name $'caf\xe9' --out "$d/latin1.map" >/dev/null 2>&1 ||

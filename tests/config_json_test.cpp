@@ -148,6 +148,18 @@ TEST(ConfigJson, TheManyBuildingsExampleSetsOnlyAQueryTimeSetting) {
   EXPECT_EQ(nlohmann::json(with_query_settings(LshConfig{}, c.map.database)), nlohmann::json(c.map.database));
 }
 
+TEST(ConfigJson, TheOpenWorldExampleSetsOnlyTheRivalMemory) {
+  // A localizer setting alone: any map, saved or built, takes it.
+  ScenarioRunConfig c;
+  const std::string path = std::string(LSHLOC_SOURCE_DIR) + "/examples/config/open-world.json";
+  io::apply_config_patch(io::read_json_file(path), c, path);
+  EXPECT_EQ(c.localizer.report.confidence.rival_memory_scans, 50u);
+  EXPECT_NO_THROW(c.localizer.validate());
+  nlohmann::json expected = ScenarioRunConfig{};
+  expected["localizer"]["report"]["confidence"]["rival_memory_scans"] = 50;
+  EXPECT_EQ(nlohmann::json(c), expected);
+}
+
 TEST(ConfigJson, ReadingAFileNamesItOnSyntaxErrors) {
   const std::string path = test::temp_path("_bad_config.json");
   {

@@ -60,6 +60,25 @@ TEST(SharedMap, LocalizersOnTheirOwnThreadsGiveALoneLocalizersEstimates) {
   EXPECT_TRUE(m.success);
 }
 
+TEST(Localizer, RefusesDescriptorSettingsOtherThanTheMaps) {
+  // Descriptors made otherwise than the map's match nothing: refused, not localized silently wrong.
+  GlobalMap map(GlobalMapConfig{});
+  LocalizerConfig config;
+  EXPECT_NO_THROW(Localizer(map, config));
+  config.features.max_keypoints = 20;
+  EXPECT_THROW(Localizer(map, config), Error);
+  config = LocalizerConfig{};
+  config.context_scans = 4;
+  EXPECT_THROW(Localizer(map, config), Error);
+  GlobalMapConfig other;
+  other.context_spacing = 0.5;
+  GlobalMap map2(other);
+  config = LocalizerConfig{};
+  EXPECT_THROW(Localizer(map2, config), Error);
+  config.context_spacing = 0.5;
+  EXPECT_NO_THROW(Localizer(map2, config));
+}
+
 TEST(Localizer, TakesTheMapsNewQuerySettingsFromItsNextScan) {
   // A localizer made before the map's candidate budget grew gives the
   // estimates of one made after it (its query scratch is sized again), and

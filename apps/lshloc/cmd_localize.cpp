@@ -625,6 +625,10 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     }
 
     ScenarioRunConfig config = make_run_config(opt->localizer);
+    // The mount the localizer runs with (the log's, or the config's for a log without one) is the one the TUM
+    // files take off; a config's other than the log's is refused here, before the map is built.
+    for (auto& t : targets)
+      t.laser_offset = with_target_laser_offset(config.localizer, t.laser_offset).scan_matcher.laser_offset;
     const auto t0 = std::chrono::steady_clock::now();
     std::unique_ptr<GlobalMap> map;
     std::vector<std::string> built;

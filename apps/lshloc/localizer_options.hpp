@@ -64,7 +64,19 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool resea
 /// the map's (they must match).
 inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) {
   ScenarioRunConfig c = o.config;
+  // The descriptors' settings are the map's: the localizer takes them from there, and one asked of the
+  // localizer alone would be dropped without a word, so it is refused.
+  const LocalizerConfig defaults{};
+  if (!(c.localizer.features == defaults.features) && !(c.localizer.features == c.map.features))
+    throw Error("localizer.features: the localizer uses the map's feature settings; set them under map.features");
+  if ((c.localizer.context_scans != defaults.context_scans && c.localizer.context_scans != c.map.context_scans) ||
+      (c.localizer.context_spacing != defaults.context_spacing && c.localizer.context_spacing != c.map.context_spacing))
+    throw Error(
+        "localizer.context_scans, localizer.context_spacing: the localizer uses the map's; set them under "
+        "map.context_scans and map.context_spacing");
   c.localizer.features = c.map.features;
+  c.localizer.context_scans = c.map.context_scans;
+  c.localizer.context_spacing = c.map.context_spacing;
   return c;
 }
 

@@ -152,6 +152,8 @@ void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config,
   }
   config.map = adopted;
   config.localizer.features = built.features;
+  config.localizer.context_scans = built.context_scans;
+  config.localizer.context_spacing = built.context_spacing;
   io::require_localizer_fits_map(config.localizer, built, source);
 }
 

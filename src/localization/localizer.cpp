@@ -101,9 +101,25 @@ void LocalizerConfig::validate() const {
           newly_mapped_share);
 }
 
+namespace {
+/// The target's descriptors must be made as the map's were, or no feature can match.
+const LocalizerConfig& fitting_map(const LocalizerConfig& config, const GlobalMapConfig& map) {
+  config.validate();
+  if (!(config.features == map.features))
+    throw Error(
+        "LocalizerConfig.features: expected the global map's feature settings (its descriptors were made "
+        "with them), got others");
+  if (config.context_scans != map.context_scans || config.context_spacing != map.context_spacing)
+    throw Error("LocalizerConfig.context_scans, context_spacing: expected the global map's (" +
+                std::to_string(map.context_scans) + ", " + std::to_string(map.context_spacing) + " m), got " +
+                std::to_string(config.context_scans) + ", " + std::to_string(config.context_spacing) + " m");
+  return config;
+}
+}  // namespace
+
 Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
     : map_(map),
-      config_((config.validate(), config)),
+      config_(fitting_map(config, map.config())),
       matcher_(config_.scan_matcher),
       extractor_(config_.features),
       ransac_(config_.ransac),

@@ -62,6 +62,7 @@ struct FeatureExtractorConfig {
 
   /// Throws lshloc::Error naming the first field out of range.
   void validate() const;
+  friend bool operator==(const FeatureExtractorConfig&, const FeatureExtractorConfig&) = default;
 };
 
 /// A scan endpoint with the local surface direction there, in a map frame.
