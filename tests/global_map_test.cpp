@@ -30,6 +30,16 @@ bool seen_free(const GlobalMap& map, double x, double y) {
   return (map.free_space().probe(0, x, y) & cell_flags::kFree) != 0;
 }
 
+TEST(GlobalMap, RefusesASubmapASavedMapCouldNotHold) {
+  GlobalMap map;
+  EXPECT_THROW(map.add_submap(std::string(GlobalMap::kMaxSubmapNameBytes + 1, 'n')), Error);
+  EXPECT_EQ(map.submap_count(), 0u);
+  EXPECT_EQ(map.add_submap(std::string(GlobalMap::kMaxSubmapNameBytes, 'n')), 0u);
+  for (std::uint32_t i = 1; i < PoseGridHashMap::kMaxSubmaps; ++i) map.add_submap("s");
+  EXPECT_THROW(map.add_submap("one too many"), Error);
+  EXPECT_EQ(map.submap_count(), PoseGridHashMap::kMaxSubmaps);
+}
+
 TEST(GlobalMap, MarksValidRaysFreeUpToTheirEndpoint) {
   GlobalMap map;
   map.add_submap("room");

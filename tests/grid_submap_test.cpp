@@ -241,6 +241,24 @@ TEST(GridSubmap, MarksWallsWithTheirNormalsAndTheRoomAsFree) {
   EXPECT_THROW(add_grid_submap(map, map.add_submap("x"), g, bad), Error);
 }
 
+TEST(GridSubmap, AGridBeyondTheMapsPoseGridsIsRefusedBeforeTheMapChanges) {
+  // A UTM-framed map: its origin 500 km out, past the pose grids' +-13 km.
+  GlobalMap map;
+  OccupancyGrid far = room_grid();
+  far.origin = {500000.0, 5000000.0};
+  const std::uint32_t submap = map.add_submap("utm");
+  try {
+    add_grid_submap(map, submap, far);
+    FAIL() << "a grid beyond the pose grids was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("beyond the map's pose grids"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(map.stats().features, 0u);
+  EXPECT_EQ(map.submap_scans(submap), 0u);
+  // The same room near the origin goes in.
+  EXPECT_GT(add_grid_submap(map, submap, room_grid()).features, 0u);
+}
+
 TEST(GridSubmap, ARobotLocalizesInAMapBuiltOnlyFromGrids) {
   // Every building of the small world as a ROS map: its mapper's scans turned
   // into an occupancy grid, written and read back, then into a submap.

@@ -7,6 +7,7 @@
 #include <limits>
 #include <random>
 #include <thread>
+#include <string>
 
 #include "lshloc/localization/global_map.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
@@ -77,6 +78,30 @@ TEST(Localizer, RefusesDescriptorSettingsOtherThanTheMaps) {
   EXPECT_THROW(Localizer(map2, config), Error);
   config.context_spacing = 0.5;
   EXPECT_NO_THROW(Localizer(map2, config));
+}
+
+TEST(Localizer, SettingsThatCannotWorkAreRefusedByName) {
+  const auto refused = [](auto change, const char* field) {
+    LocalizerConfig c;
+    change(c);
+    try {
+      c.validate();
+      ADD_FAILURE() << field << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  refused([](LocalizerConfig& c) { c.free_points_per_surface_point = -1.0; }, "free_points_per_surface_point");
+  refused([](LocalizerConfig& c) { c.free_points_per_surface_point = std::nan(""); }, "free_points_per_surface_point");
+  refused([](LocalizerConfig& c) { c.data_point_spacing = 0.0; }, "data_point_spacing");
+  refused([](LocalizerConfig& c) { c.context_spacing = -0.3; }, "context_spacing");
+  refused([](LocalizerConfig& c) { c.free_point_fraction = 2.0; }, "free_point_fraction");
+  refused([](LocalizerConfig& c) { c.ransac.iterations_per_scan = 0; }, "iterations_per_scan");
+  ScenarioRunConfig run;
+  run.map_share_before_target = -1.0;
+  EXPECT_THROW(run.validate(), Error);
+  run.map_share_before_target = 0.5;
+  EXPECT_NO_THROW(run.validate());
 }
 
 TEST(Localizer, TakesTheMapsNewQuerySettingsFromItsNextScan) {

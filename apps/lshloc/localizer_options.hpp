@@ -77,6 +77,7 @@ inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) {
   c.localizer.features = c.map.features;
   c.localizer.context_scans = c.map.context_scans;
   c.localizer.context_spacing = c.map.context_spacing;
+  c.validate();  // before any work, and before --print-config shows settings no run would take
   return c;
 }
 

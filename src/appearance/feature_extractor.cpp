@@ -104,6 +104,7 @@ ScanSurface FeatureExtractor::surface(std::span<const Point2> points_map, const 
     const std::size_t b = raw_begin[k], e = k + 1 < raw_begin.size() ? raw_begin[k + 1] : kept.size();
     if (e - b < config_.min_segment_points) continue;
     const std::size_t n = e - b;
+    if (n == 0) continue;  // (a caller-built surface may repeat a segment start)
     arc.assign(n, 0.0);
     for (std::size_t j = 1; j < n; ++j) arc[j] = arc[j - 1] + (kept[b + j] - kept[b + j - 1]).norm();
     out.segment_begin.push_back(out.points.size());

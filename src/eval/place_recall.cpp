@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 
 #include "lshloc/appearance/location_store.hpp"
+#include "lshloc/common/error.hpp"
 
 namespace lshloc {
 
@@ -224,7 +225,9 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
 }
 
 PlaceRecallProbe::PlaceRecallProbe(std::vector<RecallQuery> queries, const PlaceRecallConfig& config)
-    : queries_(std::move(queries)), config_(config), covered_(queries_.size(), 0), nearest_(queries_.size()) {}
+    : queries_(std::move(queries)), config_(config), covered_(queries_.size(), 0), nearest_(queries_.size()) {
+  require(config_.k >= 1, "PlaceRecallConfig.k", ">= 1 location per query", config_.k);
+}
 
 bool PlaceRecallProbe::hit(const RecallQuery& q, const MapLocation& l) const {
   return is_hit(l, q.submap, q.feature.pose, config_);

@@ -19,6 +19,13 @@ std::vector<ScanEstimate> ScenarioRun::scan_estimates() const {
   return out;
 }
 
+void ScenarioRunConfig::validate() const {
+  map.validate();
+  localizer.validate();
+  require(map_share_before_target > 0.0 && map_share_before_target <= 1.0, "ScenarioRunConfig.map_share_before_target",
+          "in (0, 1]", map_share_before_target);
+}
+
 MapFeeder::MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps)
     : map_(map), submaps_(submaps), fed_(submaps.size(), 0) {
   for (const Submap& s : submaps) ids_.push_back(map.add_submap(s.name));
@@ -134,6 +141,7 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
 
 ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress,
                          const LocalizerObserver& observer) {
+  config.validate();
   GlobalMap map(config.map);
   MapFeeder feeder(map, scenario.submaps);
   const auto t0 = Clock::now();

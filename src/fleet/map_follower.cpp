@@ -105,6 +105,13 @@ void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
       }
       connected = false;
       std::this_thread::sleep_for(std::chrono::duration<double>(config_.retry_s));
+    } catch (const std::exception& e) {
+      // Not a failure of the link or the log (memory, a library's limits): following stops, the process
+      // and the map it has so far live on, and stats() says why.
+      std::lock_guard lock(stats_mutex_);
+      stats_.last_error = std::string("following stopped: ") + e.what();
+      stats_.stopped = true;
+      return;
     }
   }
 }

@@ -322,13 +322,15 @@ void replay(GlobalMap& map, std::span<const std::uint8_t> payload, const std::st
   ByteReader in(payload, where);
   const std::uint8_t kind = in.u8();
   if (kind == kSubmapRecord) {
-    if (map.submap_count() >= PoseGridHashMap::kMaxSubmaps) in.fail("at most 16382 submaps");
-    map.add_submap(in.string(4096));
+    if (map.submap_count() >= PoseGridHashMap::kMaxSubmaps)
+      in.fail("at most " + std::to_string(PoseGridHashMap::kMaxSubmaps) + " submaps");
+    map.add_submap(in.string(GlobalMap::kMaxSubmapNameBytes));
     ++info.journal_submaps;
   } else if (kind == kScanRecord) {
-    const auto submap = static_cast<std::uint32_t>(in.varint());
-    if (submap >= map.submap_count())
-      in.fail("a submap id below " + std::to_string(map.submap_count()) + ", got " + std::to_string(submap));
+    const std::uint64_t id = in.varint();  // range-checked before it narrows
+    if (id >= map.submap_count())
+      in.fail("a submap id below " + std::to_string(map.submap_count()) + ", got " + std::to_string(id));
+    const auto submap = static_cast<std::uint32_t>(id);
     LaserScan scan;
     read_scan_update(in, scan);
     in.expect_done();
@@ -450,9 +452,11 @@ MapAppender::~MapAppender() {
 
 std::uint32_t MapAppender::add_submap(const std::string& name) {
   if (broken_) throw Error(path_ + ": an earlier append failed half-way; reopen the map to append again");
-  if (name.size() > 4096) throw Error(path_ + ": a submap name of at most 4096 bytes expected");
+  if (name.size() > GlobalMap::kMaxSubmapNameBytes)
+    throw Error(path_ + ": a submap name of at most " + std::to_string(GlobalMap::kMaxSubmapNameBytes) +
+                " bytes expected");
   if (map_->submap_count() >= PoseGridHashMap::kMaxSubmaps)
-    throw Error(path_ + ": the map holds 16382 submaps already");
+    throw Error(path_ + ": the map holds " + std::to_string(PoseGridHashMap::kMaxSubmaps) + " submaps already");
   ByteWriter w;
   w.u8(kSubmapRecord);
   w.string(name);

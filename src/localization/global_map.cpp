@@ -50,6 +50,13 @@ GlobalMap::GlobalMap(GlobalMapConfig config)
 }
 
 std::uint32_t GlobalMap::add_submap(std::string name) {
+  // The pose grids' cells hold a submap id of 14 bits, and a saved map names of at most kMaxSubmapNameBytes.
+  if (submaps_.size() >= PoseGridHashMap::kMaxSubmaps)
+    throw Error("GlobalMap::add_submap: the map holds " + std::to_string(submaps_.size()) +
+                " submaps, as many as it can (" + std::to_string(PoseGridHashMap::kMaxSubmaps) + ")");
+  if (name.size() > kMaxSubmapNameBytes)
+    throw Error("GlobalMap::add_submap: a submap name of at most " + std::to_string(kMaxSubmapNameBytes) +
+                " bytes expected, got " + std::to_string(name.size()));
   submaps_.push_back({std::move(name), ScanContext(config_.context_scans, config_.context_spacing), 0});
   return static_cast<std::uint32_t>(submaps_.size() - 1);
 }
@@ -328,7 +335,7 @@ std::unique_ptr<GlobalMap> GlobalMap::from_snapshot(const GlobalMapConfig& confi
     if (name == "submaps") {
       const auto count = in.varint_at_most(PoseGridHashMap::kMaxSubmaps, "a submap count");
       for (std::uint64_t i = 0; i < count; ++i) {
-        const std::uint32_t id = map->add_submap(in.string(4096));
+        const std::uint32_t id = map->add_submap(in.string(kMaxSubmapNameBytes));
         SubmapState& s = map->submaps_[id];
         s.scans = static_cast<std::size_t>(in.varint());
         s.context.read_snapshot(in);

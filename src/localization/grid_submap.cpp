@@ -180,6 +180,21 @@ GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32
     throw Error("occupancy grid " + name + ": " + std::to_string(stats.positions * config.headings) +
                 " virtual scans exceed GridSubmapConfig.max_virtual_scans (" +
                 std::to_string(config.max_virtual_scans) + "); use a wider pose_spacing or fewer headings");
+  // Every cell the submap marks lies within the grid's rectangle: its corners must fit the map's pose grids
+  // (cells within +-2^16 of their origin), or marking would fail with the submap half-built.
+  for (const Point2 corner :
+       {Point2(0.0, 0.0), Point2(static_cast<double>(w) * res, 0.0), Point2(0.0, static_cast<double>(h) * res),
+        Point2(static_cast<double>(w) * res, static_cast<double>(h) * res)}) {
+    const Point2 p = origin.transform(corner);
+    const PoseCell wall = map.occupancy().cell_of(0, p.x(), p.y(), 0.0),
+                   free = map.free_space().cell_of(0, p.x(), p.y());
+    if (PoseGridHashMap::pack_xy(0, wall.ix, wall.iy) == PoseGridHashMap::kInvalidXy ||
+        PoseGridHashMap::pack_xy(0, free.ix, free.iy) == PoseGridHashMap::kInvalidXy)
+      throw Error("occupancy grid " + name + ": its corner at x " + std::to_string(p.x()) + " m, y " +
+                  std::to_string(p.y()) + " m lies beyond the map's pose grids (about " +
+                  std::to_string(static_cast<int>(map.config().occupancy.cell_size * (1 << 16) / 1000.0)) +
+                  " km from the origin); give the grid an origin near 0 (e.g. shift a UTM-framed map)");
+  }
   const std::uint32_t submap = open_submap();
 
   for (std::size_t k = 0; k < config.headings; ++k) {

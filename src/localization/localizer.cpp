@@ -99,6 +99,17 @@ void LocalizerConfig::validate() const {
   require(seen_features_kept >= 2, "LocalizerConfig.seen_features_kept", ">= 2", seen_features_kept);
   require(newly_mapped_share >= 0.0 && newly_mapped_share <= 1.0, "LocalizerConfig.newly_mapped_share", "in [0, 1]",
           newly_mapped_share);
+  require(std::isfinite(context_spacing) && context_spacing >= 0.0, "LocalizerConfig.context_spacing",
+          "finite and >= 0 m", context_spacing);
+  require(data_point_spacing > 0.0 && data_point_spacing <= 10.0, "LocalizerConfig.data_point_spacing", "in (0, 10] m",
+          data_point_spacing);
+  // A count per surface point: each one costs a pose-grid score per hypothesis.
+  require(free_points_per_surface_point >= 0.0 && free_points_per_surface_point <= 100.0,
+          "LocalizerConfig.free_points_per_surface_point", "in [0, 100]", free_points_per_surface_point);
+  require(free_point_fraction >= 0.0 && free_point_fraction <= 1.0, "LocalizerConfig.free_point_fraction", "in [0, 1]",
+          free_point_fraction);
+  require(std::isfinite(free_point_margin) && free_point_margin >= 0.0, "LocalizerConfig.free_point_margin",
+          "finite and >= 0 m", free_point_margin);
 }
 
 namespace {
@@ -282,6 +293,8 @@ void Localizer::look_up_newly_mapped(std::size_t current) {
     ++stats_.newly_mapped_features;
     for (const auto& seen : seen_) {
       if (!seen) continue;
+      // The seen features' databases follow the map's query settings, which may change under a localizer.
+      if (!seen->database.serves(seen_query_)) seen_query_.fit_to(seen->database);
       seen->database.query_counts(*key, config_.newly_mapped_candidates, ids_, counts_, seen_query_);
       for (std::size_t k = 0; k < ids_.size(); ++k) {
         const auto index = static_cast<std::uint32_t>(current + newly_mapped_seen_.size());

@@ -15,6 +15,10 @@ void IncrementalRansacConfig::validate() const {
   require(new_hypotheses_per_scan >= 1, "IncrementalRansacConfig.new_hypotheses_per_scan", ">= 1 (|V_new|)",
           new_hypotheses_per_scan);
   require(std::isfinite(min_score), "IncrementalRansacConfig.min_score", "a finite C_o", min_score);
+  require(iterations_per_scan >= 1, "IncrementalRansacConfig.iterations_per_scan", ">= 1 (no hypothesis is scored)",
+          iterations_per_scan);
+  require(std::isfinite(preference_z) && preference_z >= 0.0, "IncrementalRansacConfig.preference_z", "finite and >= 0",
+          preference_z);
   require(recent_window >= 1, "IncrementalRansacConfig.recent_window", ">= 1 data-point", recent_window);
   require(max_features >= 2 * recent_window, "IncrementalRansacConfig.max_features", ">= 2 recent_window",
           max_features);

@@ -33,7 +33,7 @@ constexpr CellFlags kBareReturnBits = kWallBits | cell_flags::kNormal;
 /// clamped first; pack_xy() rejects them as outside the grid anyway.
 inline std::int32_t floor_to_int(float v) {
   v = v < -1e6f ? -1e6f : v;  // (not std::min/max: these compile to minss/maxss)
-  v = v > 1e6f ? 1e6f : v;
+  v = v <= 1e6f ? v : 1e6f;   // NaN too, as floor_to_int4 does
   const auto i = static_cast<std::int32_t>(v);
   return i - static_cast<std::int32_t>(v < static_cast<float>(i));
 }

@@ -28,7 +28,8 @@ void set_beam_layout(const LaserConfig& config, LaserScan& scan) {
 
 void simulate_ranges(const RayCaster& caster, const Pose2& laser_pose, const LaserConfig& config, std::mt19937_64& rng,
                      LaserScan& scan) {
-  std::normal_distribution<double> noise(0.0, config.range_noise);
+  // A unit normal scaled: a zero range_noise is allowed, a zero standard deviation is not (the same draws).
+  std::normal_distribution<double> unit_noise(0.0, 1.0);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const Point2 origin = laser_pose.translation();
   const auto max_range = static_cast<float>(config.max_range);
@@ -43,7 +44,7 @@ void simulate_ranges(const RayCaster& caster, const Pose2& laser_pose, const Las
     dy = dx * step_s + dy * step_c, dx = next_dx;
     // Draw both numbers for every beam so one beam's outcome never shifts
     // the random stream of the next.
-    const double error = config.range_noise > 0.0 ? noise(rng) : 0.0;
+    const double error = config.range_noise > 0.0 ? unit_noise(rng) * config.range_noise : 0.0;
     const bool dropout = unit(rng) < config.dropout_probability;
     if (dropout || r >= config.max_range) {
       scan.ranges[i] = max_range;

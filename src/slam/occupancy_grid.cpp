@@ -68,7 +68,7 @@ OccupancyGrid build_occupancy_grid(std::span<const LaserScan> scans, const Occup
       const double length = d.norm();
       const auto steps = static_cast<std::size_t>(length / (0.5 * config.resolution));
       std::size_t end_col = 0, end_row = 0;
-      g.cell_of(p, end_col, end_row);
+      if (!g.cell_of(p, end_col, end_row)) continue;  // (a non-finite pose: no cell)
       std::size_t last = std::numeric_limits<std::size_t>::max();
       for (std::size_t k = 0; k < steps; ++k) {
         std::size_t c = 0, r = 0;

@@ -28,6 +28,9 @@ struct ScenarioRunConfig {
   /// scan of each submap in turn, as robots mapping in parallel would); the
   /// rest arrives between target scans.
   double map_share_before_target = 1.0;
+
+  /// The map's and the localizer's validate(), and the share in (0, 1].
+  void validate() const;
 };
 
 /// What one scenario run produced, scan by scan, with its costs.

@@ -34,6 +34,7 @@ struct MapFollowerStats {
   std::string last_error;         ///< the last failure the thread recovered from (empty: none)
   std::size_t refused_scans = 0;  ///< updates the map refused (apply_updates()), skipped
   std::string last_refusal;       ///< why the last one was refused (empty: none)
+  bool stopped = false;           ///< the thread stopped on a failure it cannot recover from (last_error says which)
 };
 
 class MapFollower {

@@ -102,7 +102,12 @@ class GlobalMap {
 
   const GlobalMapConfig& config() const { return config_; }
 
-  /// Opens a new, empty submap and returns its id (0, 1, ...).
+  /// The longest submap name a map holds (and a saved map reads).
+  static constexpr std::size_t kMaxSubmapNameBytes = 4096;
+
+  /// Opens a new, empty submap and returns its id (0, 1, ...). Throws
+  /// lshloc::Error, the map unchanged, for a name longer than
+  /// kMaxSubmapNameBytes or beyond PoseGridHashMap::kMaxSubmaps submaps.
   std::uint32_t add_submap(std::string name);
 
   /// What add_scan() does with a scan besides its features.
