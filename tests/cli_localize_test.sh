@@ -119,6 +119,29 @@ echo '{"localizer": {"scan_matcher": {"laser_offset": {"x": 0.25, "y": 0, "theta
 "$LSHLOC" localize --map "$d/named.map" --target "$d/unmounted.log" --start 300 --length 150 --config "$d/mount.json" \
   --out "$d/m.tum" >/dev/null 2>&1 || fail "localize with the mount in a config"
 cmp -s "$d/n.tum" "$d/m.tum" || fail "a config's laser mount is not the one the TUM file takes off"
+# A log in millimetres: a warning that says so, not only "not localized".
+zcat "$b/sim-3-001.log.gz" | awk '$1 == "FLASER" { for (i = 3; i <= $2 + 2; i++) $i = $i * 1000 } { print }' \
+  >"$d/mm.log"
+"$LSHLOC" localize "${maps[@]}" --target "$d/mm.log" --length 20 >/dev/null 2>"$d/err.txt" || true
+grep -q "20 of 20 scans have no return between .* (ranges must be metres" "$d/err.txt" ||
+  fail "a log in millimetres: $(cat "$d/err.txt")"
+
+# gzip on stdin: refused with the way to give it.
+if "$LSHLOC" localize "${maps[@]}" --target - --length 5 <"$b/sim-3-001.log.gz" >/dev/null 2>"$d/err.txt"; then
+  fail "gzip on stdin was read"
+fi
+grep -q "stdin: gzip data.*zcat" "$d/err.txt" || fail "gzip on stdin: $(cat "$d/err.txt")"
+
+# The same log appended twice would map its scans twice: refused, saying how to resume.
+cp "$d/named.map" "$d/twice.map"
+"$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" --count 20 >/dev/null 2>&1 || fail "map append"
+if "$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" >/dev/null 2>"$d/err.txt"; then
+  fail "the same log appended twice"
+fi
+grep -q "holds 20 scans of this log already; --from 20" "$d/err.txt" || fail "appending twice: $(cat "$d/err.txt")"
+"$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" --from 20 --count 5 >/dev/null 2>&1 ||
+  fail "map append --from resumes"
+
 # Descriptor settings asked of the localizer alone would be dropped: refused, pointing at map.features.
 echo '{"localizer": {"features": {"max_keypoints": 20}}}' >"$d/features.json"
 if "$LSHLOC" localize --map "$d/named.map" --target "$d/unmounted.log" --length 5 --config "$d/features.json" \
@@ -342,6 +365,13 @@ for args in "localize --map $d/m.map" "localize --target $b/sim-3-001.log.gz" "m
   grep -q "is required" "$d/err.txt" || fail "$args: $(cat "$d/err.txt")"
 done
 [ ! -e "$d/x.map" ] || fail "map build without logs wrote a map"
+# A command line that does not parse: the error line every refusal has, and exit 2 (usage).
+for args in "frobnicate" "localize --bogus" "localize --map $d/m.map --target $b/sim-3-001.log.gz --length x"; do
+  rc=0
+  "$LSHLOC" $args >/dev/null 2>"$d/err.txt" || rc=$?
+  [ "$rc" = 2 ] && grep -q "^lshloc: error: " "$d/err.txt" || fail "$args: exit $rc, $(cat "$d/err.txt")"
+done
+grep -q "unknown command 'frobnicate' (one of: .*localize" <("$LSHLOC" frobnicate 2>&1) || fail "an unknown command"
 
 # A robot in a building the map lacks: every estimate is wrong, so the flag never rises and the
 # calibrated value stays low (the real buildings: scripts/unmapped_buildings.sh).

@@ -1,6 +1,7 @@
 // `lshloc demo`: the whole system on simulated buildings, with no data files.
 // Mapper robots build a global map of several synthetic buildings; a target
 // robot is dropped at an unknown place in one of them and localizes.
+#include <algorithm>
 #include <unistd.h>
 
 #include <chrono>
@@ -37,8 +38,9 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--buildings", opt->world.buildings, "synthetic buildings in the global map")
       ->capture_default_str()
       ->check(within(1, 200));
-  cmd->add_option("--target", opt->world.target_building, "index of the building the target tours")
-      ->capture_default_str();
+  auto* target = cmd->add_option("--target", opt->world.target_building,
+                                 "0-based index of the building the target tours, below --buildings (default 3, or "
+                                 "the last building when there are fewer)");
   cmd->add_option("--seed", opt->world.seed, "world seed (buildings, routes, noise)")->capture_default_str();
   cmd->add_option("--map-scans", opt->world.map_scans, "scans each mapper robot records")
       ->capture_default_str()
@@ -49,9 +51,16 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_option("--out", opt->out, "directory for the figures and the trace")->capture_default_str();
   cmd->add_flag("--json", opt->json, "print the scenario's JSON line instead of the report");
   add_localizer_options(*cmd, opt->localizer);
-  cmd->callback([opt, &global] {
+  cmd->callback([opt, &global, target] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
+    if (target->count() == 0) {
+      opt->world.target_building = std::min(opt->world.target_building, opt->world.buildings - 1);
+    } else if (opt->world.target_building >= opt->world.buildings) {
+      throw Error("--target " + std::to_string(opt->world.target_building) + ": expected 0.." +
+                  std::to_string(opt->world.buildings - 1) + " (0-based, below --buildings " +
+                  std::to_string(opt->world.buildings) + ")");
+    }
     const bool tty = isatty(fileno(stderr));
     const auto t0 = std::chrono::steady_clock::now();
     std::fprintf(stderr, "Generating %zu synthetic buildings (seed %llu) and their mapper robots' logs...\n",

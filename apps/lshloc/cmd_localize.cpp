@@ -88,6 +88,22 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
                       std::make_move_iterator(scans.begin() + static_cast<std::ptrdiff_t>(end)));
   target.truth.assign(target.scans.size(), std::nullopt);
   target.laser_offset = log.front_laser_offset();
+  // Scans with no return the feature extractor uses give no hypothesis: a log in millimetres, a driver that
+  // writes inf or NaN for every beam. Say so, rather than let "not localized" blame the map.
+  const FeatureExtractorConfig& features = opt.localizer.config.map.features;
+  const auto blind =
+      static_cast<std::size_t>(std::count_if(target.scans.begin(), target.scans.end(), [&](const LaserScan& s) {
+        for (std::size_t i = 0; i < s.size(); ++i)
+          if (s.status(i) == BeamStatus::kValid && s.ranges[i] >= features.min_range &&
+              s.ranges[i] < features.max_range)
+            return false;
+        return true;
+      }));
+  if (2 * blind >= target.scans.size())
+    std::fprintf(stderr,
+                 "lshloc: warning: %s: %zu of %zu scans have no return between %.2f and %.1f m, which the features "
+                 "use (ranges must be metres; NaN, inf and 0 are no returns): they cannot be localized\n",
+                 path.c_str(), blind, target.scans.size(), features.min_range, features.max_range);
   target.odometry = !opt.no_odometry && odometry_changes(target.scans);
   if (!target.odometry && !opt.no_odometry)
     std::fprintf(stderr,

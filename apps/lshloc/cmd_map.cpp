@@ -122,7 +122,7 @@ void run_build(const BuildOptions& opt, const char* made_by) {
   }
   const auto t0 = std::chrono::steady_clock::now();
   GlobalMap map(config);
-  std::fprintf(stderr, "map build: reading and adding %zu submaps\n", opt.logs.size());
+  std::fprintf(stderr, "%s: reading and adding %zu submaps\n", made_by, opt.logs.size());
   const MapSources built = add_map_arguments(map, opt.logs, opt.slam, opt.grid.resolve(nullptr), opt.names);
   nlohmann::json sources = nlohmann::json::array();
   for (std::uint32_t id = 0; id < map.submap_count(); ++id) {
@@ -202,7 +202,8 @@ void add_append(CLI::App& map_cmd) {
       "record is fsync'ed (every --sync-every scans); a crash loses no acknowledged scan.");
   cmd->add_option("map", opt->map, "the map file")->required();
   cmd->add_option("log", opt->log, "LOG, LOG,POSES or LOG,slam, as for `map build`")->required();
-  cmd->add_option("--submap", opt->submap, "submap to add to (default: a new one named after the log)");
+  cmd->add_option("--submap", opt->submap,
+                  "submap to add to, made when the map has none of that name (default: the log's file name)");
   cmd->add_option("--from", opt->from, "first scan of the log to append (to resume an interrupted append)")
       ->capture_default_str();
   cmd->add_option("--count", opt->count, "scans to append (0: to the end of the log)")->capture_default_str();
@@ -224,6 +225,11 @@ void add_append(CLI::App& map_cmd) {
     const auto existing = appender.map().find_submap(name);
     const std::uint32_t submap = existing ? *existing : appender.add_submap(name);
     const std::size_t submap_before = appender.map().submap_scans(submap);
+    // The submap named after this log holds its first scans already: appending them again would map each twice.
+    if (opt->submap.empty() && existing && opt->from < submap_before)
+      throw Error(opt->map + ": submap " + name + " holds " + std::to_string(submap_before) +
+                  " scans of this log already; --from " + std::to_string(submap_before) +
+                  " resumes after them, --submap NAME adds the log as another submap");
     const std::size_t acked_before = appender.acknowledged_scans();
     const std::size_t end = opt->count == 0 ? log.scans.size() : std::min(log.scans.size(), opt->from + opt->count);
     const bool tty = isatty(fileno(stderr));

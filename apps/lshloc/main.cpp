@@ -1,7 +1,10 @@
 // lshloc: global localization of 2D-laser robots in large, growing maps
 // (LSH-RANSAC). This file only wires the subcommands together.
+#include <algorithm>
 #include <cstdio>
 #include <exception>
+#include <string>
+#include <vector>
 
 #include "commands.hpp"
 #include "lshloc/io/map_store.hpp"
@@ -37,10 +40,25 @@ int main(int argc, char** argv) {
   lshloc::app::add_recall_command(app, global);
   lshloc::app::add_calibration_command(app, global);
   lshloc::app::check_numeric_options(app);
+  // An unknown first word is a mistyped command: say so and list them (CLI11 would ask for "a subcommand").
+  if (argc > 1 && argv[1][0] != '-') {
+    const std::vector<CLI::App*> commands = app.get_subcommands({});
+    if (std::none_of(commands.begin(), commands.end(), [&](CLI::App* c) { return c->check_name(argv[1]); })) {
+      std::string names;
+      for (const CLI::App* c : commands) names += (names.empty() ? "" : ", ") + c->get_name();
+      std::fprintf(stderr, "lshloc: error: unknown command '%s' (one of: %s)\n", argv[1], names.c_str());
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version end here too (exit 0, CLI11's text). A command line that does not parse gets an
+    // error line like every other refusal, and exit 2 (a usage error; input errors exit 1).
+    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+    std::fprintf(stderr, "lshloc: error: %s\nRun `lshloc --help` or `lshloc COMMAND --help` for the options.\n",
+                 e.what());
+    return 2;
   } catch (const lshloc::Error& e) {
     std::fprintf(stderr, "lshloc: error: %s\n", e.what());
     return 1;

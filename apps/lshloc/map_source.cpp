@@ -107,8 +107,8 @@ Submap load_map_argument(const std::string& arg, bool slam) {
       if (!log.gmapping_corrected()) {
         std::fprintf(stderr,
                      "lshloc: warning: %s: its submap takes the log's own scan poses, and the log has no GMapping "
-                     "marks (NEFF): if it is a raw log these are odometry, which drifts. Give LOG,POSES, LOG,slam or "
-                     "--map-slam for a raw log.\n",
+                     "marks (NEFF): if it is a raw log these are odometry, which drifts. Give LOG,POSES or LOG,slam "
+                     "for a raw log (or SLAM for every log: localize --map-slam, map build --slam).\n",
                      log_path.c_str());
       }
       s.scans = std::move(scans);

@@ -144,6 +144,11 @@ bool LineReader::fill() {
       got = static_cast<std::size_t>(n);
       break;
     }
+    // A stream is plain text, read as it arrives (zlib would wait for whole buffers): say so for gzip.
+    if (line_number_ == 0 && pending_.empty() && got >= 2 && static_cast<unsigned char>(buffer_[0]) == 0x1f &&
+        static_cast<unsigned char>(buffer_[1]) == 0x8b)
+      throw Error(
+          "stdin: gzip data; a log on stdin is read as plain text: pipe it through zcat (a log file may be gzip)");
   } else {
     got = source_->gzip ? read_gzip() : read_plain();
   }

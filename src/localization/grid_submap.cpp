@@ -179,7 +179,9 @@ GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32
   if (stats.positions * config.headings > config.max_virtual_scans)
     throw Error("occupancy grid " + name + ": " + std::to_string(stats.positions * config.headings) +
                 " virtual scans exceed GridSubmapConfig.max_virtual_scans (" +
-                std::to_string(config.max_virtual_scans) + "); use a wider pose_spacing or fewer headings");
+                std::to_string(config.max_virtual_scans) +
+                "); use a wider pose_spacing or fewer headings (the "
+                "commands' --grid-spacing, --grid-headings)");
   // Every cell the submap marks lies within the grid's rectangle: its corners must fit the map's pose grids
   // (cells within +-2^16 of their origin), or marking would fail with the submap half-built.
   for (const Point2 corner :

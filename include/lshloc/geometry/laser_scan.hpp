@@ -18,7 +18,7 @@ namespace lshloc {
 enum class BeamStatus : std::uint8_t {
   kValid,     ///< a return inside (0, max_range)
   kNoReturn,  ///< at or beyond max_range: the beam saw nothing
-  kInvalid,   ///< NaN, inf or negative in the log
+  kInvalid,   ///< NaN or negative (the CARMEN reader makes inf and negative readings NaN)
 };
 
 /// One planar laser scan with the poses the log gives for it.
@@ -39,7 +39,7 @@ struct LaserScan {
 
   BeamStatus status(std::size_t i) const {
     const float r = ranges[i];
-    if (std::isnan(r)) return BeamStatus::kInvalid;
+    if (!(r >= 0.0f)) return BeamStatus::kInvalid;  // NaN, negative, -inf
     if (r >= max_range) return BeamStatus::kNoReturn;
     return BeamStatus::kValid;
   }
