@@ -38,6 +38,14 @@ using PoseTuple = std::tuple<double, double, double>;
 PoseTuple to_tuple(const Pose2& p) { return {p.x, p.y, p.theta}; }
 Pose2 to_pose(const PoseTuple& t) { return {std::get<0>(t), std::get<1>(t), std::get<2>(t)}; }
 
+/// `p` unless a value is not finite.
+Pose2 finite_pose(const PoseTuple& t, const char* what) {
+  const Pose2 p = to_pose(t);
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.theta))
+    throw Error(std::string(what) + ": expected a finite (x, y, theta)");
+  return p;
+}
+
 LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::forcecast>& ranges, double angle_min,
                     double angle_increment, double max_range, double timestamp, const PoseTuple& pose,
                     const PoseTuple& odometry) {
@@ -45,8 +53,12 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
     throw Error("LaserScan: ranges must be a 1-D array, got " + std::to_string(ranges.ndim()) + "-D");
   LaserScan s;
   s.ranges.assign(ranges.data(), ranges.data() + ranges.size());
+  if (!std::isfinite(timestamp)) throw Error("LaserScan: expected a finite timestamp [s]");
+  if (s.ranges.size() > 1 && !(std::abs(angle_increment) > 0.0))
+    throw Error("LaserScan: expected a non-zero finite angle_increment [rad] between " +
+                std::to_string(s.ranges.size()) + " beams, got " + std::to_string(angle_increment));
   s.angle_min = angle_min, s.angle_increment = angle_increment, s.max_range = max_range, s.timestamp = timestamp;
-  s.pose = to_pose(pose), s.odometry = to_pose(odometry);
+  s.pose = to_pose(pose), s.odometry = finite_pose(odometry, "LaserScan.odometry");
   if (const char* problem = io::scan_update_problem(s, s.pose))
     throw Error(std::string("LaserScan: expected ") + problem);
   const double span = std::abs(angle_increment) * static_cast<double>(s.ranges.empty() ? 0 : s.ranges.size() - 1);
@@ -56,14 +68,6 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
                 " beams: expected radians (a scan spans at most 2 pi)");
   if (!(max_range > 0.0)) throw Error("LaserScan: expected max_range > 0 [m], got " + std::to_string(max_range));
   return s;
-}
-
-/// `p` unless a value is not finite.
-Pose2 finite_pose(const PoseTuple& t, const char* what) {
-  const Pose2 p = to_pose(t);
-  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.theta))
-    throw Error(std::string(what) + ": expected a finite (x, y, theta)");
-  return p;
 }
 
 /// The Python GlobalMap: the map and the lock its Python users share (see the top of this file).
@@ -403,6 +407,9 @@ PYBIND11_MODULE(lshloc, m) {
             d["submap"] = e.has_estimate ? py::cast(e.submap) : py::none();
             d["submap_name"] = e.has_estimate ? py::cast(submap_name) : py::none();
             d["pose"] = e.has_estimate ? py::cast(to_tuple(e.pose)) : py::none();
+            // The robot's pose: the laser's with the mount (laser_offset) taken off, what a robot publishes.
+            const Pose2 robot_from_laser = l.localizer->config().scan_matcher.laser_offset.inverse();
+            d["robot_pose"] = e.has_estimate ? py::cast(to_tuple(e.pose * robot_from_laser)) : py::none();
             d["mean_score"] = e.mean_score;
             d["margin"] = e.margin;
             py::list because;
@@ -415,8 +422,11 @@ PYBIND11_MODULE(lshloc, m) {
           "(the confidence flag), confidence (the calibrated value in [0, 1]; at least flag_threshold, 0.95 by "
           "default, exactly when localized), stamp_clash (an earlier scan stamped "
           "within 5 ms is estimated elsewhere), confident (localized and no stamp clash: the pose can be used by "
-          "its time stamp), submap, submap_name, pose (x, y, theta of the laser in the submap), mean_score, margin, "
+          "its time stamp), submap, submap_name, pose (x, y, theta of the laser in the submap), robot_pose (the "
+          "robot's: pose with the "
+          "laser_offset taken off), mean_score (C/N of the best hypothesis), margin (its C/N lead over the best "
+          "place elsewhere), "
           "not_confident_because (the parts of the flag's test that keep it down, by name: unstable, weak_support, "
           "few_points, support_too_short, look_alike, newest_misfit, young_hypothesis, contradicted; empty while it "
-          "is up)");
+          "is up, and without an estimate)");
 }

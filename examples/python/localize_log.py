@@ -27,9 +27,12 @@ for i in range(max(len(scans) for _, scans in submaps)):  # mapper robots in par
 print(f"map: {gmap.stats()['features']} features in {gmap.submap_count} submaps")
 
 target = lshloc.read_carmen_log(args.target)
+window = target.scans[args.start:args.start + args.length]
+if not window:
+    parser.error(f"--start {args.start} --length {args.length}: no scans there ({args.target} has {len(target.scans)})")
 localizer = lshloc.Localizer(gmap, laser_offset=target.laser_offset)
 first = None
-for n, scan in enumerate(target.scans[args.start:args.start + args.length]):
+for n, scan in enumerate(window):
     estimate = localizer.add_scan(scan)
     if estimate["localized"] and first is None:
         first = n
@@ -38,4 +41,4 @@ if estimate["localized"]:
     print(f"localized in {estimate['submap_name']}: x {x:.3f} m, y {y:.3f} m, heading {math.degrees(theta):.1f} deg "
           f"(confident since scan {first})")
 else:
-    print("not localized")
+    print("not localized: " + (", ".join(estimate["not_confident_because"]) or "no estimate"))

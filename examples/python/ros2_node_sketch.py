@@ -26,8 +26,10 @@ class LshlocNode(Node):
     def __init__(self):
         super().__init__("lshloc")
         self.declare_parameter("map", "")
+        # base_link -> laser (x, y, yaw): the robot pose is published, the laser's taken off by it.
+        self.declare_parameter("laser_offset", [0.0, 0.0, 0.0])
         self.gmap = lshloc.load_map(self.get_parameter("map").value)
-        self.localizer = lshloc.Localizer(self.gmap)  # pass laser_offset=(x, y, yaw) of base_link -> laser
+        self.localizer = lshloc.Localizer(self.gmap, laser_offset=tuple(self.get_parameter("laser_offset").value))
         self.odom = (0.0, 0.0, 0.0)
         self.create_subscription(Odometry, "odom", self.on_odom, 50)
         self.create_subscription(LaserScan, "scan", self.on_scan, 10)
@@ -42,14 +44,19 @@ class LshlocNode(Node):
                                 max_range=msg.range_max, timestamp=msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
                                 odometry=self.odom)
         e = self.localizer.add_scan(scan)
-        if not e["localized"]:
+        # "confident": the flag, unless another scan stamped within 5 ms was estimated elsewhere.
+        if not e["confident"]:
             return
         out = PoseWithCovarianceStamped()
         out.header.stamp = msg.header.stamp
         out.header.frame_id = e["submap_name"]  # one frame per submap (building)
-        x, y, theta = e["pose"]
+        x, y, theta = e["robot_pose"]
         out.pose.pose.position.x, out.pose.pose.position.y = x, y
         out.pose.pose.orientation.z, out.pose.pose.orientation.w = math.sin(theta / 2), math.cos(theta / 2)
+        # A diagonal covariance a planner can read; lshloc gives no per-pose covariance, so these are the
+        # errors measured on confident scans (RESULTS.md: centimetres, under a degree), made generous.
+        out.pose.covariance[0] = out.pose.covariance[7] = 0.1 ** 2
+        out.pose.covariance[35] = math.radians(3.0) ** 2
         self.pub.publish(out)
 
 

@@ -194,6 +194,12 @@ def test_bad_arguments_raise_what_was_expected(world, tmp_path):
     with pytest.raises(lshloc.Error, match="no submap 7"):
         gmap.submap_name(7)
     scan = lshloc.LaserScan(np.ones(181, dtype=np.float32), -math.pi / 2, math.pi / 180)
+    with pytest.raises(lshloc.Error, match="angle_increment"):
+        lshloc.LaserScan(np.ones(181, dtype=np.float32), -math.pi / 2, 0.0)
+    with pytest.raises(lshloc.Error, match="timestamp"):
+        lshloc.LaserScan(np.ones(181, dtype=np.float32), -math.pi / 2, math.pi / 180, timestamp=math.nan)
+    with pytest.raises(lshloc.Error, match="odometry"):
+        lshloc.LaserScan(np.ones(181, dtype=np.float32), -math.pi / 2, math.pi / 180, odometry=(0.0, math.inf, 0.0))
     gmap.add_submap("a")
     with pytest.raises(lshloc.Error, match="finite pose"):
         gmap.add_scan(0, scan, (math.nan, 0.0, 0.0))
@@ -260,6 +266,7 @@ def test_a_real_scenario_gives_the_cli_estimates(tmp_path):
         args += ["--map", str(m)]
     subprocess.run(args, check=True, capture_output=True)
     rows = list(csv.DictReader(open(str(out) + ".csv")))
+    tum = {round(float(l.split()[0]), 6): tuple(map(float, l.split()[1:3])) for l in open(out) if l[0] != "#"}
 
     gmap = lshloc.GlobalMap()
     feed(gmap, [(m.name, lshloc.read_carmen_log(str(m)).scans) for m in maps])
@@ -281,4 +288,8 @@ def test_a_real_scenario_gives_the_cli_estimates(tmp_path):
             # The same reasons keep the flag down, none while it is up.
             assert row["flag_down_because"] == ";".join(e["not_confident_because"])
             assert (e["not_confident_because"] == []) == e["localized"]
+            # The robot pose is the TUM file's (the CLI takes the same mount off).
+            if row["confident"] == "1" and row["submap"] == rows[-1]["submap"]:
+                x, y, _ = e["robot_pose"]
+                assert tum[round(scan.timestamp, 6)][:2] == pytest.approx((x, y), abs=2e-6)
     assert e["localized"] and e["submap_name"] == "intel.gfs.log.gz"
