@@ -353,8 +353,15 @@ TEST_F(DamagedMap, TruncatedEmptyWrongMagicAndNewerVersionAreRefused) {
   bytes[0] = 'X';
   EXPECT_NE(error_of(bytes).find("not an lshloc map"), std::string::npos);
   bytes = good_;
-  bytes[8] = 2;  // format version 2 (the header checksum is not even looked at)
+  bytes[8] = 2;  // format version 2, the header's checksum not resealed: newer, or damaged
   EXPECT_NE(error_of(bytes).find("format version 2 is newer"), std::string::npos) << error_of(bytes);
+  EXPECT_NE(error_of(bytes).find("or the header is damaged"), std::string::npos) << error_of(bytes);
+  // Resealed (a writer of version 2 keeping this header's layout): newer only.
+  const std::uint32_t crc = static_cast<std::uint32_t>(crc32_z(crc32_z(0L, Z_NULL, 0), bytes.data(), 60));
+  for (int i = 0; i < 4; ++i) bytes[60 + i] = static_cast<std::uint8_t>(crc >> (8 * i));
+  EXPECT_NE(error_of(bytes).find("format version 2 is newer than this lshloc reads (1); use a newer lshloc"),
+            std::string::npos)
+      << error_of(bytes);
 }
 
 /// Rewrites the checksums of the section whose payload starts at `offset`

@@ -17,6 +17,7 @@ namespace lshloc::app {
 
 struct LocalizerOptions {
   ScenarioRunConfig config;
+  std::string config_file;  ///< the --config file (empty: none), named by errors in its settings
   bool print_config = false;
 };
 
@@ -37,7 +38,10 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool resea
   const std::string group = "Settings";
   cmd.add_option_function<std::string>(
          "--config",
-         [&o](const std::string& path) { io::apply_config_patch(io::read_json_file(path), o.config, path); },
+         [&o](const std::string& path) {
+           io::apply_config_patch(io::read_json_file(path), o.config, path);
+           o.config_file = path;
+         },
          "JSON file of settings (the shape --print-config writes; any subset): every field of the global map "
          "and the localizer, under its C++ name; a saved map keeps its own map settings but for the database's "
          "query-time ones (max_candidates, rarest_buckets_first, sketch_collision_weight; "
@@ -62,7 +66,7 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool resea
 
 /// The run configuration the options describe: the localizer's features are
 /// the map's (they must match).
-inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) {
+inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) try {
   ScenarioRunConfig c = o.config;
   // The descriptors' settings are the map's: the localizer takes them from there, and one asked of the
   // localizer alone would be dropped without a word, so it is refused.
@@ -79,6 +83,9 @@ inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) {
   c.localizer.context_spacing = c.map.context_spacing;
   c.validate();  // before any work, and before --print-config shows settings no run would take
   return c;
+} catch (const Error& e) {
+  if (o.config_file.empty()) throw;
+  throw Error(o.config_file + ": " + e.what());
 }
 
 /// With --print-config: prints the effective settings and returns true (the

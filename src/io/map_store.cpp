@@ -208,11 +208,18 @@ ParsedFile parse_map_file(std::span<const std::uint8_t> file, const std::string&
   ByteReader header(file.subspan(0, kHeaderBytes), path + ": header");
   header.raw(kMagic.size());
   const std::uint32_t version = header.u32();
+  const bool header_intact =
+      crc_of(file.subspan(0, kHeaderBytes - 4)) == ByteReader(file.subspan(kHeaderBytes - 4, 4), path).u32();
+  // A newer format may lay its header out otherwise, so a checksum that fails there may still be intact;
+  // one that holds says the version is real.
   if (version > kMapFormatVersion)
     throw Error(path + ": format version " + std::to_string(version) + " is newer than this lshloc reads (" +
-                std::to_string(kMapFormatVersion) + "); use a newer lshloc, or rebuild the map");
-  if (crc_of(file.subspan(0, kHeaderBytes - 4)) != ByteReader(file.subspan(kHeaderBytes - 4, 4), path).u32())
-    throw Error(path + ": header: checksum mismatch; the file is damaged");
+                std::to_string(kMapFormatVersion) + ")" +
+                (header_intact ? "; use a newer lshloc, or rebuild the map"
+                               : ", or the header is damaged (its checksum does not match as version " +
+                                     std::to_string(kMapFormatVersion) +
+                                     " lays it out): use a newer lshloc if one wrote the map, else rebuild it"));
+  if (!header_intact) throw Error(path + ": header: checksum mismatch; the file is damaged");
   if (version == 0)
     throw Error(path + ": header: expected format version 1.." + std::to_string(kMapFormatVersion) + ", got 0");
   p.info.format_version = version;
