@@ -70,6 +70,19 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
   return s;
 }
 
+/// Takes a map lock without holding the GIL (where this thread holds it): a thread waiting for the map
+/// never stops the other Python threads, and every lock is taken so (no thread waits for the map while
+/// holding the GIL that its holder may need back).
+template <class Lock>
+void lock_without_gil(Lock& l) {
+  if (PyGILState_Check()) {
+    const py::gil_scoped_release no_gil;
+    l.lock();
+  } else {
+    l.lock();
+  }
+}
+
 /// The Python GlobalMap: the map and the lock its Python users share (see the top of this file).
 struct PyGlobalMap {
   std::shared_ptr<GlobalMap> map;
@@ -78,13 +91,15 @@ struct PyGlobalMap {
   /// f(map) under the lock shared: what reads the map.
   template <class F>
   auto read(F f) const {
-    const std::shared_lock reading(*lock);
+    std::shared_lock reading(*lock, std::defer_lock);
+    lock_without_gil(reading);
     return f(static_cast<const GlobalMap&>(*map));
   }
   /// f(map) under the lock alone: what writes it.
   template <class F>
   auto write(F f) {
-    const std::unique_lock writing(*lock);
+    std::unique_lock writing(*lock, std::defer_lock);
+    lock_without_gil(writing);
     return f(*map);
   }
 

@@ -132,6 +132,20 @@ if "$LSHLOC" localize "${maps[@]}" --target - --length 5 <"$b/sim-3-001.log.gz" 
 fi
 grep -q "stdin: gzip data.*zcat" "$d/err.txt" || fail "gzip on stdin: $(cat "$d/err.txt")"
 
+# Submap names tell submaps apart: a log given twice gets a number, a name given twice is refused, and an
+# output that cannot be written is found before the work.
+"$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" "$a/sim-3-000-corrected.log.gz" --out "$d/dup.map" \
+  >/dev/null 2>&1 || fail "map build of one log twice"
+"$LSHLOC" map info "$d/dup.map" | grep -q "submap 1: sim-3-000-corrected.log.gz-2," || fail "a log given twice"
+if "$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" "$b/sim-3-001-corrected.log.gz" --name x --name x \
+  --out "$d/dup2.map" >/dev/null 2>"$d/err.txt"; then fail "a name given twice"; fi
+grep -q "\-\-name x: the map has a submap of that name already" "$d/err.txt" || fail "a name twice: $(cat "$d/err.txt")"
+if "$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" --out "$d/no/such/dir/x.map" >/dev/null 2>"$d/err.txt"; then
+  fail "map build into a missing directory"
+fi
+grep -q "does not exist" "$d/err.txt" && ! grep -q "reading and adding" "$d/err.txt" ||
+  fail "map build checks its output only after the work: $(cat "$d/err.txt")"
+
 # The same log appended twice would map its scans twice: refused, saying how to resume.
 cp "$d/named.map" "$d/twice.map"
 "$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" --count 20 >/dev/null 2>&1 || fail "map append"

@@ -159,10 +159,14 @@ TEST(LiveThreads, MappersWriteFromTheirThreadsWhileTheTargetLocalizes) {
   EXPECT_GT(run.map_scans_in.back(), run.map_scans_in[target.scans.size() / 4]);
   EXPECT_LE(run.mapper_scans, run.mapper_scans_total);
   // Whether the target localizes by its last scan depends on how far the
-  // mappers got on this machine's cores (measured in RESULTS.md); never being
-  // confidently wrong does not.
-  EXPECT_EQ(lm.confident_wrong_before_mapped, 0u);
-  EXPECT_EQ(m.confident_wrong, 0u);
+  // mappers got on this machine's cores (measured in RESULTS.md). Once its
+  // place is mapped it is never confidently wrong. Before, the robot is
+  // outside the map for as long as the race lets it be, and a look-alike in
+  // a small map may rise there (about 1 run in 15 with two tests at once
+  // on 2 cores; docs/results/confidence.md, "A robot outside a small map"):
+  // the single-threaded replay above asserts the flag stays down before.
+  EXPECT_EQ(lm.confident_wrong_after_mapped, 0u);
+  EXPECT_EQ(m.confident_wrong, lm.confident_wrong_before_mapped);
   EXPECT_GT(lm.map_scans_per_s, 0.0);
   // The mappers keep pace with the target: a writer that got the lock once
   // per scan was starved by the localizer's reads (a tenth of the fr079 R = 15

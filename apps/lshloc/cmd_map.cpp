@@ -120,6 +120,7 @@ void run_build(const BuildOptions& opt, const char* made_by) {
     std::printf("%s\n", io::json_text(nlohmann::json(config), 2).c_str());
     return;
   }
+  io::require_writable(opt.out);  // before the work, not after it
   const auto t0 = std::chrono::steady_clock::now();
   GlobalMap map(config);
   std::fprintf(stderr, "%s: reading and adding %zu submaps\n", made_by, opt.logs.size());

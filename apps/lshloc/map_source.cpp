@@ -280,15 +280,30 @@ MapSources add_map_arguments(GlobalMap& map, const std::vector<std::string>& arg
   if (!names.empty() && names.size() != args.size())
     throw Error("--name: expected one name per map (" + std::to_string(args.size()) + "), got " +
                 std::to_string(names.size()));
+  // Names tell submaps apart in every output: a name given twice is refused, a file name met twice (run1/map.log,
+  // run2/map.log) gets a number.
+  const auto unique_name = [&](std::string name, const std::string& arg) {
+    if (!map.find_submap(name)) return name;
+    if (!names.empty())
+      throw Error("--name " + name + ": the map has a submap of that name already (names tell submaps apart)");
+    std::string numbered;
+    for (int k = 2; map.find_submap(numbered = name + "-" + std::to_string(k)); ++k) {
+    }
+    std::fprintf(stderr, "lshloc: %s: submap %s is taken; this one is %s\n", arg.c_str(), name.c_str(),
+                 numbered.c_str());
+    return numbered;
+  };
   MapSources out;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
     if (is_grid_argument(arg)) {
       out.grids.push_back(io::read_ros_map(arg));
-      out.grid_ids.push_back(map.add_submap(names.empty() ? std::filesystem::path(arg).stem().string() : names[i]));
+      out.grid_ids.push_back(
+          map.add_submap(unique_name(names.empty() ? std::filesystem::path(arg).stem().string() : names[i], arg)));
     } else {
       out.logs.push_back(load_map_argument(arg, slam));
       if (!names.empty()) out.logs.back().name = names[i];
+      out.logs.back().name = unique_name(out.logs.back().name, arg);
       out.log_ids.push_back(map.add_submap(out.logs.back().name));
     }
   }

@@ -266,7 +266,7 @@ void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id, const std::uint64
 
 void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
   hash(descriptor, insert_projections_, insert_tags_);
-  if (sketch_words_ > 0) sketch(descriptor, insert_sketch_.data());
+  if (sketch_words_ > 0) sketch(descriptor, insert_sketch_.data(), insert_signs_);
   place(id);
 }
 
@@ -358,8 +358,7 @@ void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector
 
 void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
                         LshQuery& scratch) const {
-  thread_local std::vector<std::uint16_t> counts;
-  query_counts(descriptor, k, out, counts, scratch);
+  query_counts(descriptor, k, out, scratch.counts_, scratch);
 }
 
 void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
@@ -367,7 +366,7 @@ void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std:
   check_scratch(q);
   hash(descriptor, q.projections_, q.tags_);
   q.sketch_.resize(sketch_words_);
-  if (sketch_words_ > 0) sketch(descriptor, q.sketch_.data());
+  if (sketch_words_ > 0) sketch(descriptor, q.sketch_.data(), q.signs_);
   query_tags(q.tags_, q.sketch_, k, out, counts, q);
 }
 
@@ -501,9 +500,8 @@ void LshDatabase::query_tags(std::span<const std::uint32_t> tags, std::span<cons
   }
 }
 
-void LshDatabase::sketch(const Descriptor& descriptor, std::uint64_t* words) const {
+void LshDatabase::sketch(const Descriptor& descriptor, std::uint64_t* words, Eigen::VectorXf& signs) const {
   const Eigen::Map<const Eigen::Matrix<float, static_cast<int>(kDescriptorSize), 1>> v(descriptor.data());
-  thread_local Eigen::VectorXf signs;
   signs.noalias() = sketch_a_ * v;
   for (std::size_t w = 0; w < sketch_words_; ++w) {
     std::uint64_t bits = 0;

@@ -139,6 +139,8 @@ class LshQuery {
   std::vector<std::uint32_t> ranked_;              ///< slots by collision count
   std::vector<std::uint32_t> histogram_;           ///< ids per collision count, then rank offsets
   std::vector<std::uint64_t> sketch_;              ///< the query's sign sketch
+  Eigen::VectorXf signs_;                          ///< the sketch's projections before their signs
+  std::vector<std::uint16_t> counts_;              ///< query()'s collision counts (query_counts() returns them)
   std::vector<std::uint32_t> hamming_;             ///< per ranked candidate
   std::vector<std::uint32_t> sketch_histogram_;    ///< counting sort by Hamming distance
   std::vector<std::uint32_t> reranked_;
@@ -273,7 +275,8 @@ class LshDatabase {
   static void grow(Table& t);
   std::uint32_t allocate(Table& t, std::uint32_t size_class) const;
   void push(Table& t, Slot& slot, std::uint32_t id, const std::uint64_t* sketch);
-  void sketch(const Descriptor& descriptor, std::uint64_t* words) const;
+  /// `signs`: scratch for the projections (the caller's: a query's, or the inserting writer's).
+  void sketch(const Descriptor& descriptor, std::uint64_t* words, Eigen::VectorXf& signs) const;
   /// Puts `id`, with the sketch in insert_sketch_, into the buckets of
   /// insert_tags_ and counts it as an entry.
   void place(std::uint32_t id);
@@ -326,6 +329,7 @@ class LshDatabase {
   Eigen::VectorXf insert_projections_;
   std::vector<std::uint32_t> insert_tags_;
   std::vector<std::uint64_t> insert_sketch_;
+  Eigen::VectorXf insert_signs_;  ///< scratch of sketch() for inserts
   std::vector<std::size_t> insert_slots_;
   LshQuery own_query_;
 };
