@@ -50,7 +50,7 @@ struct FeatureExtractorConfig {
   /// holding walls of crossed directions is then not mistaken for an empty
   /// one), e.g. 4 rings x 10 sectors x 3.
   bool occupancy_component = true;
-  double descriptor_radius = 2.0;         ///< [m] outer radius (2 m recalled places better than 4 m)
+  double descriptor_radius = 2.0;         ///< [m] outer radius (chosen on place recall: docs/results/appearance.md)
   double descriptor_inner_radius = 0.35;  ///< [m] outer edge of the innermost radial bin; log spacing beyond
   /// Points fade out linearly over this outer share of the radius, so that a
   /// wall just at the rim does not flip in or out with a small shift.

@@ -56,11 +56,11 @@ struct LshConfig {
   /// reads its ~600 candidates' sketches from the ~24 blocks it reads
   /// anyway, not from ~600 random places, which is most of its time once
   /// the map outgrows the caches. The copies cost sketch_bits / 8 bytes per
-  /// kept id: up to L per descriptor in a small map, fewer as buckets fill
-  /// (2.7 at 1.9e6 synthetic features, under 1 at 1e7, when they cost less
-  /// than the array). Rankings are the same either way for ids inserted
-  /// once (an id inserted again keeps, in each bucket, the sketch it came
-  /// with; the array keeps the last one).
+  /// kept id: up to L per descriptor in a small map, fewer as buckets fill,
+  /// until they cost less than the array (BENCHMARKS.md, "Sketches beside
+  /// the ids in the buckets"). Rankings are the same either way for ids
+  /// inserted once (an id inserted again keeps, in each bucket, the sketch it
+  /// came with; the array keeps the last one).
   double max_sketch_copies = 3.0;
   std::size_t initial_slots = 1024;  ///< slots per table at start (rounded up to a power of two)
 
@@ -172,12 +172,11 @@ class LshQuery {
 /// Memory per entry: 4 bytes per table for the id (up to 2x while a block is
 /// half full), plus 16 bytes per slot for each bucket it opens (slots at most
 /// 70% full): about 4L..(8L + 23L) bytes, so roughly 100..750 bytes at L = 24
-/// depending on how many buckets hold a single id (measured: 250 bytes at
-/// 1e4 real entries, 50..130 at 1e6 where buckets fill up), plus
-/// sketch_bits / 8 bytes per id for the sign sketch (16 at the default), or
-/// per kept bucket entry once the sketches move into the buckets (43 per
-/// feature at 1.9e6 synthetic features, under 16 at 1e7); LshStats::bytes
-/// measures it all. The descriptor itself is never stored.
+/// depending on how many buckets hold a single id (less as buckets fill up),
+/// plus sketch_bits / 8 bytes per id for the sign sketch (16 at the default),
+/// or per kept bucket entry once the sketches move into the buckets;
+/// LshStats::bytes measures it all (docs/results/appearance.md). The
+/// descriptor itself is never stored.
 ///
 /// Ranking: candidates are the ids of the L buckets the query falls in; they
 /// are ranked by the Hamming distance of their sign sketch to the query's

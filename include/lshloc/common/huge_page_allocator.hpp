@@ -4,10 +4,8 @@
 // for transparent huge pages (Linux madvise), so that filling a table takes
 // 512 times fewer page faults and random probes miss the TLB less. Fresh
 // mappings, not malloc's heap: memory malloc reuses was already faulted in
-// as 4 KiB pages, which the advice does not turn into huge ones (a map built
-// after large temporary matrices had half its tables on small pages and
-// queried 1.2-1.6x slower: BENCHMARKS.md). Smaller blocks come from
-// operator new. No physical units.
+// as 4 KiB pages, which the advice does not turn into huge ones
+// (BENCHMARKS.md). Smaller blocks come from operator new. No physical units.
 // Thread safety: stateless; allocate and deallocate from any thread.
 #include <cstddef>
 #include <cstdint>

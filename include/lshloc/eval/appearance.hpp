@@ -16,7 +16,9 @@ namespace lshloc {
 
 /// Which recent scans of the same map enter a scan's descriptors as context.
 struct DescriptorContextConfig {
-  std::size_t scans = 0;      ///< at most this many earlier scans (0: the scan alone; more did not help on fr079/intel)
+  /// At most this many earlier scans (0: the scan alone; more did not help:
+  /// docs/results/appearance.md, "Place recall").
+  std::size_t scans = 0;
   double min_step = 0.3;      ///< [m] a scan joins the context only after the sensor moved this far ...
   double min_turn = 0.3;      ///< [rad] ... or turned this much since the last one that joined
   double max_distance = 8.0;  ///< [m] context scans whose sensor lies farther from the current one are left out

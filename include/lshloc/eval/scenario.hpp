@@ -86,8 +86,8 @@ bool same_ranges(const LaserScan& a, const LaserScan& b);
 /// For each ground-truth pose, the one scan it belongs to: among `scans`
 /// within tolerance_s of its stamp and not yet taken, the nearest whose ranges
 /// are truth_scans[k]'s (when truth_scans holds one scan per pose), else the
-/// nearest. intel's raw log bunches stamps 1 ms apart: a join of each scan to
-/// the nearest pose gave 208 scans a neighbour's pose.
+/// nearest. Where a raw log bunches stamps 1 ms apart, a join of each scan to
+/// the nearest pose gives scans a neighbour's pose (docs/results/live-map.md).
 std::vector<std::optional<std::size_t>> join_truth_to_scans(std::span<const LaserScan> scans,
                                                             std::span<const StampedPose> truth,
                                                             std::span<const LaserScan> truth_scans, double tolerance_s);

@@ -1,8 +1,8 @@
 #pragma once
 // atan2 without the library call, for the descriptor's per-point loop
-// (docs/design.md section 2.1), where libm's atan2 took a third of a mapper
-// scan's descriptor time. Within 2e-14 rad of std::atan2 (tested), far below
-// the float descriptor's resolution (about 1e-7 of a bin).
+// (docs/design.md section 2.1), where libm's atan2 was a large share of a
+// mapper's time (docs/results/live-map.md). Within 2e-14 rad of std::atan2
+// (tested), far below the float descriptor's resolution (about 1e-7 of a bin).
 // Thread safety: a pure function.
 #include <cmath>
 #include <numbers>

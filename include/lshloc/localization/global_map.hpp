@@ -43,8 +43,8 @@ struct GlobalMapConfig {
   double free_ray_max_range = 12.0;  ///< [m] rays are marked free up to this range
   /// [m] how far a beam without a return is marked free. 0: not at all, as
   /// glass and dark surfaces return nothing too, and a free run through them
-  /// turns rooms the mappers never saw into "seen free" (fr079: a target
-  /// in such a room had its true pose contradicted by most of its points).
+  /// turns rooms the mappers never saw into "seen free", where they
+  /// contradict a target's true pose (RESULTS.md, "Design choices, measured").
   double free_ray_no_return_range = 0.0;
   std::size_t context_scans = 8;  ///< recent scans of a submap whose surface enters descriptors
   double context_spacing = 0.3;   ///< [m] a scan joins the context after this much travel

@@ -35,8 +35,9 @@ enum class HypothesisSource : std::uint8_t {
 /// normals from 3 points, so that far walls' sparse returns still match; and
 /// where stamps run back or bunch, a per-scan velocity guess and turn
 /// retries, so that odometry read at such stamps does not leave a heading
-/// error of tens of degrees in the local map (intel's raw log); and scans
-/// whose odometry stalls while the robot drives on are matched (mit-csail's).
+/// error of tens of degrees in the local map; and scans whose odometry
+/// stalls while the robot drives on are matched (docs/results/local-map.md
+/// and live-map.md).
 inline ScanMatcherConfig local_map_matcher() {
   ScanMatcherConfig c;
   c.scan_voxel = 0.05;
@@ -49,9 +50,9 @@ inline ScanMatcherConfig local_map_matcher() {
 
 struct LocalizerConfig {
   /// The target's local map keeps far walls' sparse returns and matches
-  /// denser scan points: its heading drifts less over a window
-  /// (docs/results/local-map.md). Mapping (PoseGraphSlam) keeps the
-  /// ScanMatcherConfig defaults: its loop closures got worse with these.
+  /// denser scan points: its heading drifts less over a window. Mapping
+  /// (PoseGraphSlam) keeps the ScanMatcherConfig defaults, with which its
+  /// loop closures do better (docs/results/local-map.md).
   ScanMatcherConfig scan_matcher = local_map_matcher();
   FeatureExtractorConfig features;           ///< must equal the global map's
   IncrementalRansacConfig ransac;            ///< its defaults are the localizer's
@@ -61,15 +62,14 @@ struct LocalizerConfig {
   /// normal and that map rays never crossed (PoseGridScorerConfig::
   /// surface_on_return): walls the mappers saw only from far away, as sparse
   /// returns, otherwise could only contradict the true place (through their
-  /// free space), never support it (RESULTS.md, aces).
+  /// free space), never support it (RESULTS.md, "Design choices, measured").
   double return_support = 1.0;
   /// -c(p, x) for a local free-space point on a map return that map rays
   /// also crossed (PoseGridScorerConfig::ray_through_contested): the map
   /// holds a wall and free space in one cell. In a consistent map such cells
-  /// are doors and people; where a SLAM map's passes disagree (mit-killian,
-  /// lshloc's SLAM of 17,480 raw scans) whole corridors are, and a
-  /// look-alike whose local rays crossed them was never contradicted
-  /// (RESULTS.md, aces).
+  /// are doors and people; where a SLAM map's passes disagree whole
+  /// corridors are, and a look-alike whose local rays crossed them was never
+  /// contradicted (RESULTS.md, "Design choices, measured").
   double contested_penalty = 0.5;
   std::size_t context_scans = 8;    ///< recent local scans whose surface enters descriptors
   double context_spacing = 0.3;     ///< [m] a scan joins the context after this much travel

@@ -25,39 +25,39 @@ struct ConfidenceConfig {
   std::uint32_t min_scored = 500;  ///< N of the best hypothesis at least this (about 10 scans of support)
   double min_mean_score = 0.35;    ///< C/N of the best hypothesis at least this
   double min_margin = 0.15;        ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
-  /// iRANSAC's active set flickers: a rival elsewhere may be dropped for a
-  /// scan or two and return. For the rise, a dropped rival still stands this
-  /// many scans after it was last seen (its C/N then, and the whole-map lead
-  /// over it now), against no rival or a weaker one: fr079's look-alikes
-  /// rose the scan their rival vanished, aces' (live) the scan a weaker one
-  /// took its place (docs/results/confidence.md). 0: only the rivals iRANSAC holds.
+  /// [scans] For the rise, a rival elsewhere that iRANSAC dropped still stands
+  /// this long after it was last seen (its C/N then, and the whole-map lead
+  /// over it now), against no rival or a weaker one: iRANSAC's active set
+  /// flickers, and look-alikes rose the scan their rival was missing
+  /// (docs/results/confidence.md, "A rival iRANSAC drops for a few scans still
+  /// stands"). 0: only the rivals iRANSAC holds.
   std::uint32_t rival_memory_scans = 5;
-  /// A remembered rival that has come within 2 m of the reported place but
-  /// is turned more than this from it is the place's mirror image, not the
-  /// place: it stands and does not age while it stays so. The two part
-  /// again once the robot leaves the point they mirror about (aces' 180 deg
-  /// flip rose the scan its rival merged so). >= 180: off.
+  /// [deg] A remembered rival that has come within 2 m of the reported place
+  /// but is turned more than this from it is the place's mirror image, not
+  /// the place: it stands and does not age while it stays so, else a flip
+  /// rises the scan the two merge (docs/results/confidence.md, "The place's
+  /// mirror image, and rivals scored on few points"). >= 180: off.
   double rival_twin_turn_deg = 90.0;
   /// A rival iRANSAC has scored on fewer data-points than this (five scans'
   /// worth) has a C/N too uncertain for the margin over it: the rise then
   /// also needs the whole-map lead over it, on the same spread points, to
-  /// reach min_margin (aces' mirror rose so over a rival scored on 100). 0: off.
+  /// reach min_margin. 0: off.
   std::uint32_t rise_rival_min_scored = 250;
   /// At a place kept k scans the rise also needs N >= min(k *
   /// rise_scored_per_kept_scan, rise_max_scored): a quarter of the 50
   /// data-points a scan iRANSAC scores a hypothesis on. When preemption cut
   /// the place's old hypothesis, a new one there leads its rivals on its few
-  /// points as the old one did not (fr079's 3726 look-alike rose so).
+  /// points as the old one did not (docs/results/confidence.md, "A rival
+  /// iRANSAC drops for a few scans still stands").
   double rise_scored_per_kept_scan = 12.5;
   std::uint32_t rise_max_scored = 750;
   std::size_t stable_scans = 5;  ///< the best stayed in one place (1 m, 10 deg) this many scans
   /// At a place held `unsupported_hold_scans` scans or more that never
   /// passed the support test (min_scored, min_mean_score), the flag rises
   /// only on support that lasts `rise_supported_scans` scans in a row: there
-  /// a young hypothesis that has just crossed the test (a look-alike in a
-  /// building whose own place is not mapped yet, aces live) slips back under
-  /// it within a scan or two. A place found fresh rises at once.
-  /// docs/results/confidence.md.
+  /// a young hypothesis that has just crossed the test slips back under it
+  /// within a scan or two. A place found fresh rises at once
+  /// (docs/results/confidence.md, "Support that lasts three scans").
   std::size_t rise_supported_scans = 3;
   std::size_t unsupported_hold_scans = 20;
   /// Hysteresis of the reported estimate: the best hypothesis near the last
@@ -92,48 +92,46 @@ struct ConfidenceConfig {
   /// only from far away: a fully mapped look-alike fits those scans better).
   double duel_recent_min_evidence = 0.1;
   /// ... unless the challenger leads it there by this much: a wrong place
-  /// the robot drove out of, whose map is silent about where it is now,
-  /// against a supported true place that fits the recent scans outright
-  /// (aces start 3354 held such a place 160 scans against a lead of
-  /// 0.3-0.4; at 0.3 intel's raw log in a map without intel moved to a
-  /// look-alike and flagged it; docs/results/confidence.md). Above 2: never.
+  /// the robot drove out of, whose map is silent about where it is now, must
+  /// yield to a supported true place that fits the recent scans outright; a
+  /// lower lead moved a robot in an unmapped building to a look-alike
+  /// (docs/results/confidence.md, "What the last confident-but-wrong scans
+  /// were, and three changes"). Above 2: never.
   double duel_recent_silent_margin = 0.4;
   /// A reported place that was once well supported is given up, by either
   /// duel, only for a challenger that iRANSAC supports as well (min_scored
   /// data-points at a mean of min_mean_score). A look-alike that fits the
   /// local map only where the true place's map is thin (the robot drives
   /// where the mappers barely went) otherwise takes over on a small lead
-  /// without ever being well supported itself (RESULTS.md, design choices).
+  /// without ever being well supported itself (docs/design.md section 2.3).
   bool challenger_needs_support = true;
   /// ... or for one that leads it by this much in the whole-map duel (same
   /// points): a place whose fit has decayed (a 180-degree look-alike the
   /// robot drove out of) otherwise holds against a true place that scores
-  /// below min_mean_score in a building mapped that thinly (fr079 start
-  /// 414). The look-alike this rule stops led by 0.044 (RESULTS.md). Above 2
-  /// (scores lie in [-1, 1]): never.
+  /// below min_mean_score in a thinly mapped building. It lies well above
+  /// the small leads that challenger_needs_support stops. Above 2 (scores lie
+  /// in [-1, 1]): never.
   double unsupported_challenger_margin = 0.1;
   /// While the reported place is young (never supported, and kept fewer
   /// than `young_place_scans` scans), iRANSAC's best hypotheses at up to
   /// `young_place_rivals` other places challenge it each scan, not only its
   /// overall best, and the hysteresis (switch_margin) does not shield it: on
   /// the few data-points each was scored on, C/N ranks a look-alike over the
-  /// true place as often as not, while the whole local map tells them apart
-  /// (bench scale's targets among 300 buildings, BENCHMARKS.md). The rival
-  /// that fits one sample best is then dueled on a fresh one. A place held
-  /// longer is left to the hysteresis: in a building its map scores weakly
-  /// (mit-csail) the true place never meets the support test, and look-alikes
-  /// would win it away by chance (docs/results/confidence.md). 0 rivals:
-  /// only the overall best challenges, through the hysteresis.
+  /// true place as often as not, while the whole local map tells them apart.
+  /// The rival that fits one sample best is then dueled on a fresh one. A
+  /// place held longer is left to the hysteresis: where the map scores even
+  /// the true place under the support test, look-alikes would win it away by
+  /// chance (docs/results/confidence.md, "Young places challenged by their
+  /// rivals"). 0 rivals: only the overall best challenges, through the hysteresis.
   std::size_t young_place_rivals = 3;
   std::uint32_t young_place_scans = 20;
   /// A young place's challenger that loses as iRANSAC proposed it (up to
   /// half a metre and a few degrees off its place) is refined and dueled
   /// once more, and then wins only by this lead: refined, a look-alike fits
   /// a short local map a little better than before, the true place far
-  /// better (bench scale's target 3 among 300 buildings, BENCHMARKS.md).
-  /// Both steps score points spread over the whole local map, not drawn, so
-  /// a refined challenger that loses changes no later estimate. Above 2
-  /// (scores lie in [-1, 1]): never.
+  /// better (docs/design.md section 2.3). Both steps score points spread
+  /// over the whole local map, not drawn, so a refined challenger that loses
+  /// changes no later estimate. Above 2 (scores lie in [-1, 1]): never.
   double young_refined_margin = 0.1;
   double same_place_m = 1.0;     ///< [m]
   double same_place_deg = 10.0;  ///< [deg]
@@ -153,35 +151,24 @@ struct ConfidenceConfig {
   /// `hold_max_mean_contradiction` on average (exponential, weight
   /// `contradiction_smoothing` per scan). Where the map says nothing about
   /// the newest scans (a robot in a corridor the mappers saw from far away)
-  /// the held flag stays up: silence is no evidence against the place.
-  /// Chosen on fr079 and intel only (docs/results/confidence.md).
+  /// the held flag stays up: silence is no evidence against the place
+  /// (docs/results/confidence.md, "The flag now: risen on the test and a
+  /// fitting newest scan, held until the map contradicts").
   double rise_min_newest_fit = 0.1;
   double hold_max_contradiction = 0.13;
   double hold_max_mean_contradiction = 0.1;
   double contradiction_smoothing = 0.3;
-  /// The confidence value, P(the estimate is right: true submap, within 2 m
-  /// and 10 deg) = 1 / (1 + exp(-w . f)) with f = (1, C/N, margin, ln(1 + N),
-  /// ln(1 + kept_scans), place_supported, stable, supported, newest_fit,
-  /// newest_evidence) of the estimate. Fitted by logistic regression on fr079
-  /// and intel only, with their whole logs localized in maps without them as
-  /// negatives weighing 10% (a robot takes one scan in ten where the map does
-  /// not reach; scripts/confidence_fit.py --unmapped, docs/results/confidence.md).
-  /// Then the flag sets which side of flag_threshold it lies on (below).
   /// The rise's margin test (min_margin, a C/N lead over means of
   /// different data-points) also passes when the reported place leads its
   /// best rival by this much on the same whole_map_points data-points
   /// (LocalizationEstimate::whole_map_lead). The rest of the test still
-  /// holds (stable, supported, newest fit). Replayed on the 100 starts'
-  /// traces: the median lag 24 -> 19 scans with no confident-but-wrong scan
-  /// added; at 0.18 fr079 gains 51 (docs/results/confidence.md). Above 2
-  /// (scores lie in [-1, 1]): never. fr079 and intel do not tell 0.2 from
-  /// 0.25; at 0.2 one more start (aces 4696) is flagged on half, no wrong
-  /// scan added.
+  /// holds (stable, supported, newest fit): docs/results/confidence.md,
+  /// "Relative support, and a whole-map lead of 0.2 passes the margin".
+  /// Above 2 (scores lie in [-1, 1]): never.
   double rise_margin_whole_map_lead = 0.2;
   /// ... over a rival scored on fewer than rise_rival_min_scored the lead
   /// must be this large: such a rival may have displaced a well-scored
-  /// look-alike as the best elsewhere (aces 5367's mirror image rose on a
-  /// lead of 0.24 over a rival scored on 100 points).
+  /// look-alike as the best elsewhere.
   double rise_young_rival_whole_map_lead = 0.25;
   /// ... or when it leads that rival by rise_paired_whole_map_lead on the
   /// whole-map points and by rise_paired_newest_lead on the newest_points
@@ -189,14 +176,14 @@ struct ConfidenceConfig {
   /// that fits the older scans well stops fitting where the robot goes next.
   /// Not over a rival scored on fewer than rise_rival_min_scored: such a
   /// one may have displaced a well-scored rival as the best elsewhere by
-  /// C/N (fr079's look-alike rose so in a seeded order). Chosen on fr079
-  /// and intel (docs/results/confidence.md). Above 2: never.
+  /// C/N (docs/results/confidence.md, "The place's mirror image, and rivals
+  /// scored on few points"). Above 2: never.
   double rise_paired_whole_map_lead = 0.15;
   double rise_paired_newest_lead = 0.25;
   std::size_t whole_map_points = 1000;
-  /// Weak support, for a building whose map scores even the true place low
-  /// (a thin map: mit-csail's true places score C/N 0.23 on median). A scan
-  /// whose best hypothesis has N >= weak_support_min_scored, C/N >=
+  /// Weak support, for a building whose map scores even the true place
+  /// under min_mean_score (a thin map). A scan whose best hypothesis has
+  /// N >= weak_support_min_scored, C/N >=
   /// weak_support_min_mean_score, a rise margin >= weak_support_min_margin
   /// and a whole-map lead >= weak_support_min_whole_map_lead, where the map
   /// scores at most weak_support_max_newest_evidence of the newest points
@@ -205,8 +192,9 @@ struct ConfidenceConfig {
   /// rise, and makes a kept place supported for the hold (not for the duels:
   /// no estimate moves). With it, the rise's newest-fit test also passes
   /// where the map scores at most silent_newest_evidence of the newest
-  /// points: a robot driving where its map is silent.
-  /// docs/results/confidence.md. false: off.
+  /// points: a robot driving where its map is silent
+  /// (docs/results/confidence.md, "What the last confident-but-wrong scans
+  /// were, and three changes"). false: off.
   bool weak_support = true;
   std::uint32_t weak_support_min_scored = 3000;
   double weak_support_min_mean_score = 0.2;
@@ -225,10 +213,9 @@ struct ConfidenceConfig {
   /// counts as supported like weak support (the rise and the hold, not the
   /// duels). Not over a rival scored on fewer than rise_rival_min_scored.
   /// It brings the first flag forward where C/N or N falls short of the
-  /// absolute test. N from fr079 and intel; the whole-map lead, the newest
-  /// lead and the rival's N each stop an aces look-alike that rose without
-  /// them (its mirror image; live, a building not yet mapped), which fr079
-  /// and intel do not decide (docs/results/confidence.md).
+  /// absolute test; the whole-map lead, the newest lead and the rival's N
+  /// each stop a look-alike that rose without them (docs/results/confidence.md,
+  /// "Relative support, and a whole-map lead of 0.2 passes the margin").
   bool relative_support = true;
   std::uint32_t relative_support_min_scored = 300;
   double relative_support_min_mean_score = 0.25;
@@ -238,13 +225,20 @@ struct ConfidenceConfig {
   /// Score the whole-map comparison on every scan (traces), not only when
   /// the rise hinges on it (it costs about 0.2 ms per scan).
   bool always_score_whole_map = false;
+  /// Weights w of the confidence value, P(the estimate is right: true
+  /// submap, within 2 m and 10 deg) = 1 / (1 + exp(-w . f)), over the 10
+  /// dimensionless features f = (1, C/N, margin, ln(1 + N), ln(1 + kept_scans),
+  /// place_supported, stable, supported, newest_fit, newest_evidence) of the
+  /// estimate. Fitted by logistic regression, with runs in buildings the map
+  /// lacks as negatives (scripts/confidence_fit.py; docs/results/confidence.md,
+  /// "The value"). The flag then sets which side of flag_threshold it lies on.
   std::array<double, 10> value_weights = {-11.3181, 4.9535,  27.2398, 0.9719,  0.4055,
                                           1.8083,   -2.4212, -1.7399, 12.3096, -5.0433};
   /// The flag is the value at or above this: a flagged estimate's value is
   /// raised to it, an unflagged one's held at least 0.001 below it (the CSVs
-  /// print 4 decimals). Flagged estimates were right on 99.97% of the 100
-  /// starts' ground-truth scans, so the raise costs no calibration
-  /// (docs/results/confidence.md). In (0.001, 1].
+  /// print 4 decimals). Flagged estimates are right far more often than
+  /// this, so the raise costs no calibration (docs/results/confidence.md,
+  /// "The flag is the value above 0.95"). In (0.001, 1].
   double flag_threshold = 0.95;
 };
 

@@ -2,12 +2,11 @@
 // Scans stamped together at different poses: no confident output there.
 // A consumer of the localizer's output looks its poses up by time stamp.
 // Some drivers stamp buffered scans on arrival, so a burst of scans the robot
-// took over a second share one stamp within a millisecond (intel's raw log:
-// 43% of its scans). Each pose is right for its own scan, but "at time t the
-// robot was here" is then true of one of them at most, so none of them is
-// output as confident (LocalizationEstimate::confident()); the flag, the
-// localizer's state, stays as it is: docs/results/confidence.md, "Scans
-// stamped together".
+// took over a second share one stamp within a millisecond. Each pose is
+// right for its own scan, but "at time t the robot was here" is then true
+// of one of them at most, so none of them is output as confident
+// (LocalizationEstimate::confident()); the flag, the localizer's state,
+// stays as it is: docs/results/confidence.md, "Scans stamped together".
 // Times [s], positions [m], angles [rad].
 // Thread safety: StampClashGuard is not thread-safe (one per target robot);
 // the free functions are pure.
@@ -31,7 +30,7 @@ struct StampClashConfig {
   double max_position_m = 0.5;
   double max_heading_rad = 5.0 * std::numbers::pi / 180.0;
   /// Scans compared on each side: bunched stamps run back by at most a few
-  /// scans (intel's longest burst is 14 scans within 5 ms).
+  /// scans (docs/results/confidence.md, "Scans stamped together").
   std::size_t window_scans = 16;
 
   void validate() const;

@@ -24,8 +24,7 @@ namespace lshloc {
 /// reads, a directory entry (the directories are small: cached) and the
 /// cell's byte; the whole grid takes about a byte per cell of the submaps'
 /// bounding boxes, against 8 / load bytes per marked cell in a hash table
-/// (a seventh of the memory on the 15 real buildings, and a table that stays
-/// in cache longer: BENCHMARKS.md).
+/// (less memory on real buildings, and it stays in cache longer: BENCHMARKS.md).
 ///
 /// Same cells, limits and snapshot as a PoseGridHashMap with theta_bins = 1
 /// and no tolerance (which the grid was before): marks beyond +-65,536 cells

@@ -47,9 +47,8 @@ enum class FeatureOrderRule : std::uint8_t {
 };
 
 struct IncrementalRansacConfig {
-  // The defaults are the localizer's, measured best on the real logs
-  // (RESULTS.md): 40 data-points and 50 iterations per scan, halving once per
-  // scan; the paper's synthetic setting is B = 10, |U_new| = 10, 10 iterations.
+  // The defaults are the localizer's (docs/design.md section 2.3); the
+  // paper's synthetic setting is B = 10, |U_new| = 10, 10 iterations.
   std::size_t block_size = 50;                 ///< B: the active set halves every B-th iteration
   std::size_t new_features_per_scan = 40;      ///< |U_new|: add_scan() keeps a random subset this large
   std::size_t new_hypotheses_per_scan = 1000;  ///< |V_new|: add_scan() keeps the first this many
@@ -60,10 +59,9 @@ struct IncrementalRansacConfig {
   /// one with long support (per-point scores lie in [-1, 1]). 0 gives the
   /// paper's C_j/N_j.
   double preference_z = 2.0;
-  /// kRecentWindow: data-points from the newest recent_window (about 200
-  /// scans; older ones have drifted) decide on the real logs (RESULTS.md,
-  /// order rules); kFreshFirst did best on synthetic drift
-  /// (docs/results/matching.md), the paper's kUniform worst with drift.
+  /// kRecentWindow: only the newest recent_window data-points (about 200
+  /// scans) decide, as older ones have drifted with the local map
+  /// (RESULTS.md, "iRANSAC order rules"; docs/results/matching.md).
   FeatureOrderRule order_rule = FeatureOrderRule::kRecentWindow;
   std::size_t recent_window = 8000;  ///< [features] window of kRecentWindow / kFreshFirst
   /// U keeps at most this many data-points: past it the oldest half is
@@ -187,8 +185,9 @@ class IncrementalRansac {
     }
   }
 
-  /// The preference rule: argmax C_j / N_j over active hypotheses with
-  /// C_j >= C_o (ties: more scores, then older). nullopt when none qualifies.
+  /// The preference rule: argmax of the lower confidence bound
+  /// C_j / N_j - preference_z / sqrt(N_j) over active hypotheses with N_j > 0
+  /// and C_j >= C_o (ties: more scores, then older). nullopt when none qualifies.
   std::optional<ScoredHypothesis> best() const;
 
   /// Cuts the active set to its best `keep` hypotheses by the preemption rank

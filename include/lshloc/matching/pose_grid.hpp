@@ -48,8 +48,8 @@ enum class ToleranceMode : std::uint8_t {
 
 struct PoseGridConfig {
   /// [m] edge of an (x, y) cell: 0.2 m, the global map's occupancy grid
-  /// (RESULTS.md); at 0.1 m the table holds 2.3% of the dense grid's cells on
-  /// fr079's scan endpoints with heading tolerance 1 (docs/results/matching.md).
+  /// (RESULTS.md, "Design choices, measured"; table sizes per cell size:
+  /// docs/results/matching.md).
   double cell_size = 0.2;
   int theta_bins = 36;      ///< heading bins over 2 pi (36: 10 degrees); 1 = a plain 2-D grid
   int xy_tolerance = 0;     ///< [cells] neighbours on each side in x and y that also count

@@ -16,9 +16,9 @@ namespace lshloc {
 /// Parameters of the local-map scan matcher. Lengths in metres, angles in
 /// radians, unless a comment says otherwise.
 struct ScanMatcherConfig {
-  /// Mounting pose of the laser on the robot (T_robot_laser): PARAM
-  /// robot_frontlaser_offset of the log (fr101: x = -0.04; fr079's raw log
-  /// lacks the PARAM, the data README gives -0.04 for it too).
+  /// Mounting pose of the laser on the robot (T_robot_laser): the log's PARAM
+  /// robot_frontlaser_offset, else the dataset's documented value
+  /// (docs/results/local-map.md, "Commands").
   Pose2 laser_offset;
 
   // --- which beams are used ---
@@ -74,15 +74,17 @@ struct ScanMatcherConfig {
   /// and which odometry's guess does not match: match from odometry's
   /// translation turned by 0, -10, +10, ... +40 degrees as without odometry,
   /// before falling back to odometry. Odometry read at a stamp that runs
-  /// back (intel's raw log, 631 of its scans) steps by tens of degrees the
-  /// robot never turned, and the velocity guess needs time to run forward.
+  /// back steps by tens of degrees the robot never turned, and the velocity
+  /// guess needs time to run forward (docs/results/live-map.md, "Where the
+  /// live overhead goes, and intel's backward stamps").
   bool turn_retries = false;
   /// With odometry, where the gap before this scan is over 3x or under a
   /// third of the gap before the previous scan, or either gap is not
   /// positive: the constant-velocity prediction repeats the last step instead
-  /// of scaling it by the gaps. A laser runs at a fixed rate; intel's raw log
-  /// bunches stamps within a millisecond, and the scaled step was then 0 or
-  /// 3x the last one.
+  /// of scaling it by the gaps. A laser runs at a fixed rate: where a driver
+  /// bunches stamps, the scaled step is 0 or several times the last one
+  /// (docs/results/live-map.md, "Odd stamps handled by default, and ground
+  /// truth joined by scan").
   bool per_scan_velocity_on_odd_stamps = false;
   /// Reject matches whose ICP did not converge within max_iterations: they
   /// oscillate between correspondence sets, and on sparse or cluttered scans
@@ -95,17 +97,17 @@ struct ScanMatcherConfig {
   /// With odometry, a scan whose odometry did not move is still matched (from
   /// standing still and from the constant-velocity prediction) where that
   /// prediction moves by more than velocity_guess_difference: odometry that
-  /// stalls while the robot drives on (mit-csail's raw log holds its odometry
-  /// for 4 scans, then steps 0.95 m at once). Off: every such scan stands
-  /// still (the localizer turns it on, LocalizerConfig::scan_matcher).
+  /// stalls while the robot drives on, then steps at once
+  /// (docs/results/local-map.md, "Stalled odometry: matched in the
+  /// localizer"). Off: every such scan stands still (the localizer turns it
+  /// on, LocalizerConfig::scan_matcher).
   bool match_stalled_odometry = false;
   double stationary_translation = 1e-3;  ///< [m] odometry step below which matching is skipped ...
   double stationary_rotation = 1e-3;     ///< [rad] ... (the pose still moves with odometry)
 
-  /// Settings of an experiment kept for reproduction, off by default: the
-  /// odometry increment as a prior in ICP, so that where the scan says little
-  /// the pose stays near odometry. On the benchmark logs it did not help
-  /// reliably (fr079 got worse; docs/results/local-map.md).
+  /// An experiment, off by default (odometry_prior): the odometry increment
+  /// as a prior in ICP, so that where the scan says little the pose stays
+  /// near odometry (docs/results/local-map.md).
   struct Experimental {
     bool odometry_prior = false;
     double point_sigma = 0.05;  ///< [m] std dev of one point-to-line residual (inflated: neighbours correlate)
