@@ -138,10 +138,7 @@ LocalizerConfig localizer_config(const GlobalMap& map, const std::string& config
     io::apply_config_patch(patch, c, "config_json");
   }
   // The map's descriptor settings, as every command does (the Localizer refuses others).
-  c.features = map.config().features;
-  c.context_scans = map.config().context_scans;
-  c.context_spacing = map.config().context_spacing;
-  return with_target_laser_offset(c, laser_offset);
+  return with_target_laser_offset(with_map_descriptor_settings(c, map.config()), laser_offset);
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include "lshloc/eval/dataset_catalog.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/io/config_json.hpp"
+#include "lshloc/localization/localizer.hpp"
 #include "lshloc/sim/synthetic_scenario.hpp"
 #include "test_support.hpp"
 
@@ -405,9 +406,10 @@ TEST_F(DamagedMap, ContentDamagedBehindValidChecksumsIsRefusedNeverACrash) {
   std::printf("damaged content: %zu refused, %zu loaded (changes a decoder cannot tell from data)\n", refused, loaded);
 }
 
-TEST_F(DamagedMap, SettingsTheLocalizerCannotUseAreRefused) {
+TEST_F(DamagedMap, ASavedMapKeepsTheDescriptorSettingsALocalizerMustTake) {
   GlobalMapConfig odd;
   odd.features.max_range = 12.0;
+  odd.context_spacing = 0.5;
   GlobalMap map(odd);
   map.add_submap("a");
   const std::string path = test::temp_path(".map");
@@ -415,14 +417,14 @@ TEST_F(DamagedMap, SettingsTheLocalizerCannotUseAreRefused) {
   const io::LoadedMap loaded = io::load_map(path);
   EXPECT_EQ(loaded.map->config().features.max_range, 12.0);
   try {
-    io::require_localizer_fits_map(LocalizerConfig{}, loaded.map->config(), path);
+    Localizer refused(*loaded.map, LocalizerConfig{});
     ADD_FAILURE() << "a localizer with other feature settings was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("max_range"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("features"), std::string::npos) << e.what();
   }
-  LocalizerConfig fitting;
-  fitting.features = loaded.map->config().features;
-  EXPECT_NO_THROW(io::require_localizer_fits_map(fitting, loaded.map->config(), path));
+  const LocalizerConfig fitting = with_map_descriptor_settings(LocalizerConfig{}, loaded.map->config());
+  EXPECT_EQ(fitting.context_spacing, 0.5);
+  EXPECT_NO_THROW(Localizer(*loaded.map, fitting));
 }
 
 TEST(MapStoreRealData, ASavedScenarioMapLocalizesExactlyAsTheBuiltOne) {

@@ -78,9 +78,7 @@ inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) try {
     throw Error(
         "localizer.context_scans, localizer.context_spacing: the localizer uses the map's; set them under "
         "map.context_scans and map.context_spacing");
-  c.localizer.features = c.map.features;
-  c.localizer.context_scans = c.map.context_scans;
-  c.localizer.context_spacing = c.map.context_spacing;
+  c.localizer = with_map_descriptor_settings(c.localizer, c.map);
   c.validate();  // before any work, and before --print-config shows settings no run would take
   return c;
 } catch (const Error& e) {

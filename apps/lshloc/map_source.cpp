@@ -151,10 +151,7 @@ void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config,
                 "rarest_buckets_first and sketch_collision_weight may differ from the map's)");
   }
   config.map = adopted;
-  config.localizer.features = built.features;
-  config.localizer.context_scans = built.context_scans;
-  config.localizer.context_spacing = built.context_spacing;
-  io::require_localizer_fits_map(config.localizer, built, source);
+  config.localizer = with_map_descriptor_settings(config.localizer, built);
 }
 
 io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config) {

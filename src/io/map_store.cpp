@@ -392,22 +392,6 @@ bool looks_like_map_file(const std::string& path) {
   return n == static_cast<ssize_t>(head.size()) && head == kMagic;
 }
 
-void require_localizer_fits_map(const LocalizerConfig& localizer, const GlobalMapConfig& map,
-                                const std::string& source) {
-  const nlohmann::json mine = localizer.features, theirs = map.features;
-  if (mine != theirs) {
-    const nlohmann::json diff = nlohmann::json::diff(theirs, mine);
-    throw Error(source +
-                ": settings the localizer cannot use: the map's features settings differ from the "
-                "localizer's (" +
-                io::json_text(diff) + "); localize with the map's settings (`lshloc map info --json`)");
-  }
-  if (localizer.context_scans != map.context_scans || localizer.context_spacing != map.context_spacing)
-    throw Error(source + ": settings the localizer cannot use: the map's descriptor context (context_scans " +
-                std::to_string(map.context_scans) + ", context_spacing " + std::to_string(map.context_spacing) +
-                ") differs from the localizer's");
-}
-
 void MapAppenderConfig::validate() const {
   require(sync_every >= 1, "MapAppenderConfig.sync_every", ">= 1 scan per fsync", sync_every);
 }

@@ -112,6 +112,13 @@ void LocalizerConfig::validate() const {
           "finite and >= 0 m", free_point_margin);
 }
 
+LocalizerConfig with_map_descriptor_settings(LocalizerConfig config, const GlobalMapConfig& map) {
+  config.features = map.features;
+  config.context_scans = map.context_scans;
+  config.context_spacing = map.context_spacing;
+  return config;
+}
+
 namespace {
 /// The target's descriptors must be made as the map's were, or no feature can match.
 const LocalizerConfig& fitting_map(const LocalizerConfig& config, const GlobalMapConfig& map) {

@@ -18,7 +18,6 @@
 #include <nlohmann/json.hpp>
 
 #include "lshloc/localization/global_map.hpp"
-#include "lshloc/localization/localizer.hpp"
 
 namespace lshloc::io {
 
@@ -73,12 +72,6 @@ LoadedMap load_map_bytes(std::span<const std::uint8_t> bytes, const std::string&
 /// Whether the file starts with the map magic number (false when it cannot
 /// be read or is shorter).
 bool looks_like_map_file(const std::string& path);
-
-/// Throws lshloc::Error naming `source` when a localizer with `localizer`
-/// settings cannot use a map built with `map` settings (the feature
-/// extractor and descriptor context must be the map's).
-void require_localizer_fits_map(const LocalizerConfig& localizer, const GlobalMapConfig& map,
-                                const std::string& source);
 
 /// How a MapAppender makes appends durable.
 struct MapAppenderConfig {

@@ -120,6 +120,11 @@ struct LocalizerConfig {
   void validate() const;
 };
 
+/// `config` with the descriptor settings (features, context_scans,
+/// context_spacing) of a map built with `map`: the Localizer refuses others,
+/// since descriptors made otherwise match nothing.
+LocalizerConfig with_map_descriptor_settings(LocalizerConfig config, const GlobalMapConfig& map);
+
 /// Counts and costs of the localizer; times are the calling thread's CPU
 /// seconds (cpu_time.hpp).
 struct LocalizerStats {
