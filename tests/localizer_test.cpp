@@ -97,6 +97,18 @@ TEST(Localizer, SettingsThatCannotWorkAreRefusedByName) {
   refused([](LocalizerConfig& c) { c.context_spacing = -0.3; }, "context_spacing");
   refused([](LocalizerConfig& c) { c.free_point_fraction = 2.0; }, "free_point_fraction");
   refused([](LocalizerConfig& c) { c.ransac.iterations_per_scan = 0; }, "iterations_per_scan");
+  refused([](LocalizerConfig& c) { c.ransac.max_features = std::size_t{1} << 33; }, "max_features");
+  refused([](LocalizerConfig& c) { c.scan_matcher.degeneracy_threshold = 0.0; }, "degeneracy_threshold");
+  refused([](LocalizerConfig& c) { c.free_space_penalty = HUGE_VAL; }, "free_space_penalty");
+  refused([](LocalizerConfig& c) { c.report.track_step_m = std::nan(""); }, "track_step_m");
+  refused([](LocalizerConfig& c) { c.report.confidence.same_place_deg = 0.0; }, "same_place_deg");
+  refused([](LocalizerConfig& c) { c.report.confidence.duel_z = std::nan(""); }, "duel_z");
+  refused([](LocalizerConfig& c) { c.report.confidence.min_margin = -HUGE_VAL; }, "min_margin");
+  refused([](LocalizerConfig& c) { c.report.refine_step_deg = HUGE_VAL; }, "refine_step_deg");
+  PoseGridScorerConfig scores;
+  EXPECT_NO_THROW(scores.validate());
+  scores.surface_on_return = std::nanf("");
+  EXPECT_THROW(scores.validate(), Error);
   ScenarioRunConfig run;
   run.map_share_before_target = -1.0;
   EXPECT_THROW(run.validate(), Error);

@@ -90,9 +90,13 @@ void LocalizerConfig::validate() const {
   report.validate();
   stamp_clash.validate();
   require(candidates_per_feature >= 1, "LocalizerConfig.candidates_per_feature", ">= 1", candidates_per_feature);
-  require(free_space_penalty >= 0.0, "LocalizerConfig.free_space_penalty", ">= 0", free_space_penalty);
-  require(return_support >= 0.0, "LocalizerConfig.return_support", ">= 0", return_support);
-  require(contested_penalty >= 0.0, "LocalizerConfig.contested_penalty", ">= 0", contested_penalty);
+  // Scores of single points, next to a hit's 1.
+  require(free_space_penalty >= 0.0 && free_space_penalty <= 100.0, "LocalizerConfig.free_space_penalty", "in [0, 100]",
+          free_space_penalty);
+  require(return_support >= 0.0 && return_support <= 100.0, "LocalizerConfig.return_support", "in [0, 100]",
+          return_support);
+  require(contested_penalty >= 0.0 && contested_penalty <= 100.0, "LocalizerConfig.contested_penalty", "in [0, 100]",
+          contested_penalty);
   require(newly_mapped_halvings >= 1 && newly_mapped_halvings <= 8, "LocalizerConfig.newly_mapped_halvings", "1..8",
           newly_mapped_halvings);
   require(newly_mapped_touched >= 1, "LocalizerConfig.newly_mapped_touched", ">= 1", newly_mapped_touched);
@@ -379,10 +383,14 @@ void Localizer::verify_hypotheses() {
   CpuStopwatch watch;
   ransac_.add_scan(data_points_, hypotheses_);
   data_points_end_.push_back(ransac_.features_dropped() + ransac_.features().size());
+  while (data_points_end_.size() > 1 && data_points_end_.front() <= ransac_.features_dropped()) {
+    data_points_end_.pop_front();
+    ++data_points_end_first_;
+  }
   prescore_newly_mapped();
   // The order rule reaches back to the data-points of the scans that saw
   // newly mapped places while those hypotheses are young.
-  const std::size_t scan = data_points_end_.size() - 1, points = data_points_end_.back();
+  const std::size_t scan = data_points_end_first_ + data_points_end_.size() - 1, points = data_points_end_.back();
   if (reach_back_from_ && scan <= reach_back_until_ && *reach_back_from_ < points) {
     ransac_.reach_back(points - *reach_back_from_);
   } else {
@@ -392,6 +400,10 @@ void Localizer::verify_hypotheses() {
   stats_.data_points += std::min(data_points_.size(), config_.ransac.new_features_per_scan);
   ransac_.run(scorer_);
   stats_.ransac_s += watch.seconds();
+}
+
+std::size_t Localizer::data_points_by_end_of(std::size_t scan) const {
+  return scan < data_points_end_first_ ? 0 : data_points_end_[scan - data_points_end_first_];
 }
 
 void Localizer::prescore_newly_mapped() {
@@ -405,7 +417,7 @@ void Localizer::prescore_newly_mapped() {
   std::stable_sort(newly_mapped_hypotheses_.begin(), newly_mapped_hypotheses_.end(),
                    [](const auto& a, const auto& b) { return a.second / kBlock < b.second / kBlock; });
   const std::span<const LocalPoint> points = ransac_.features();
-  const std::size_t w = config_.newly_mapped_scan_window, scans = data_points_end_.size();
+  const std::size_t w = config_.newly_mapped_scan_window, scans = data_points_end_first_ + data_points_end_.size();
   scored_newly_mapped_.clear();
   prescore_groups_.clear();
   for (std::size_t g = 0; g < newly_mapped_hypotheses_.size();) {
@@ -415,7 +427,8 @@ void Localizer::prescore_newly_mapped() {
       scored_newly_mapped_.push_back({newly_mapped_hypotheses_[e].first, 0.0, 0});
     const std::size_t first_scan = block * kBlock > w ? block * kBlock - w : 0;
     const std::size_t last_scan = std::min(scans - 1, std::size_t{block} * kBlock + kBlock - 1 + w);
-    const std::size_t begin = first_scan > 0 ? data_points_end_[first_scan - 1] : 0, end = data_points_end_[last_scan];
+    const std::size_t begin = first_scan > 0 ? data_points_by_end_of(first_scan - 1) : 0,
+                      end = data_points_by_end_of(last_scan);
     // (absolute data-point numbers; U may have dropped its oldest: what is left of them)
     const std::size_t dropped = ransac_.features_dropped();
     const std::size_t kept_begin = std::max(begin, dropped) - dropped, kept_end = std::max(end, dropped) - dropped;

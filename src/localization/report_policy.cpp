@@ -65,7 +65,18 @@ void ReportPolicyConfig::validate() const {
           confidence.rise_paired_whole_map_lead);
   require(std::isfinite(confidence.rise_paired_newest_lead), "ReportPolicyConfig.confidence.rise_paired_newest_lead",
           "a finite number", confidence.rise_paired_newest_lead);
-  for (const auto& [name, v] : {std::pair{"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
+  for (const auto& [name, v] : {std::pair{"min_mean_score", confidence.min_mean_score},
+                                {"min_margin", confidence.min_margin},
+                                {"switch_margin", confidence.switch_margin},
+                                {"duel_margin", confidence.duel_margin},
+                                {"duel_z", confidence.duel_z},
+                                {"duel_recent_margin", confidence.duel_recent_margin},
+                                {"duel_recent_min_evidence", confidence.duel_recent_min_evidence},
+                                {"duel_recent_silent_margin", confidence.duel_recent_silent_margin},
+                                {"rise_min_newest_fit", confidence.rise_min_newest_fit},
+                                {"hold_max_contradiction", confidence.hold_max_contradiction},
+                                {"hold_max_mean_contradiction", confidence.hold_max_mean_contradiction},
+                                {"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
                                 {"weak_support_min_margin", confidence.weak_support_min_margin},
                                 {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
                                 {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence},
@@ -83,10 +94,19 @@ void ReportPolicyConfig::validate() const {
           "ReportPolicyConfig.confidence.flag_threshold", "in (0.001, 1]", confidence.flag_threshold);
   for (double w : confidence.value_weights)
     require(std::isfinite(w), "ReportPolicyConfig.confidence.value_weights", "finite numbers", w);
+  // Tracking and the same-place test move by and compare with these steps: 0 or NaN would never move or match.
+  for (const auto& [name, v] : {std::pair{"confidence.same_place_m", confidence.same_place_m},
+                                {"confidence.same_place_deg", confidence.same_place_deg},
+                                {"track_step_m", track_step_m},
+                                {"track_step_deg", track_step_deg}}) {
+    require(v > 0.0 && std::isfinite(v), std::string("ReportPolicyConfig.") + name, "> 0 and finite", v);
+  }
+  require(std::isfinite(refine_min_gain), "ReportPolicyConfig.refine_min_gain", "a finite number", refine_min_gain);
   if (refine_points == 0) return;
-  require(refine_step_m > 0.0, "ReportPolicyConfig.refine_step_m", "> 0 m when refine_points > 0", refine_step_m);
-  require(refine_step_deg > 0.0, "ReportPolicyConfig.refine_step_deg", "> 0 deg when refine_points > 0",
-          refine_step_deg);
+  require(refine_step_m > 0.0 && std::isfinite(refine_step_m), "ReportPolicyConfig.refine_step_m",
+          "> 0 m and finite when refine_points > 0", refine_step_m);
+  require(refine_step_deg > 0.0 && std::isfinite(refine_step_deg), "ReportPolicyConfig.refine_step_deg",
+          "> 0 deg and finite when refine_points > 0", refine_step_deg);
 }
 
 ReportPolicy::ReportPolicy(ReportPolicyConfig config, RansacPreference ransac)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "lshloc/common/error.hpp"
@@ -22,6 +23,9 @@ void IncrementalRansacConfig::validate() const {
   require(recent_window >= 1, "IncrementalRansacConfig.recent_window", ">= 1 data-point", recent_window);
   require(max_features >= 2 * recent_window, "IncrementalRansacConfig.max_features", ">= 2 recent_window",
           max_features);
+  // Data-points are indexed by 32 bits.
+  require(max_features <= std::numeric_limits<std::uint32_t>::max(), "IncrementalRansacConfig.max_features",
+          "<= 2^32 - 1", max_features);
 }
 
 IncrementalRansac::IncrementalRansac(IncrementalRansacConfig config) : config_(config), rng_(config.seed) {

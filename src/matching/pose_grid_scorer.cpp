@@ -3,6 +3,7 @@
 #include "lshloc/common/error.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #if defined(__SSE2__)
@@ -77,8 +78,21 @@ struct PoseGridScorer::PointEach {
 #endif
 };
 
+void PoseGridScorerConfig::validate() const {
+  for (const auto& [name, v] : {std::pair{"hit", hit},
+                                {"free", free},
+                                {"unknown", unknown},
+                                {"ray_through_wall", ray_through_wall},
+                                {"ray_through_free", ray_through_free},
+                                {"ray_through_contested", ray_through_contested},
+                                {"surface_on_return", surface_on_return}}) {
+    require(std::isfinite(v), std::string("PoseGridScorerConfig.") + name, "a finite score", v);
+  }
+}
+
 PoseGridScorer::PoseGridScorer(const PoseGridHashMap& grid, PoseGridScorerConfig config)
     : grid_(grid), config_(config) {
+  config_.validate();
   value_[0] = config_.unknown;
   value_[cell_flags::kOccupied] = config_.hit;
   value_[cell_flags::kFree] = config_.free;

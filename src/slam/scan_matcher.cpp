@@ -52,7 +52,9 @@ void ScanMatcherConfig::validate() const {
   require(experimental.odometry_sigma_rotation_per_meter >= 0.0,
           "ScanMatcherConfig.experimental.odometry_sigma_rotation_per_meter", ">= 0 [rad/m]",
           experimental.odometry_sigma_rotation_per_meter);
-  require(degeneracy_threshold >= 0.0, "ScanMatcherConfig.degeneracy_threshold", ">= 0", degeneracy_threshold);
+  // 0 would keep a direction with no constraint at all, and solve a singular system.
+  require(degeneracy_threshold > 0.0 && std::isfinite(degeneracy_threshold), "ScanMatcherConfig.degeneracy_threshold",
+          "> 0 and finite", degeneracy_threshold);
   require(inlier_distance > 0.0, "ScanMatcherConfig.inlier_distance", "> 0 [m]", inlier_distance);
   require(min_quality >= 0.0 && min_quality <= 1.0, "ScanMatcherConfig.min_quality", "in [0, 1]", min_quality);
   require(min_correspondences >= 3, "ScanMatcherConfig.min_correspondences", ">= 3 (three unknowns)",
@@ -178,6 +180,7 @@ void ScanMatcher::rebuild_map() {
 std::int32_t ScanMatcher::nearest(const Point2& p, double max_dist) const {
   if (grid_w_ == 0) return -1;
   const double fx = (p.x() - grid_x0_) / grid_cell_, fy = (p.y() - grid_y0_) / grid_cell_;
+  if (!std::isfinite(fx) || !std::isfinite(fy)) return -1;
   const auto reach = static_cast<std::int32_t>(std::ceil(max_dist / grid_cell_));
   const double lo_x = std::floor(fx), lo_y = std::floor(fy);
   if (lo_x + reach < 0 || lo_y + reach < 0 || lo_x - reach >= grid_w_ || lo_y - reach >= grid_h_) return -1;

@@ -6,6 +6,7 @@
 // GlobalMap that does not change during add_scan().
 #include <array>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <random>
@@ -253,7 +254,13 @@ class Localizer {
   std::vector<std::uint8_t> prescore_keep_;
   std::vector<std::vector<std::uint32_t>> round_points_;  ///< prescore_newly_mapped(): each round's data-point numbers
   std::vector<float> prescore_;
-  std::vector<std::size_t> data_points_end_;    ///< data-points added to iRANSAC's U by the end of each scan
+  /// Data-points added to iRANSAC's U by the end of each scan from scan
+  /// `data_points_end_first_` on: older scans, all of whose data-points U has
+  /// dropped, are let go, so that a long run's memory stays flat.
+  std::deque<std::size_t> data_points_end_;
+  std::size_t data_points_end_first_ = 0;
+  /// data_points_end_'s entry for `scan`; 0 for a scan let go (U holds none of its data-points).
+  std::size_t data_points_by_end_of(std::size_t scan) const;
   std::optional<std::size_t> reach_back_from_;  ///< the oldest data-point newly mapped hypotheses need
   std::size_t reach_back_until_ = 0;            ///< ... until this scan
   HypothesisBatchBuffer batch_;

@@ -37,6 +37,10 @@ struct PoseGridScorerConfig {
   /// hold. Where the map has a normal, `grid` judges the heading. The
   /// counterpart of ray_through_wall, on the same cells.
   float surface_on_return = 0.0f;
+
+  /// Throws lshloc::Error unless every score is finite (a NaN would leave
+  /// iRANSAC's ranking without an order).
+  void validate() const;
 };
 
 /// A Scorer for IncrementalRansac (see there). Each call transforms one local
