@@ -172,8 +172,15 @@ assert [s["name"] for s in j["submap_list"]] == ["caf\ufffd"], j["submap_list"]'
 
 # The target from stdin: each scan's estimate as it arrives, the same as from the file.
 # (Reading stops after 150 scans, so zcat may end by SIGPIPE: not a pipeline.)
-"$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 150 >"$d/stream.csv" 2>"$d/stream.err" \
-  < <(zcat "$b/sim-3-001.log.gz")
+# --out there: an OUT ending in .csv takes the CSV, which grows row by row; the TUM file is OUT's stem .tum.
+"$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 150 --out "$d/stream_out.csv" >"$d/stream.csv" \
+  2>"$d/stream.err" < <(zcat "$b/sim-3-001.log.gz")
+cmp -s "$d/stream_out.csv" "$d/stream.csv" || fail "the stream's --out CSV differs from its stdout"
+cmp -s "$d/stream_out.tum" "$d/t.tum" || fail "the stream's TUM file differs from the file run's"
+if "$LSHLOC" localize "${maps[@]}" --target - --out "" </dev/null >/dev/null 2>"$d/err.txt"; then
+  fail "--out with an empty name"
+fi
+grep -q "expected a file name" "$d/err.txt" || fail "--out '': $(cat "$d/err.txt")"
 python3 - "$d/stream.csv" "$d/t.tum.csv" <<'PY' || fail "the stdin stream differs from the file run"
 import csv, sys
 stream = list(csv.DictReader(open(sys.argv[1])))

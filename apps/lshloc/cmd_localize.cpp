@@ -159,12 +159,46 @@ std::string other_submap_tum(const std::string& out, const GlobalMap& map, std::
   return out + "." + name + ".tum";
 }
 
-/// Writes OUT.csv and the TUM files together (all or none). The CSV holds
+/// Where --out OUT writes: the TUM file OUT and the CSV OUT.csv, or, for an
+/// OUT ending in .csv, the CSV there and the TUM file beside it as .tum.
+struct OutputFiles {
+  std::string tum, csv;
+};
+OutputFiles output_files(const std::string& out) {
+  if (out.ends_with(".csv")) return {out.substr(0, out.size() - 4) + ".tum", out};
+  return {out, out + ".csv"};
+}
+
+/// Robot poses (laser poses with the mount taken off) of the confident scans, per submap.
+using ConfidentPoses = std::map<std::uint32_t, std::vector<StampedPose>>;
+
+/// The TUM files of `confident`: OUT for the answer's submap (the last estimate's, else the first
+/// confident one's), OUT.<submap>.tum for any other.
+/// (Paths and texts; io::FileOutput only views its bytes.)
+using FileTexts = std::vector<std::pair<std::string, std::string>>;
+FileTexts tum_files(const std::string& tum, const GlobalMap& map, ConfidentPoses& confident,
+                    const LocalizationEstimate& last) {
+  const std::uint32_t main = last.has_estimate ? last.submap : (confident.empty() ? 0 : confident.begin()->first);
+  FileTexts files{{tum, io::tum_text(confident[main])}};
+  for (auto& [submap, poses] : confident) {
+    if (submap == main) continue;
+    files.emplace_back(other_submap_tum(tum, map, submap), io::tum_text(poses));
+  }
+  return files;
+}
+
+void write_files_atomically(const FileTexts& files) {
+  std::vector<io::FileOutput> outputs;
+  for (const auto& [path, text] : files) outputs.push_back({path, text});
+  io::write_files_atomically(outputs);
+}
+
+/// Writes the CSV and the TUM files together (all or none). The CSV holds
 /// laser poses, as every other output; the TUM files hold robot poses (the
 /// target's laser mount taken off), in time order, as TUM tools expect.
 void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun& target, const ScenarioRun& run) {
   std::string csv = kCsvHeader;
-  std::map<std::uint32_t, std::vector<StampedPose>> confident;
+  ConfidentPoses confident;
   const Pose2 robot_from_laser = target.laser_offset.inverse();
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
@@ -172,17 +206,10 @@ void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun
     append_csv_row(csv, i, target.start + i, t, map, e);
     if (e.has_estimate && e.confident()) confident[e.submap].push_back({t, e.pose * robot_from_laser});
   }
-  const auto& last = run.estimates.back();
-  const std::uint32_t main = last.has_estimate ? last.submap : (confident.empty() ? 0 : confident.begin()->first);
-  std::vector<std::pair<std::string, std::string>> files{{out + ".csv", std::move(csv)},
-                                                         {out, io::tum_text(confident[main])}};
-  for (auto& [submap, poses] : confident) {
-    if (submap == main) continue;
-    files.emplace_back(other_submap_tum(out, map, submap), io::tum_text(poses));
-  }
-  std::vector<io::FileOutput> outputs;
-  for (const auto& [path, text] : files) outputs.push_back({path, text});
-  io::write_files_atomically(outputs);
+  const OutputFiles paths = output_files(out);
+  FileTexts files = tum_files(paths.tum, map, confident, run.estimates.back());
+  files.emplace_back(paths.csv, std::move(csv));
+  write_files_atomically(files);
 }
 
 /// A log's file name without its directory and log extensions.
@@ -328,6 +355,17 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                      std::shared_mutex* map_mutex, io::CarmenReader& reader, std::vector<io::CarmenRecord> read_ahead) {
   io::CarmenLog params;  // the PARAM lines seen before the first scan (the laser offset)
   std::unique_ptr<Localizer> localizer;
+  // --out: the CSV grows a row per scan, flushed, so that it holds every scan so far if the stream is cut;
+  // the TUM files are written at the end.
+  const OutputFiles out = output_files(opt.out);
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> csv_file(nullptr, &std::fclose);
+  if (!opt.out.empty()) {
+    csv_file.reset(std::fopen(out.csv.c_str(), "w"));
+    if (!csv_file) throw Error(out.csv + ": cannot write the per-scan CSV");
+    std::fputs(kCsvHeader, csv_file.get());
+  }
+  ConfidentPoses confident_poses;
+  Pose2 robot_from_laser;
   io::CarmenRecord rec;
   std::size_t index = 0, done = 0, confident = 0, ahead = 0;
   std::optional<std::size_t> first_confident;
@@ -345,6 +383,7 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
       params.robotlaser_offset = reader.robotlaser_offset();  // the first ROBOTLASER1 line's, if any
       LocalizerConfig c = with_target_laser_offset(config, params.front_laser_offset());
       if (opt.no_odometry) c.scan_matcher.odometry = false;
+      robot_from_laser = c.scan_matcher.laser_offset.inverse();
       localizer = std::make_unique<Localizer>(map, c);
     }
     LocalizationEstimate e;
@@ -368,12 +407,15 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                   {"heading_deg", degrees(e.pose.theta)},
                   {"score", e.mean_score}});
       std::printf("%s\n", io::json_text(j).c_str());
-    } else {
-      std::string row;
-      append_csv_row(row, done, index - 1, rec.scan.timestamp, map, e);
-      std::fputs(row.c_str(), stdout);
     }
+    std::string row;
+    append_csv_row(row, done, index - 1, rec.scan.timestamp, map, e);
+    if (!opt.json) std::fputs(row.c_str(), stdout);
     std::fflush(stdout);
+    if (csv_file && (std::fputs(row.c_str(), csv_file.get()) < 0 || std::fflush(csv_file.get()) != 0))
+      throw Error(out.csv + ": cannot write the per-scan CSV (disk full?)");
+    if (e.has_estimate && e.confident())
+      confident_poses[e.submap].push_back({rec.scan.timestamp, e.pose * robot_from_laser});
     if (e.confident() && !first_confident) first_confident = done;
     confident += e.confident();
     last = e;
@@ -382,6 +424,10 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   if (done == 0)
     throw Error("stdin: no laser scan (FLASER / ROBOTLASER1) after the first " + std::to_string(opt.start));
   print_warnings(reader.warnings());
+  if (csv_file) {
+    if (std::fclose(csv_file.release()) != 0) throw Error(out.csv + ": cannot write the per-scan CSV");
+    write_files_atomically(tum_files(out.tum, map, confident_poses, last));
+  }
   if (last.localized && first_confident)
     std::fprintf(stderr,
                  "Localized in %s: x %.3f m, y %.3f m, heading %.1f deg; confident since scan %zu, at %zu of %zu\n",
@@ -587,8 +633,11 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       ->excludes(start)
       ->excludes(length);
   cmd->add_option("--out", opt->out,
-                  "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan; with several targets a "
-                  "directory that gets LOGNAME.tum and LOGNAME.tum.csv per target");
+                  "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan (for an OUT ending in "
+                  ".csv: the CSV there and the TUM file as OUT's stem .tum); for a stdin stream the CSV grows a row "
+                  "per scan and the TUM file is written at its end; with several targets a directory that gets "
+                  "LOGNAME.tum and LOGNAME.tum.csv per target")
+      ->check([](const std::string& s) { return s.empty() ? std::string("expected a file name") : std::string(); });
   cmd->add_flag("--json", opt->json, "print the answer as one JSON line");
   cmd->add_option("--plot", opt->plot_dir,
                   "write figures (PNG and SVG) into this directory: the run over the answer's submap, and the "
@@ -609,11 +658,12 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     const bool stream = paths.size() == 1 && paths[0] == "-";
     if (paths.size() > 1 && std::find(paths.begin(), paths.end(), "-") != paths.end())
       throw Error("--target -: stdin can be the only target; it cannot be mixed with target logs");
-    if (stream && (opt->from_s || opt->to_s || !opt->out.empty() || !opt->plot_dir.empty()))
-      throw Error("--target -: the stream is localized scan by scan; --from/--to, --out and --plot need a log file");
+    if (stream && (opt->from_s || opt->to_s || !opt->plot_dir.empty()))
+      throw Error("--target -: the stream is localized scan by scan; --from/--to and --plot need a log file");
     // Output paths first: a typo must not cost a whole run.
     const std::vector<std::string> outs = output_paths(*opt);
-    for (const auto& out : outs) io::require_writable(out), io::require_writable(out + ".csv");
+    for (const auto& out : outs)
+      io::require_writable(output_files(out).tum), io::require_writable(output_files(out).csv);
     std::vector<TargetRun> targets;
     // A stream's first scan is read before the map is built when the map has
     // ROS grids: their virtual scans take the target's laser, as for a log.
