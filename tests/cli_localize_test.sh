@@ -162,6 +162,17 @@ if "$LSHLOC" localize --map "$d/named.map" --target "$d/unmounted.log" --length 
   >/dev/null 2>"$d/features.err"; then fail "localizer.features in a config was taken silently"; fi
 grep -q "map.features" "$d/features.err" || fail "the refusal of localizer.features does not say where they go"
 
+# One config file for map build and localize: map build takes its "map" part.
+echo '{"map": {"database": {"K": 20}}, "localizer": {"candidates_per_feature": 40}}' >"$d/both.json"
+"$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" --config "$d/both.json" --out "$d/k20.map" >/dev/null \
+  2>"$d/err.txt" || fail "map build with a localize config: $(cat "$d/err.txt")"
+grep -q 'a map takes only the "map" settings' "$d/err.txt" || fail "no word that the localizer part is unused"
+"$LSHLOC" map info "$d/k20.map" --json | python3 -c '
+import json, sys
+assert json.load(sys.stdin)["settings"]["database"]["K"] == 20' || fail "the map part of the config was not taken"
+"$LSHLOC" localize --map "$d/k20.map" --target "$d/unmounted.log" --length 5 --config "$d/both.json" >/dev/null \
+  2>"$d/err.txt" || fail "localize on that map with the same config: $(cat "$d/err.txt")"
+
 # A submap name that is not UTF-8 (file names are bytes) still gives valid JSON.
 "$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" --name $'caf\xe9' --out "$d/latin1.map" >/dev/null 2>&1 ||
   fail "map build with a Latin-1 name"

@@ -89,11 +89,26 @@ struct AppendOptions {
   bool json = false;
 };
 
-GlobalMapConfig map_settings(const std::string& config_path) {
+GlobalMapConfig map_settings(const std::string& config_path) try {
   GlobalMapConfig c;
-  if (!config_path.empty()) io::apply_config_patch(io::read_json_file(config_path), c, config_path);
+  if (config_path.empty()) return c;
+  nlohmann::json settings = io::read_json_file(config_path);
+  // The shape localize and eval take ({"map": ..., "localizer": ...}) gives its map part: one file serves both.
+  if (settings.is_object() && settings.contains("map")) {
+    if (settings.size() > 1)
+      std::fprintf(stderr,
+                   "lshloc: warning: %s: a map takes only the \"map\" settings; the others are for "
+                   "localize and eval\n",
+                   config_path.c_str());
+    nlohmann::json map_part = settings["map"];
+    settings = std::move(map_part);
+  }
+  io::apply_config_patch(settings, c, config_path);
   c.validate();
   return c;
+} catch (const Error& e) {
+  if (std::string(e.what()).starts_with(config_path)) throw;
+  throw Error(config_path + ": " + e.what());
 }
 
 /// The options `map build` and `map from-grid` share; returns --out (needed
@@ -107,7 +122,8 @@ const CLI::Option* add_build_options(CLI::App& cmd, BuildOptions& opt) {
       ->allow_extra_args(false)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   cmd.add_option("--config", opt.config,
-                 "JSON file of map settings (GlobalMapConfig fields; the shape --print-config writes)");
+                 "JSON file of map settings: GlobalMapConfig fields (the shape --print-config writes), or the "
+                 "{\"map\": ...} part of a localize/eval config (examples/config/)");
   cmd.add_flag("--print-config", opt.print_config, "print the effective map settings as JSON and exit");
   cmd.add_flag("--json", opt.json, "print one JSON line (the fields of `map info --json`) instead of text");
   add_grid_map_options(cmd, opt.grid);
