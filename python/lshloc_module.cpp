@@ -9,10 +9,14 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <mutex>
+#include <numbers>
 #include <shared_mutex>
 #include <string>
 #include <tuple>
@@ -37,6 +41,14 @@ namespace {
 using PoseTuple = std::tuple<double, double, double>;
 PoseTuple to_tuple(const Pose2& p) { return {p.x, p.y, p.theta}; }
 Pose2 to_pose(const PoseTuple& t) { return {std::get<0>(t), std::get<1>(t), std::get<2>(t)}; }
+
+/// printf into a std::string, for the reprs.
+template <class... Args>
+std::string printed(const char* format, Args... args) {
+  std::string text(static_cast<std::size_t>(std::snprintf(nullptr, 0, format, args...)), '\0');
+  std::snprintf(text.data(), text.size() + 1, format, args...);
+  return text;
+}
 
 /// `p` unless a value is not finite.
 Pose2 finite_pose(const PoseTuple& t, const char* what) {
@@ -145,6 +157,7 @@ LocalizerConfig localizer_config(const GlobalMap& map, const std::string& config
 
 PYBIND11_MODULE(lshloc, m) {
   m.doc() = "lshloc: global localization of 2D-laser robots in large, growing maps (LSH-RANSAC)";
+  m.attr("__version__") = LSHLOC_VERSION;
   const auto error = py::register_exception<Error>(m, "Error", PyExc_ValueError);
   // A file that cannot be opened or read: both lshloc.Error and OSError.
   py::register_exception<FileError>(m, "FileError", py::make_tuple(error, py::handle(PyExc_OSError)));
@@ -187,7 +200,15 @@ PYBIND11_MODULE(lshloc, m) {
       .def_property(
           "odometry", [](const LaserScan& s) { return to_tuple(s.odometry); },
           [](LaserScan& s, const PoseTuple& p) { s.odometry = finite_pose(p, "LaserScan.odometry"); },
-          "the robot's odometry pose (x, y, theta) at the scan");
+          "the robot's odometry pose (x, y, theta) at the scan")
+      .def("__len__", [](const LaserScan& s) { return s.ranges.size(); })
+      .def("__repr__", [](const LaserScan& s) {
+        const double last =
+            s.angle_min + s.angle_increment * static_cast<double>(s.ranges.empty() ? 0 : s.ranges.size() - 1);
+        return printed("<lshloc.LaserScan: %zu beams, %.1f..%.1f deg, max_range %g m, timestamp %.6f>", s.ranges.size(),
+                       s.angle_min * 180.0 / std::numbers::pi, last * 180.0 / std::numbers::pi, s.max_range,
+                       s.timestamp);
+      });
 
   py::class_<io::CarmenLog>(m, "CarmenLog", "A CARMEN log in memory")
       .def_readonly("path", &io::CarmenLog::path)
@@ -198,10 +219,29 @@ PYBIND11_MODULE(lshloc, m) {
       .def_property_readonly("gmapping_corrected", &io::CarmenLog::gmapping_corrected)
       .def_readonly("warnings", &io::CarmenLog::warnings,
                     "what the reader noticed (time stamps backwards or repeated, bytes after the gzip stream), "
-                    "each naming the file and line");
+                    "each naming the file and line")
+      .def(
+          "__len__", [](const io::CarmenLog& l) { return l.scans.size(); }, "the number of laser scans")
+      .def(
+          "__getitem__",
+          [](const io::CarmenLog& l, std::ptrdiff_t i) {
+            const auto n = static_cast<std::ptrdiff_t>(l.scans.size());
+            if (i < 0) i += n;
+            if (i < 0 || i >= n)
+              throw py::index_error("CarmenLog: scan index out of range (" + std::to_string(n) + " scans)");
+            return l.scans[static_cast<std::size_t>(i)];
+          },
+          py::arg("index"), "the laser scan at `index` (a copy), without building the list `scans` makes")
+      .def(
+          "__iter__", [](const io::CarmenLog& l) { return py::make_iterator(l.scans.begin(), l.scans.end()); },
+          py::keep_alive<0, 1>(), "the laser scans in log order")
+      .def("__repr__", [](const io::CarmenLog& l) {
+        return printed("<lshloc.CarmenLog %s: %zu scans, %s>", l.path.c_str(), l.scans.size(),
+                       l.gmapping_corrected() ? "corrected poses" : "raw");
+      });
   m.def(
-      "read_carmen_log", [](const std::string& path) { return io::read_carmen_log(path); }, py::arg("path"),
-      py::call_guard<py::gil_scoped_release>(), "Reads a CARMEN log (plain or .gz)");
+      "read_carmen_log", [](const std::filesystem::path& path) { return io::read_carmen_log(path.string()); },
+      py::arg("path"), py::call_guard<py::gil_scoped_release>(), "Reads a CARMEN log (plain or .gz)");
 
   py::class_<OccupancyGrid>(m, "OccupancyGrid",
                             "An occupancy grid as nav_msgs has it: cells[row, col] is -1 (unknown), 0 (free) or 100 "
@@ -249,14 +289,21 @@ PYBIND11_MODULE(lshloc, m) {
                              [](const OccupancyGrid& g) {
                                return PoseTuple{g.origin.x(), g.origin.y(), g.origin_yaw};
                              })
-      .def_property_readonly("cells", [](const OccupancyGrid& g) {
-        return py::array_t<std::int8_t>({g.height, g.width}, g.cells.data());
+      .def_property_readonly("cells",
+                             [](const OccupancyGrid& g) {
+                               return py::array_t<std::int8_t>({g.height, g.width}, g.cells.data());
+                             })
+      .def("__repr__", [](const OccupancyGrid& g) {
+        return printed("<lshloc.OccupancyGrid: %zu x %zu cells of %g m, origin (%g, %g, %g)>", g.width, g.height,
+                       g.resolution, g.origin.x(), g.origin.y(), g.origin_yaw);
       });
   m.def(
-      "read_ros_map", [](const std::string& path) { return io::read_ros_map(path); }, py::arg("yaml_path"),
-      py::call_guard<py::gil_scoped_release>(), "Reads a ROS map_server map (MAP.yaml and its PGM)");
+      "read_ros_map", [](const std::filesystem::path& path) { return io::read_ros_map(path.string()); },
+      py::arg("yaml_path"), py::call_guard<py::gil_scoped_release>(),
+      "Reads a ROS map_server map (MAP.yaml and its PGM)");
   m.def(
-      "write_ros_map", [](const std::string& stem, const OccupancyGrid& g) { io::write_ros_map(stem, g); },
+      "write_ros_map",
+      [](const std::filesystem::path& stem, const OccupancyGrid& g) { io::write_ros_map(stem.string(), g); },
       py::arg("stem"), py::arg("grid"), py::call_guard<py::gil_scoped_release>(),
       "Writes STEM.yaml and STEM.pgm as map_server reads them");
   m.def(
@@ -363,17 +410,23 @@ PYBIND11_MODULE(lshloc, m) {
           "A dict: submaps, scans, features, bytes_per_feature")
       .def(
           "save",
-          [](const PyGlobalMap& g, const std::string& path) {
-            g.read([&](const GlobalMap& map) { io::save_map(path, map); });
+          [](const PyGlobalMap& g, const std::filesystem::path& path) {
+            g.read([&](const GlobalMap& map) { io::save_map(path.string(), map); });
           },
-          py::arg("path"), py::call_guard<py::gil_scoped_release>(), "Saves the map (docs/map-format.md)");
+          py::arg("path"), py::call_guard<py::gil_scoped_release>(), "Saves the map (docs/map-format.md)")
+      .def("__repr__", [](const PyGlobalMap& g) {
+        return g.read([](const GlobalMap& map) {
+          const GlobalMapStats st = map.stats();
+          return printed("<lshloc.GlobalMap: %zu submaps, %zu scans, %zu features>", st.submaps, st.scans, st.features);
+        });
+      });
   m.def(
       "load_map",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path) {
         io::LoadedMap loaded;
         {
           py::gil_scoped_release release;
-          loaded = io::load_map(path);
+          loaded = io::load_map(path.string());
         }
         // What lost nothing acknowledged (a torn last journal record) is a Python warning.
         for (const std::string& w : loaded.warnings)

@@ -72,6 +72,28 @@ def test_a_logs_warnings_reach_python(tmp_path):
     assert len(read.warnings) == 1 and "first at line 2" in read.warnings[0], read.warnings
 
 
+def test_a_log_is_a_sequence_of_scans_and_paths_may_be_pathlib(world, tmp_path):
+    log = lshloc.read_carmen_log(world / "sim-3-000" / "sim-3-000-corrected.log.gz")  # a pathlib.Path
+    scans = log.scans
+    assert len(log) == len(scans) > 0
+    assert log[0].timestamp == scans[0].timestamp and log[-1].timestamp == scans[-1].timestamp
+    assert [s.timestamp for s in log] == [s.timestamp for s in scans]
+    with pytest.raises(IndexError):
+        log[len(log)]
+    assert f"{len(log)} scans" in repr(log) and f"{len(scans[0])} beams" in repr(scans[0])
+    gmap = lshloc.GlobalMap()
+    feed(gmap, [("a", scans[:100])])
+    st = gmap.stats()
+    assert repr(gmap) == f"<lshloc.GlobalMap: 1 submaps, 100 scans, {st['features']} features>"
+    gmap.save(tmp_path / "a.map")
+    assert repr(lshloc.load_map(tmp_path / "a.map")) == repr(gmap)
+    grid = lshloc.occupancy_grid_from_scans(scans[:100], 0.1)
+    assert f"{grid.cells.shape[1]} x {grid.cells.shape[0]} cells of 0.1 m" in repr(grid)
+    lshloc.write_ros_map(tmp_path / "g", grid)
+    assert lshloc.read_ros_map(tmp_path / "g.yaml").cells.shape == grid.cells.shape
+    assert lshloc.__version__.count(".") == 2
+
+
 def test_localizes_in_the_right_building_against_ground_truth(world):
     a = lshloc.read_carmen_log(str(world / "sim-3-000" / "sim-3-000-corrected.log.gz"))
     b = lshloc.read_carmen_log(str(world / "sim-3-001" / "sim-3-001-corrected.log.gz"))
