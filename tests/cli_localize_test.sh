@@ -162,6 +162,16 @@ if "$LSHLOC" localize --map "$d/named.map" --target "$d/unmounted.log" --length 
   >/dev/null 2>"$d/features.err"; then fail "localizer.features in a config was taken silently"; fi
 grep -q "map.features" "$d/features.err" || fail "the refusal of localizer.features does not say where they go"
 
+# A map log whose path holds a comma is a file, not LOG,POSES; a comma with nothing after it says what was expected.
+mkdir -p "$d/run,1"
+cp "$a/sim-3-000-corrected.log.gz" "$d/run,1/"
+"$LSHLOC" map build "$d/run,1/sim-3-000-corrected.log.gz" --out "$d/comma.map" >/dev/null 2>"$d/err.txt" ||
+  fail "a map log in a directory with a comma: $(cat "$d/err.txt")"
+if "$LSHLOC" map build "$d/run,1/sim-3-000-corrected.log.gz," --out "$d/comma2.map" >/dev/null 2>"$d/err.txt"; then
+  fail "a trailing comma was taken"
+fi
+grep -q "nothing follows the comma" "$d/err.txt" || fail "a trailing comma: $(cat "$d/err.txt")"
+
 # One config file for map build and localize: map build takes its "map" part.
 echo '{"map": {"database": {"K": 20}}, "localizer": {"candidates_per_feature": 40}}' >"$d/both.json"
 "$LSHLOC" map build "$a/sim-3-000-corrected.log.gz" --config "$d/both.json" --out "$d/k20.map" >/dev/null \

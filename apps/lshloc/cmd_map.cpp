@@ -264,7 +264,7 @@ void add_append(CLI::App& map_cmd) {
       try {
         features += appender.add_scan(submap, log.scans[i], log.scans[i].pose);
       } catch (const Error& e) {
-        const std::string file = opt->log.substr(0, opt->log.find(','));  // LOG of LOG,POSES
+        const std::string file = opt->log.substr(0, log_argument_comma(opt->log));  // LOG of LOG,POSES
         throw Error(file + (log.scans[i].source_line ? ":" + std::to_string(log.scans[i].source_line) : "") + ": " +
                     e.what());
       }

@@ -87,8 +87,16 @@ void print_warnings(const std::vector<std::string>& warnings) {
   for (const std::string& w : warnings) std::fprintf(stderr, "lshloc: warning: %s\n", w.c_str());
 }
 
+std::size_t log_argument_comma(const std::string& arg) {
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(arg, ec)) return std::string::npos;
+  for (std::size_t c = arg.find(','); c != std::string::npos; c = arg.find(',', c + 1))
+    if (std::filesystem::is_regular_file(arg.substr(0, c), ec)) return c;
+  return arg.find(',');
+}
+
 Submap load_map_argument(const std::string& arg, bool slam) {
-  const auto comma = arg.find(',');
+  const auto comma = log_argument_comma(arg);
   const std::string log_path = arg.substr(0, comma);
   if (is_grid_argument(log_path))
     throw Error(log_path + ": a ROS map (YAML) is no log; give it to `map build`, `map from-grid` or `localize --map`");
@@ -116,6 +124,7 @@ Submap load_map_argument(const std::string& arg, bool slam) {
     return s;
   }
   const std::string poses_path = arg.substr(comma + 1);
+  if (poses_path.empty()) throw Error(arg + ": expected LOG, LOG,POSES or LOG,slam; nothing follows the comma");
   const auto poses = read_map_poses(poses_path, log.front_laser_offset());
   std::vector<double> query, reference;
   for (const auto& sc : scans) query.push_back(sc.timestamp);

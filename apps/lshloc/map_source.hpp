@@ -34,6 +34,10 @@ void print_warnings(const std::vector<std::string>& warnings);
 /// joined to the log's scans within 1 ms; a poses file named "slam" is
 /// given as ./slam). The submap is named after the log's file name.
 Submap load_map_argument(const std::string& arg, bool slam);
+/// Where LOG ends in a LOG,POSES or LOG,slam argument: npos when the whole
+/// argument names a file, else the first comma whose left side names one
+/// (file names may hold commas), else the first comma.
+std::size_t log_argument_comma(const std::string& arg);
 
 /// Loads a saved map for a run with `config`: prints the file's warnings
 /// (a torn journal tail) to stderr, gives the localizer the map's feature
