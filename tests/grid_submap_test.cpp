@@ -121,6 +121,17 @@ TEST(RosMap, BadFilesNameTheFileTheKeyAndWhatWasExpected) {
   const std::string short_pgm = write_text(".pgm", "P5\n20 20\n255\nabc");
   EXPECT_NE(message("image: " + short_pgm + "\nresolution: 0.1\norigin: [0, 0, 0]\n").find("expected 400 bytes"),
             std::string::npos);
+  // A key a letter or two off one map_server reads would be ignored, and the default taken: refused by line.
+  EXPECT_NE(message("image: " + name + "\nresolution: 0.1\norigin: [0, 0, 0]\nocupied_thresh: 0.5\n")
+                .find(":4: unknown key 'ocupied_thresh'; expected 'occupied_thresh'"),
+            std::string::npos);
+  EXPECT_EQ(message("image: " + name + "\nresolution: 0.1\norigin: [0, 0, 0]\nmap_id: 7\nframe_id: map\n"), "no error");
+  // Bytes after the raster (but whitespace) say the header's width or height is off.
+  const std::string long_pgm = write_text(".pgm", "P5\n2 2\n255\n\x01\x02\x03\x04\x05\x06");
+  EXPECT_NE(message("image: " + long_pgm + "\nresolution: 0.1\norigin: [0, 0, 0]\n").find("2 bytes follow the 2 x 2"),
+            std::string::npos);
+  const std::string newline_pgm = write_text(".pgm", "P5\n2 2\n255\n\x01\x02\x03\x04\n");
+  EXPECT_EQ(message("image: " + newline_pgm + "\nresolution: 0.1\norigin: [0, 0, 0]\n"), "no error");
   // A plain PGM whose header claims 2^28 pixels in a few bytes: refused before anything is allocated.
   const std::string huge_plain = write_text(".pgm", "P2\n16384 16384\n255\n0 0 0\n");
   EXPECT_NE(message("image: " + huge_plain + "\nresolution: 0.1\norigin: [0, 0, 0]\n")

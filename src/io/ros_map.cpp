@@ -2,6 +2,8 @@
 
 #include <yaml.h>
 
+#include <algorithm>
+#include <array>
 #include <cctype>
 #include <charconv>
 #include <cerrno>
@@ -17,6 +19,7 @@
 #include <map>
 #include <memory>
 #include <sstream>
+#include <vector>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/atomic_file.hpp"
@@ -147,6 +150,36 @@ std::map<std::string, YamlValue> read_yaml_mapping(const std::string& path) {
   return out;
 }
 
+/// Edits (insert, delete, replace one character) that make `a` into `b`.
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+/// Refuses a key a letter or two off one map_server reads: map_server would
+/// ignore it, and the map take a default the user meant to change.
+void refuse_misspelt_keys(const std::map<std::string, YamlValue>& yaml, const std::string& path) {
+  static constexpr std::array<const char*, 7> kKeys = {"image",           "resolution",  "origin", "negate",
+                                                       "occupied_thresh", "free_thresh", "mode"};
+  for (const auto& [key, value] : yaml) {
+    if (std::find(kKeys.begin(), kKeys.end(), key) != kKeys.end()) continue;
+    for (const char* known : kKeys)
+      if (edit_distance(key, known) <= (std::strlen(known) >= 6 ? 2u : 1u))
+        throw Error(path + ":" + std::to_string(value.line) + ": unknown key '" + key + "'; expected '" + known +
+                    "' (map_server would ignore it and take the default)");
+  }
+}
+
 double parse_number(const std::string& text, const std::string& where, const std::string& key) {
   errno = 0;
   char* end = nullptr;
@@ -223,6 +256,12 @@ GreyImage read_pgm(const std::string& path) {
     if (data.size() < pos + n * bytes)
       throw Error(path + ": expected " + std::to_string(n * bytes) + " bytes of pixels after the header, got " +
                   std::to_string(data.size() > pos ? data.size() - pos : 0));
+    // More than whitespace after the raster: the header's width or height is likely wrong.
+    for (std::size_t i = pos + n * bytes; i < data.size(); ++i)
+      if (!std::isspace(static_cast<unsigned char>(data[i])))
+        throw Error(path + ": " + std::to_string(data.size() - pos - n * bytes) + " bytes follow the " +
+                    std::to_string(img.width) + " x " + std::to_string(img.height) +
+                    " pixels; expected the image to end there (are its width and height right?)");
     for (std::size_t i = 0; i < n; ++i) {
       std::size_t v = static_cast<unsigned char>(data[pos + i * bytes]);
       if (bytes == 2) v = v << 8 | static_cast<unsigned char>(data[pos + i * bytes + 1]);
@@ -249,6 +288,7 @@ bool is_ros_map_path(const std::string& path) {
 
 OccupancyGrid read_ros_map(const std::string& yaml_path) {
   const std::map<std::string, YamlValue> yaml = read_yaml_mapping(yaml_path);
+  refuse_misspelt_keys(yaml, yaml_path);
   const auto get = [&](const std::string& key, bool required) -> const YamlValue* {
     const auto it = yaml.find(key);
     if (it == yaml.end()) {
