@@ -270,12 +270,16 @@ void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
   place(id);
 }
 
-void LshDatabase::insert(LshKeyView key, std::uint32_t id) {
+void LshDatabase::check_key(LshKeyView key, const char* caller) const {
   if (key.tags.size() != config_.L || key.sketch.size() != sketch_words_) {
-    throw Error("LshDatabase::insert: a key of " + std::to_string(key.tags.size()) + " tags and " +
+    throw Error(std::string(caller) + ": a key of " + std::to_string(key.tags.size()) + " tags and " +
                 std::to_string(key.sketch.size()) + " sketch words, expected " + std::to_string(config_.L) + " and " +
                 std::to_string(sketch_words_));
   }
+}
+
+void LshDatabase::insert(LshKeyView key, std::uint32_t id) {
+  check_key(key, "LshDatabase::insert");
   std::copy(key.tags.begin(), key.tags.end(), insert_tags_.begin());
   std::copy(key.sketch.begin(), key.sketch.end(), insert_sketch_.begin());
   place(id);
@@ -372,11 +376,7 @@ void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std:
 
 void LshDatabase::query_counts(LshKeyView key, std::size_t k, std::vector<std::uint32_t>& out,
                                std::vector<std::uint16_t>& counts, LshQuery& q) const {
-  if (key.tags.size() != config_.L || key.sketch.size() != sketch_words_) {
-    throw Error("LshDatabase::query: a key of " + std::to_string(key.tags.size()) + " tags and " +
-                std::to_string(key.sketch.size()) + " sketch words, expected " + std::to_string(config_.L) + " and " +
-                std::to_string(sketch_words_));
-  }
+  check_key(key, "LshDatabase::query");
   check_scratch(q);
   query_tags(key.tags, key.sketch, k, out, counts, q);
 }

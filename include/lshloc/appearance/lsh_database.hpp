@@ -301,6 +301,8 @@ class LshDatabase {
   void move_sketches_into_buckets();
   /// Throws unless serves(q).
   void check_scratch(const LshQuery& q) const;
+  /// Throws lshloc::Error naming `caller` unless `key` has L tags and this database's sketch words.
+  void check_key(LshKeyView key, const char* caller) const;
   /// query_counts() once the query's tags (and sketch) are known.
   void query_tags(std::span<const std::uint32_t> tags, std::span<const std::uint64_t> sketch, std::size_t k,
                   std::vector<std::uint32_t>& out, std::vector<std::uint16_t>& counts, LshQuery& q) const;
