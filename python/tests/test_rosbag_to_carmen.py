@@ -1,0 +1,520 @@
+"""scripts/rosbag_to_carmen.py against known answers: a simulated robot's raw
+log turned into ROS 2 bags (sqlite3 and MCAP, plain, zstd and lz4 chunks) by
+this file's own CDR encoder and bag writers, converted back and compared scan
+by scan and by localizing it; CDR golden bytes written out by hand; an
+upside-down laser; and bad input."""
+import gzip
+import json
+import math
+import os
+import pathlib
+import sqlite3
+import struct
+import subprocess
+import sys
+import zlib
+
+import numpy as np
+import pytest
+
+lshloc = pytest.importorskip("lshloc")
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+CONVERTER = ROOT / "scripts" / "rosbag_to_carmen.py"
+LASER_SCAN, ODOMETRY, TF_MESSAGE = "sensor_msgs/msg/LaserScan", "nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage"
+# The mount put in /tf_static on top of the simulated log's own laser offset.
+MOUNT_SHIFT = (0.0, 0.07, 0.05)
+ODOM_SHIFTED_EVERY = 10  # every 10th scan's odometry comes as two messages around it, not one at its stamp
+BAG_LATENCY_NS = 7_000_000  # the bag's receive time is the header stamp plus this
+
+
+def cli():
+    if os.environ.get("LSHLOC_CLI"):
+        return os.environ["LSHLOC_CLI"]
+    built = ROOT / "build" / "bin" / "lshloc"
+    return str(built) if built.exists() else None
+
+
+def convert(bag, out, *options, expect_ok=True):
+    run = subprocess.run([sys.executable, str(CONVERTER), str(bag), "--out", str(out), "--quiet", *options],
+                         capture_output=True, text=True)
+    if expect_ok:
+        assert run.returncode == 0, run.stderr
+    return run
+
+
+# ---------------------------------------------------------------- CDR encoder
+
+
+class CdrWriter:
+    """XCDR1: the encapsulation header, then each primitive aligned to its size from the end of the header."""
+
+    def __init__(self, big_endian=False):
+        self.order = ">" if big_endian else "<"
+        self.header = b"\x00\x00\x00\x00" if big_endian else b"\x00\x01\x00\x00"
+        self.body = bytearray()
+
+    def put(self, code, *values):
+        size = struct.calcsize(code)
+        self.body += b"\x00" * (-len(self.body) % size)
+        self.body += struct.pack(f"{self.order}{len(values)}{code}", *values)
+
+    def string(self, text):
+        encoded = text.encode() + b"\x00"
+        self.put("I", len(encoded))
+        self.body += encoded
+
+    def stamp_header(self, stamp_ns, frame):
+        self.put("i", stamp_ns // 1_000_000_000)
+        self.put("I", stamp_ns % 1_000_000_000)
+        self.string(frame)
+
+    def data(self):
+        return self.header + bytes(self.body)
+
+
+def laser_scan_cdr(stamp_ns, frame, angle_min, angle_increment, ranges, range_min=0.02, range_max=30.0,
+                   big_endian=False):
+    w = CdrWriter(big_endian)
+    w.stamp_header(stamp_ns, frame)
+    angle_max = angle_min + (len(ranges) - 1) * angle_increment
+    w.put("f", angle_min, angle_max, angle_increment, 0.0, 0.25, range_min, range_max)  # scan_time 0.25 s
+    w.put("I", len(ranges))
+    w.put("f", *ranges)
+    w.put("I", 0)
+    return w.data()
+
+
+def yaw_quaternion(yaw):
+    return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+
+
+def odometry_cdr(stamp_ns, x, y, yaw=0.0, rotation=None, frame="odom", child="base_link", big_endian=False):
+    w = CdrWriter(big_endian)
+    w.stamp_header(stamp_ns, frame)
+    w.string(child)
+    w.put("d", x, y, 0.0, *(rotation or yaw_quaternion(yaw)))
+    w.put("d", *([0.0] * 36))
+    w.put("d", *([0.0] * 6))
+    w.put("d", *([0.0] * 36))
+    return w.data()
+
+
+def tf_cdr(stamp_ns, transforms):
+    """transforms: (parent, child, (x, y, z), (qx, qy, qz, qw))."""
+    w = CdrWriter()
+    w.put("I", len(transforms))
+    for parent, child, translation, rotation in transforms:
+        w.stamp_header(stamp_ns, parent)
+        w.string(child)
+        w.put("d", *translation)
+        w.put("d", *rotation)
+    return w.data()
+
+
+# ---------------------------------------------------------------- bag writers
+
+
+def write_sqlite(path, topics, messages):
+    """topics: {name: type}; messages: (topic, bag time [ns], data), with rosbag2's tables."""
+    db = sqlite3.connect(path)
+    db.execute("CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, "
+               "serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL)")
+    db.execute("CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, "
+               "timestamp INTEGER NOT NULL, data BLOB NOT NULL)")
+    ids = {name: i for i, name in enumerate(topics, start=1)}
+    db.executemany("INSERT INTO topics VALUES (?, ?, ?, 'cdr', '')", [(i, n, topics[n]) for n, i in ids.items()])
+    db.executemany("INSERT INTO messages(topic_id, timestamp, data) VALUES (?, ?, ?)",
+                   [(ids[topic], stamp, data) for topic, stamp, data in messages])
+    db.commit()
+    db.close()
+
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def mcap_string(text):
+    return struct.pack("<I", len(text)) + text.encode()
+
+
+def mcap_record(opcode, content):
+    return struct.pack("<BQ", opcode, len(content)) + content
+
+
+def write_mcap(path, topics, messages, compression=None, chunk_messages=400):
+    """A minimal MCAP: header, schemas and channels, messages (in chunks when compressed), data end, footer."""
+    definitions = b""
+    channel_of = {}
+    for i, (name, type_name) in enumerate(topics.items(), start=1):
+        definitions += mcap_record(0x03, struct.pack("<H", i) + mcap_string(type_name) + mcap_string("ros2msg")
+                                   + struct.pack("<I", 0))
+        definitions += mcap_record(0x04, struct.pack("<HH", i, i) + mcap_string(name) + mcap_string("cdr")
+                                   + struct.pack("<I", 0))
+        channel_of[name] = i
+    message_records = [mcap_record(0x05, struct.pack("<HIQQ", channel_of[topic], n, stamp, stamp) + data)
+                       for n, (topic, stamp, data) in enumerate(messages)]
+    out = MCAP_MAGIC + mcap_record(0x01, mcap_string("ros2") + mcap_string("test writer"))
+    if compression is None:
+        out += definitions + b"".join(message_records)
+    else:
+        for start in range(0, len(message_records), chunk_messages):
+            records = (definitions if start == 0 else b"") + b"".join(message_records[start:start + chunk_messages])
+            if compression == "zstd":
+                import zstandard
+                packed = zstandard.ZstdCompressor().compress(records)
+            else:
+                import lz4.frame
+                packed = lz4.frame.compress(records)
+            stamps = [m[1] for m in messages[start:start + chunk_messages]]
+            out += mcap_record(0x06, struct.pack("<QQQI", min(stamps), max(stamps), len(records), zlib.crc32(records))
+                               + mcap_string(compression) + struct.pack("<Q", len(packed)) + packed)
+    out += mcap_record(0x0F, struct.pack("<I", 0))  # data end: a record the converter skips
+    out += mcap_record(0x02, struct.pack("<QQI", 0, 0, 0)) + MCAP_MAGIC
+    pathlib.Path(path).write_bytes(out)
+
+
+# ---------------------------------------------------------------- golden bytes
+
+# LaserScan{stamp 1 s 2 ns, frame "l", angle_min -0.5, angle_max 0.5, increment 1, time_increment 0,
+# scan_time 0.25, range_min 0.125, range_max 8, ranges [1.5, 2], no intensities}, little-endian CDR.
+GOLDEN_SCAN = bytes.fromhex(
+    "00010000"                      # encapsulation: CDR little-endian
+    "01000000" "02000000"           # sec, nanosec
+    "02000000" "6c00" "0000"        # frame_id "l\0", then 2 bytes pad: floats align to 4 from the header's end
+    "000000bf" "0000003f" "0000803f" "00000000" "0000803e" "0000003e" "00000041"
+    "02000000" "0000c03f" "00000040"  # ranges [1.5, 2.0]
+    "00000000")                     # no intensities
+# Odometry{stamp 1 s 2 ns, frame "o", child "b", position (1, 2, 0), orientation (0, 0, 1, 0): yaw pi, rest 0}.
+GOLDEN_ODOMETRY = bytes.fromhex(
+    "00010000"
+    "01000000" "02000000"
+    "02000000" "6f00" "0000"        # frame_id "o\0", pad to 4
+    "02000000" "6200" "0000"        # child_frame_id "b\0", pad to 24: doubles align to 8 from the header's end
+    "000000000000f03f" "0000000000000040" "0000000000000000"            # position
+    "0000000000000000" "0000000000000000" "000000000000f03f" "0000000000000000"  # orientation x y z w
+) + bytes(8 * (36 + 6 + 36))
+
+
+def test_the_encoder_writes_and_the_converter_reads_golden_cdr_bytes(tmp_path):
+    assert laser_scan_cdr(1_000_000_002, "l", -0.5, 1.0, [1.5, 2.0], range_min=0.125, range_max=8.0) == GOLDEN_SCAN
+    assert odometry_cdr(1_000_000_002, 1.0, 2.0, rotation=(0.0, 0.0, 1.0, 0.0), frame="o", child="b") \
+        == GOLDEN_ODOMETRY
+    for big_endian in (False, True):
+        bag = tmp_path / f"golden-{big_endian}.db3"
+        scan = laser_scan_cdr(1_000_000_002, "l", -0.5, 1.0, [1.5, 2.0], range_min=0.125, range_max=8.0,
+                              big_endian=True) if big_endian else GOLDEN_SCAN
+        odom = odometry_cdr(1_000_000_002, 1.0, 2.0, rotation=(0.0, 0.0, 1.0, 0.0), frame="o", child="b",
+                            big_endian=True) if big_endian else GOLDEN_ODOMETRY
+        write_sqlite(bag, {"/scan": LASER_SCAN, "/odom": ODOMETRY}, [("/scan", 5, scan), ("/odom", 5, odom)])
+        out = tmp_path / f"golden-{big_endian}.log"
+        run = convert(bag, out)
+        assert "no /tf_static transforms and no --laser-offset" in run.stderr
+        fields = out.read_text().splitlines()[1].split()
+        assert fields[:12] == ["ROBOTLASER1", "0", "-0.5", "1", "1", "8", "0.01", "0", "2", "1.5", "2", "0"]
+        numbers = [float(v) for v in fields[12:18]]
+        assert numbers[:2] == [1.0, 2.0] and numbers[3:5] == [1.0, 2.0]
+        assert abs(math.cos(numbers[2]) + 1) < 1e-12 and abs(math.cos(numbers[5]) + 1) < 1e-12  # yaw pi
+        assert fields[18:] == ["0"] * 5 + ["1.000000002", "rosbag", "1.000000002"]
+
+
+# ---------------------------------------------------------------- the simulated robot as a bag
+
+
+def compose(a, b):
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], math.atan2(math.sin(a[2] + b[2]),
+                                                                               math.cos(a[2] + b[2])))
+
+
+def inverse(a):
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], -a[2])
+
+
+def angle_diff(a, b):
+    return abs(math.atan2(math.sin(a - b), math.cos(a - b)))
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    if cli() is None:
+        pytest.skip("no lshloc CLI: set LSHLOC_CLI or build build/bin/lshloc")
+    d = tmp_path_factory.mktemp("sim")
+    subprocess.run([cli(), "simulate", "--out", str(d), "--buildings", "2", "--seed", "3", "--scans", "1200"],
+                   check=True, capture_output=True)
+    return d
+
+
+class TargetBag:
+    """The raw target log as bag messages, and what its conversion must give back."""
+
+    def __init__(self, log_path):
+        log = lshloc.read_carmen_log(str(log_path))
+        self.original = log
+        self.mount = tuple(o + s for o, s in zip(log.laser_offset, MOUNT_SHIFT))
+        self.stamps = [round(scan.timestamp * 1e9) for scan in log.scans]
+        # The laser keeps its true poses: the robot is where the new mount puts the laser there.
+        self.robot = [compose(scan.pose, inverse(self.mount)) for scan in log.scans]
+        self.expected_ranges = []
+        self.messages = []
+        self.topics = {"/scan": LASER_SCAN, "/odom": ODOMETRY, "/tf_static": TF_MESSAGE}
+        x, y, theta = self.mount
+        tf = [("base_footprint", "base_link", (0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0)),
+              ("base_footprint", "laser", (x, y, 0.25), yaw_quaternion(theta))]
+        self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], tf)))
+        self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], [
+            ("base_link", "imu", (0.0, 0.0, 0.2), (0.0, 0.0, 0.0, 1.0))])))
+        for i, scan in enumerate(log.scans):
+            ranges, expected = self.ros_ranges(i, scan)
+            self.expected_ranges.append(expected)
+            self.messages.append(("/scan", self.stamps[i] + BAG_LATENCY_NS, laser_scan_cdr(
+                self.stamps[i], "laser", scan.angle_min, scan.angle_increment, ranges, range_max=scan.max_range)))
+            self.messages.extend(self.odometry_messages(i))
+
+    def ros_ranges(self, i, scan):
+        """ROS conventions: no return as +inf or beyond range_max; the first scans also get invalid beams."""
+        ranges = scan.ranges.astype(np.float32)
+        expected = np.where(ranges >= scan.max_range, np.float32(scan.max_range), ranges)
+        far = np.flatnonzero(ranges >= scan.max_range)
+        ranges[far[0::2]] = np.inf
+        ranges[far[1::2]] = scan.max_range + 5.0
+        if i < 5:
+            ranges[[0, 1, 2]] = [np.nan, -np.inf, 0.001]  # NaN, -inf, below range_min: all invalid
+            expected[[0, 1, 2]] = np.nan
+        return ranges.tolist(), expected
+
+    def odometry_messages(self, i):
+        stamp, (x, y, yaw) = self.stamps[i], self.robot[i]
+        if i % ODOM_SHIFTED_EVERY != ODOM_SHIFTED_EVERY // 2 or i + 1 == len(self.stamps):
+            return [("/odom", stamp + BAG_LATENCY_NS, odometry_cdr(stamp, x, y, yaw))]
+        # Two messages 3 ms before and 5 ms after, on a line through the pose at the scan's stamp.
+        velocity = (0.4, -0.2, 0.3)
+        out = []
+        for dt_ns in (-3_000_000, 5_000_000):
+            dt = dt_ns * 1e-9
+            out.append(("/odom", stamp + dt_ns + BAG_LATENCY_NS, odometry_cdr(
+                stamp + dt_ns, x + velocity[0] * dt, y + velocity[1] * dt, yaw + velocity[2] * dt)))
+        return out
+
+
+@pytest.fixture(scope="module")
+def target(world):
+    return TargetBag(world / "sim-3-001" / "sim-3-001.log.gz")
+
+
+@pytest.fixture(scope="module")
+def sqlite_log(target, tmp_path_factory):
+    d = tmp_path_factory.mktemp("sqlite")
+    bag = d / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    write_sqlite(bag / "bag_0.db3", target.topics, target.messages)
+    out = d / "converted.log.gz"
+    run = convert(bag, out)
+    assert "wrote 1200 scans" in run.stderr
+    assert "/tf_static base_link -> laser" in run.stderr
+    return out
+
+
+def test_a_sqlite_bag_converts_back_to_the_original_scans(target, sqlite_log):
+    log = lshloc.read_carmen_log(str(sqlite_log))
+    assert len(log) == len(target.original)
+    for i, (got, want) in enumerate(zip(log.scans, target.original.scans)):
+        assert np.array_equal(got.ranges, target.expected_ranges[i], equal_nan=True), i
+        assert got.max_range == np.float32(want.max_range)
+        assert abs(got.angle_min - want.angle_min) < 1e-6 and abs(got.angle_increment - want.angle_increment) < 1e-6
+        assert abs(got.timestamp - want.timestamp) < 1e-6
+        for g, w in ((got.odometry, target.robot[i]), (got.pose, want.pose)):
+            assert math.hypot(g[0] - w[0], g[1] - w[1]) < 1e-6 and angle_diff(g[2], w[2]) < 1e-6, i
+    assert all(abs(g - w) < 1e-6 for g, w in zip(log.laser_offset, target.mount))
+    assert sqlite_log.read_bytes()[:2] == b"\x1f\x8b"  # .gz: gzip
+    with gzip.open(sqlite_log, "rt") as f:
+        assert f.readline().startswith("# converted by rosbag_to_carmen.py from ")
+
+
+@pytest.mark.parametrize("compression", [None, "zstd", "lz4"])
+def test_mcap_bags_give_the_same_log_as_sqlite(target, sqlite_log, tmp_path, compression):
+    if compression:
+        pytest.importorskip({"zstd": "zstandard", "lz4": "lz4.frame"}[compression])
+    bag = tmp_path / "bag.mcap"
+    write_mcap(bag, target.topics, target.messages, compression)
+    out = tmp_path / "converted.log.gz"
+    convert(bag, out)
+    with gzip.open(out, "rt") as got, gzip.open(sqlite_log, "rt") as want:
+        assert got.read().splitlines()[1:] == want.read().splitlines()[1:]
+
+
+def test_the_laser_offset_option_overrides_tf_static(target, tmp_path):
+    bag = tmp_path / "bag.db3"
+    write_sqlite(bag, target.topics, target.messages)
+    out = tmp_path / "converted.log"
+    run = convert(bag, out, "--laser-offset=-0.2,0.1,-0.3")
+    assert "from --laser-offset" in run.stderr
+    log = lshloc.read_carmen_log(str(out))
+    assert all(abs(g - w) < 1e-6 for g, w in zip(log.laser_offset, (-0.2, 0.1, -0.3)))
+    want = compose(target.robot[7], (-0.2, 0.1, -0.3))
+    got = log.scans[7].pose
+    assert math.hypot(got[0] - want[0], got[1] - want[1]) < 1e-6 and angle_diff(got[2], want[2]) < 1e-6
+
+
+def test_bag_stamps_are_the_receive_times(target, tmp_path):
+    bag = tmp_path / "bag.db3"
+    write_sqlite(bag, target.topics, target.messages)
+    out = tmp_path / "converted.log"
+    convert(bag, out, "--stamp", "bag")
+    log = lshloc.read_carmen_log(str(out))
+    assert len(log) == len(target.original)
+    for got, want, robot in zip(log.scans, target.original.scans, target.robot):
+        assert abs(got.timestamp - (want.timestamp + BAG_LATENCY_NS * 1e-9)) < 1e-6
+        assert math.hypot(got.odometry[0] - robot[0], got.odometry[1] - robot[1]) < 1e-6
+
+
+def localize(log, world):
+    maps = [a for n in ("000", "001") for a in ("--map", str(world / f"sim-3-{n}" / f"sim-3-{n}-corrected.log.gz"))]
+    run = subprocess.run([cli(), "localize", *maps, "--target", str(log), "--start", "300", "--length", "150",
+                          "--json"], capture_output=True, text=True, check=True)
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def test_the_converted_log_localizes_as_the_original(world, sqlite_log):
+    got = localize(sqlite_log, world)
+    want = localize(world / "sim-3-001" / "sim-3-001.log.gz", world)
+    assert got["localized"] and want["localized"]
+    assert got["final_submap"] == want["final_submap"]
+    # final_pose is the laser's pose, the same in both logs
+    assert math.hypot(got["final_pose"][0] - want["final_pose"][0], got["final_pose"][1] - want["final_pose"][1]) \
+        < 0.05
+
+
+# ---------------------------------------------------------------- an upside-down laser
+
+
+def test_an_upside_down_laser_sees_the_same_wall_as_an_upright_one(tmp_path):
+    """A wall at x = 2 m in the base frame, seen by a laser yawed 0.2 rad, upright and flipped about its x-axis."""
+    x, y, yaw = 0.3, 0.1, 0.2
+    c, s = math.cos(yaw), math.sin(yaw)
+    # Rotation matrix rows, quaternion (x, y, z, w), and the laser's first beam angle: the flipped laser sweeps
+    # clockwise seen from above, so it covers the upright's beams, -0.3 to 0.5 rad from the mount's yaw, from -0.5.
+    mounts = {
+        "upright": ([[c, -s, 0], [s, c, 0], [0, 0, 1]], yaw_quaternion(yaw), -0.3),
+        "flipped": ([[c, s, 0], [s, -c, 0], [0, 0, -1]], (math.cos(yaw / 2), math.sin(yaw / 2), 0.0, 0.0), -0.5),
+    }
+    n, increment = 41, np.float32(0.02)
+    points, raw = {}, {}
+    for name, (rotation, quaternion, first_angle) in mounts.items():
+        angle_min = np.float32(first_angle)
+        angles = angle_min + np.arange(n) * increment.astype(np.float64)
+        # Ray-cast each beam in 3D: direction R (cos a, sin a, 0) from the laser's origin.
+        dx = rotation[0][0] * np.cos(angles) + rotation[0][1] * np.sin(angles)
+        raw[name] = ((2.0 - x) / dx).astype(np.float32)
+        tf = [("base_link", "laser", (x, y, 0.25), quaternion)]
+        messages = [("/tf_static", 0, tf_cdr(0, tf))]
+        for k in range(3):
+            stamp = 10**9 + k * 10**8
+            messages.append(("/scan", stamp, laser_scan_cdr(stamp, "laser", angle_min, increment, raw[name].tolist())))
+            messages.append(("/odom", stamp, odometry_cdr(stamp, 0.0, 0.0, 0.0)))
+        bag = tmp_path / f"{name}.db3"
+        write_sqlite(bag, {"/scan": LASER_SCAN, "/odom": ODOMETRY, "/tf_static": TF_MESSAGE}, messages)
+        out = tmp_path / f"{name}.log"
+        run = convert(bag, out)
+        assert ("upside down" in run.stderr) == (name == "flipped")
+        log = lshloc.read_carmen_log(str(out))
+        assert all(abs(g - w) < 1e-6 for g, w in zip(log.laser_offset, (x, y, yaw)))
+        scan = log.scans[0]
+        expected = raw[name][::-1] if name == "flipped" else raw[name]  # the flipped scan mirrored
+        assert np.array_equal(scan.ranges, expected)
+        ox, oy, ot = log.laser_offset
+        a = ot + scan.angles
+        points[name] = np.stack([ox + scan.ranges * np.cos(a), oy + scan.ranges * np.sin(a)], axis=1)
+        assert np.allclose(points[name][:, 0], 2.0, atol=1e-4), name
+    assert np.allclose(points["upright"], points["flipped"], atol=1e-4)
+
+
+# ---------------------------------------------------------------- odometry coverage
+
+
+def tiny_bag(path, scan_stamps_s, odom_stamps_s, scan_topics=("/scan",)):
+    topics = {t: LASER_SCAN for t in scan_topics}
+    messages = []
+    for topic in scan_topics:
+        for t in scan_stamps_s:
+            stamp = round(t * 1e9)
+            messages.append((topic, stamp, laser_scan_cdr(stamp, "laser", -0.1, 0.1, [1.0, 2.0, 3.0])))
+    if odom_stamps_s:
+        topics["/odom"] = ODOMETRY
+        for t in odom_stamps_s:
+            messages.append(("/odom", round(t * 1e9), odometry_cdr(round(t * 1e9), t, 0.0, 2.6 + 0.5 * t)))
+    write_sqlite(path, topics, messages)
+
+
+def test_scans_outside_the_odometry_are_dropped_and_headings_interpolate_the_short_way(tmp_path):
+    bag, out = tmp_path / "bag.db3", tmp_path / "out.log"
+    tiny_bag(bag, [0.0, 0.6, 1.5, 2.4, 3.0], [1.0, 2.0])
+    run = convert(bag, out)
+    assert "dropped 2 scans" in run.stderr
+    log = lshloc.read_carmen_log(str(out))
+    assert [s.timestamp for s in log.scans] == [0.6, 1.5, 2.4]
+    # headings 3.1 and 3.6 rad, the second written wrapped as -2.68: the middle is 3.35 rad, not 0.21
+    x, _, heading = log.scans[1].odometry
+    assert abs(x - 1.5) < 1e-6 and angle_diff(heading, 3.35) < 1e-6
+    assert log.scans[0].odometry[0] == 1.0 and log.scans[2].odometry[0] == 2.0  # held at the ends, not extrapolated
+
+
+def test_no_odometry_writes_zero_odometry_with_a_warning(tmp_path):
+    bag, out = tmp_path / "bag.db3", tmp_path / "out.log"
+    tiny_bag(bag, [0.0, 0.5], [])
+    run = convert(bag, out)
+    assert "--no-odometry" in run.stderr
+    assert [s.odometry for s in lshloc.read_carmen_log(str(out)).scans] == [(0.0, 0.0, 0.0)] * 2
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def assert_refused(run, *parts):
+    assert run.returncode == 1, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("rosbag_to_carmen: error: "), run.stderr
+    for part in parts:
+        assert part in lines[0], lines[0]
+
+
+def test_bad_input_is_refused_naming_the_file_and_what_was_expected(tmp_path):
+    out = tmp_path / "out.log"
+    good = tmp_path / "good.mcap"
+    tiny_bag(tmp_path / "tiny.db3", [1.0, 1.1], [1.0, 1.1])
+    db = sqlite3.connect(tmp_path / "tiny.db3")
+    topics = {name: type_name for name, type_name in db.execute("SELECT name, type FROM topics")}
+    messages = [(n, t, bytes(d)) for n, t, d in db.execute(
+        "SELECT topics.name, timestamp, data FROM messages JOIN topics ON topics.id = topic_id")]
+    db.close()
+    write_mcap(good, topics, messages)
+    truncated = tmp_path / "truncated.mcap"
+    truncated.write_bytes(good.read_bytes()[:-60])
+    assert_refused(convert(truncated, out, expect_ok=False), str(truncated), "byte ", "expected a whole record")
+
+    cut = tmp_path / "cut.db3"
+    write_sqlite(cut, {"/scan": LASER_SCAN}, [("/scan", 1, laser_scan_cdr(1, "laser", -0.1, 0.1, [1.0, 2.0])),
+                                               ("/scan", 2, laser_scan_cdr(2, "laser", -0.1, 0.1, [1.0, 2.0])[:50])])
+    assert_refused(convert(cut, out, expect_ok=False), str(cut), "message 2 on topic /scan ends early",
+                   "expected a complete CDR-encoded sensor_msgs/msg/LaserScan")
+
+    two = tmp_path / "two.db3"
+    tiny_bag(two, [1.0], [1.0], scan_topics=("/scan_front", "/scan_rear"))
+    assert_refused(convert(two, out, expect_ok=False), str(two), "2 sensor_msgs/msg/LaserScan topics",
+                   "/scan_front, /scan_rear", "--scan-topic")
+    assert convert(two, out, "--scan-topic", "/scan_rear").returncode == 0
+
+    empty = tmp_path / "empty_dir"
+    empty.mkdir()
+    (empty / "notes.txt").write_text("not a bag\n")
+    assert_refused(convert(empty, out, expect_ok=False), str(empty), "no .db3 or .mcap file",
+                   "expected a ROS 2 bag directory")
+    assert_refused(convert(tmp_path / "missing", out, expect_ok=False), "missing", "no such file or directory")
+    text = tmp_path / "text.db3"
+    text.write_text("hello\n")
+    assert_refused(convert(text, out, expect_ok=False), str(text), "neither a sqlite3 database nor an MCAP file")
+    no_scans = tmp_path / "no_scans.db3"
+    write_sqlite(no_scans, {"/odom": ODOMETRY}, [("/odom", 1, odometry_cdr(1, 0.0, 0.0, 0.0))])
+    assert_refused(convert(no_scans, out, expect_ok=False), str(no_scans), "no sensor_msgs/msg/LaserScan topic",
+                   "/odom (nav_msgs/msg/Odometry)")

@@ -1,0 +1,698 @@
+#!/usr/bin/env python3
+"""Convert a ROS 2 bag (sqlite3 or MCAP) of laser scans and odometry into a
+CARMEN log (ROBOTLASER1 lines) that lshloc reads.
+
+Standard library only; zstandard and lz4 are imported when an MCAP chunk is
+compressed with them. Messages are decoded from CDR by hand, so no ROS
+installation is needed.
+"""
+import argparse
+import bisect
+import gzip
+import math
+import mmap
+import pathlib
+import sqlite3
+import struct
+import sys
+import zlib
+
+LASER_SCAN = "sensor_msgs/msg/LaserScan"
+ODOMETRY = "nav_msgs/msg/Odometry"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+TF_STATIC_TOPIC = "/tf_static"
+WANTED_TYPES = (LASER_SCAN, ODOMETRY, TF_MESSAGE)
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+SQLITE_MAGIC = b"SQLite format 3\x00"
+OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x02, 0x03, 0x04, 0x05, 0x06
+
+# Scans further than this outside the odometry's time span have no robot pose.
+ODOMETRY_MARGIN_NS = 500_000_000
+
+
+class BagError(Exception):
+    """A problem with the input, reported as one line naming the file."""
+
+    def __init__(self, path, what):
+        super().__init__(f"{path}: {what}")
+
+
+class Progress:
+    def __init__(self, quiet):
+        self.quiet = quiet
+
+    def note(self, text):
+        if not self.quiet:
+            print(f"rosbag_to_carmen: {text}", file=sys.stderr)
+
+
+def warn(text):
+    print(f"rosbag_to_carmen: warning: {text}", file=sys.stderr)
+
+
+class RawMessage:
+    """One serialized message of a wanted type, with where it came from."""
+    __slots__ = ("topic", "bag_ns", "data", "path")
+
+    def __init__(self, topic, bag_ns, data, path):
+        self.topic, self.bag_ns, self.data, self.path = topic, bag_ns, data, path
+
+
+class Bag:
+    """What the storage files hold: topic name -> (type, encoding), and the messages of the wanted types."""
+
+    def __init__(self):
+        self.topics = {}
+        self.messages = []
+        self.files = []
+
+
+# ---------------------------------------------------------------- storage
+
+
+def storage_files(bag_path):
+    path = pathlib.Path(bag_path)
+    if not path.exists():
+        raise BagError(bag_path, "no such file or directory; expected a ROS 2 bag directory or a .db3 / .mcap file")
+    if path.is_file():
+        return [path]
+    files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix in (".db3", ".mcap"))
+    if not files:
+        found = ", ".join(sorted(p.name for p in path.iterdir())[:8]) or "nothing"
+        raise BagError(bag_path, f"no .db3 or .mcap file in the directory (found {found}); expected a ROS 2 bag "
+                       "directory (metadata.yaml and its storage files; decompress .zstd files first)")
+    return files
+
+
+def read_bag(bag_path, progress):
+    bag = Bag()
+    for path in storage_files(bag_path):
+        with open(path, "rb") as f:
+            start = f.read(16)
+        progress.note(f"reading {path}")
+        if start.startswith(MCAP_MAGIC):
+            read_mcap(path, bag)
+        elif start == SQLITE_MAGIC:
+            read_sqlite(path, bag)
+        else:
+            raise BagError(path, "neither a sqlite3 database nor an MCAP file (by its first bytes); expected a ROS 2 "
+                           "bag's .db3 or .mcap storage file")
+        bag.files.append(path)
+    # Storage order need not be time order (MCAP chunks, several files).
+    bag.messages.sort(key=lambda m: m.bag_ns)
+    return bag
+
+
+def read_sqlite(path, bag):
+    try:
+        db = sqlite3.connect(path.resolve().as_uri() + "?mode=ro", uri=True)
+    except sqlite3.Error as e:
+        raise BagError(path, f"cannot open the sqlite3 database ({e})") from None
+    try:
+        ids = {}
+        for topic_id, name, type_name, encoding in db.execute(
+                "SELECT id, name, type, serialization_format FROM topics"):
+            bag.topics[name] = (type_name, encoding)
+            if type_name in WANTED_TYPES:
+                ids[topic_id] = name
+        rows = db.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY timestamp, id")
+        for topic_id, stamp, data in rows:
+            if topic_id in ids:
+                bag.messages.append(RawMessage(ids[topic_id], stamp, bytes(data), path))
+    except sqlite3.Error as e:
+        raise BagError(path, f"not a readable rosbag2 database ({e}); expected the tables topics(id, name, type, "
+                       "serialization_format) and messages(topic_id, timestamp, data)") from None
+    finally:
+        db.close()
+
+
+class McapRecords:
+    """Walks opcode + u64 length + content records between two offsets; `where` prefixes the offsets in errors."""
+
+    def __init__(self, buf, start, end, path, where):
+        self.buf, self.pos, self.end, self.path, self.where = buf, start, end, path, where
+
+    def __iter__(self):
+        while self.pos < self.end:
+            at = self.pos
+            if self.end - at < 9:
+                raise BagError(self.path, f"{self.where} byte {at}: a record header needs 9 bytes, {self.end - at} "
+                               "left; expected opcode and length (a truncated file?)")
+            opcode, length = struct.unpack_from("<BQ", self.buf, at)
+            content = at + 9
+            if length > self.end - content:
+                raise BagError(self.path, f"{self.where} byte {at}: record opcode 0x{opcode:02x} claims {length} "
+                               f"bytes, {self.end - content} left; expected a whole record (a truncated file?)")
+            self.pos = content + length
+            yield opcode, at, McapFields(self.buf, content, self.pos, self.path, f"{self.where} byte {at}", opcode)
+
+
+class McapFields:
+    """Reads the fields of one MCAP record's content."""
+
+    def __init__(self, buf, start, end, path, where, opcode):
+        self.buf, self.pos, self.end, self.path, self.where, self.opcode = buf, start, end, path, where, opcode
+
+    def _take(self, fmt):
+        size = struct.calcsize(fmt)
+        if self.pos + size > self.end:
+            raise BagError(self.path, f"{self.where}: record opcode 0x{self.opcode:02x} ends early; expected its "
+                           "fields as the MCAP spec lists them")
+        values = struct.unpack_from(fmt, self.buf, self.pos)
+        self.pos += size
+        return values[0] if len(values) == 1 else values
+
+    def u16(self):
+        return self._take("<H")
+
+    def u32(self):
+        return self._take("<I")
+
+    def u64(self):
+        return self._take("<Q")
+
+    def blob(self, length):
+        if self.pos + length > self.end:
+            raise BagError(self.path, f"{self.where}: record opcode 0x{self.opcode:02x} holds a field of {length} "
+                           f"bytes, {self.end - self.pos} left; expected its fields as the MCAP spec lists them")
+        data = bytes(self.buf[self.pos:self.pos + length])
+        self.pos += length
+        return data
+
+    def string(self):
+        return self.blob(self.u32()).decode("utf-8", errors="replace")
+
+    def rest(self):
+        return self.blob(self.end - self.pos)
+
+
+def read_mcap(path, bag):
+    size = path.stat().st_size
+    if size < 2 * len(MCAP_MAGIC):
+        raise BagError(path, f"{size} bytes; expected an MCAP file with a header, records and a footer")
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        state = McapState(path, bag)
+        records = McapRecords(buf, len(MCAP_MAGIC), size, path, "at")
+        for opcode, at, fields in records:
+            if opcode == OP_FOOTER:
+                if buf[records.pos:records.pos + len(MCAP_MAGIC)] != MCAP_MAGIC:
+                    raise BagError(path, f"byte {records.pos}: no closing magic after the footer; expected "
+                                   "\\x89MCAP0\\r\\n")
+                return
+            if opcode == OP_CHUNK:
+                state.read_chunk(fields, at)
+            else:
+                state.read_record(opcode, fields)
+        raise BagError(path, f"ends at byte {size} without a footer record; expected a complete MCAP file "
+                       "(a truncated or still-recording bag?)")
+
+
+class McapState:
+    def __init__(self, path, bag):
+        self.path, self.bag = path, bag
+        self.schemas = {}
+        self.channels = {}
+
+    def read_record(self, opcode, fields):
+        if opcode == OP_SCHEMA:
+            schema_id, name = fields.u16(), fields.string()
+            self.schemas[schema_id] = name
+        elif opcode == OP_CHANNEL:
+            channel_id, schema_id, topic, encoding = fields.u16(), fields.u16(), fields.string(), fields.string()
+            type_name = self.schemas.get(schema_id, "")
+            self.channels[channel_id] = (topic, type_name)
+            self.bag.topics[topic] = (type_name, encoding)
+        elif opcode == OP_MESSAGE:
+            channel_id = fields.u16()
+            fields.blob(4)  # sequence number
+            log_time = fields.u64()
+            fields.blob(8)  # publish time: the bag's time is the log (receive) time
+            channel = self.channels.get(channel_id)
+            if channel is None:
+                raise BagError(self.path, f"{fields.where}: a message on channel {channel_id}, which no channel "
+                               "record defined before it; expected channels before their messages")
+            if channel[1] in WANTED_TYPES:
+                self.bag.messages.append(RawMessage(channel[0], log_time, fields.rest(), self.path))
+
+    def read_chunk(self, fields, at):
+        fields.blob(16)  # message start and end times: every message carries its own
+        uncompressed_size, crc = fields.u64(), fields.u32()
+        compression = fields.string()
+        data = fields.blob(fields.u64())
+        records = decompress(data, compression, uncompressed_size, self.path, at)
+        if len(records) != uncompressed_size:
+            raise BagError(self.path, f"chunk at byte {at}: {len(records)} bytes uncompressed; expected "
+                           f"{uncompressed_size} (a damaged chunk?)")
+        if crc != 0 and zlib.crc32(records) != crc:
+            raise BagError(self.path, f"chunk at byte {at}: CRC mismatch of its records; expected 0x{crc:08x} "
+                           "(a damaged chunk?)")
+        for opcode, _, inner in McapRecords(records, 0, len(records), self.path, f"chunk at byte {at}, record at"):
+            self.read_record(opcode, inner)
+
+
+def decompress(data, compression, uncompressed_size, path, at):
+    if compression == "":
+        return data
+    if compression == "zstd":
+        try:
+            import zstandard
+        except ImportError:
+            raise BagError(path, f"chunk at byte {at} is zstd-compressed and the Python module zstandard is "
+                           "missing; expected it installed (apt install python3-zstandard)") from None
+        try:
+            return zstandard.ZstdDecompressor().decompress(data, max_output_size=uncompressed_size)
+        except zstandard.ZstdError as e:
+            raise BagError(path, f"chunk at byte {at}: zstd says {e}; expected a valid zstd frame") from None
+    if compression == "lz4":
+        try:
+            import lz4.frame
+        except ImportError:
+            raise BagError(path, f"chunk at byte {at} is lz4-compressed and the Python module lz4 is missing; "
+                           "expected it installed (apt install python3-lz4)") from None
+        try:
+            return lz4.frame.decompress(data)
+        except RuntimeError as e:
+            raise BagError(path, f"chunk at byte {at}: lz4 says {e}; expected a valid LZ4 frame") from None
+    raise BagError(path, f"chunk at byte {at} uses compression '{compression}'; expected none, zstd or lz4")
+
+
+# ---------------------------------------------------------------- CDR
+
+
+class CdrError(Exception):
+    """A message that is no plain CDR."""
+
+
+class CdrEndsEarly(CdrError):
+    """A message shorter than its fields."""
+
+
+class CdrReader:
+    """Plain CDR (XCDR1): each primitive aligned to its size, counted from the end of the 4-byte header."""
+
+    def __init__(self, data):
+        if len(data) < 4:
+            raise CdrEndsEarly(f"{len(data)} bytes, less than the 4-byte encapsulation header")
+        if data[0] != 0 or data[1] not in (0, 1):
+            raise CdrError(f"encapsulation header {data[0]:02x} {data[1]:02x}; expected plain CDR "
+                             "(00 01 little-endian or 00 00 big-endian)")
+        self.order = "<" if data[1] == 1 else ">"
+        self.data = data
+        self.pos = 4
+
+    def _take(self, code, size, count):
+        self.pos += -(self.pos - 4) % size
+        end = self.pos + size * count
+        if end > len(self.data):
+            raise CdrEndsEarly(f"{len(self.data)} bytes, a field at byte {self.pos} needs {end}")
+        values = struct.unpack_from(f"{self.order}{count}{code}", self.data, self.pos)
+        self.pos = end
+        return values
+
+    def i32(self):
+        return self._take("i", 4, 1)[0]
+
+    def u32(self):
+        return self._take("I", 4, 1)[0]
+
+    def f32s(self, count):
+        return self._take("f", 4, count)
+
+    def f64s(self, count):
+        return self._take("d", 8, count)
+
+    def string(self):
+        length = self.u32()
+        if self.pos + length > len(self.data):
+            raise CdrEndsEarly(f"{len(self.data)} bytes, a string at byte {self.pos} needs {self.pos + length}")
+        text = self.data[self.pos:self.pos + length].rstrip(b"\0")
+        self.pos += length
+        return text.decode("utf-8", errors="replace")
+
+    def header(self):
+        sec, nanosec = self.i32(), self.u32()
+        return sec * 1_000_000_000 + nanosec, self.string()
+
+
+class Scan:
+    __slots__ = ("stamp_ns", "bag_ns", "frame", "angle_min", "angle_increment", "range_min", "range_max", "ranges")
+
+
+def decode_scan(cdr):
+    scan = Scan()
+    scan.stamp_ns, scan.frame = cdr.header()
+    angle_min, _angle_max, scan.angle_increment, _time_increment, _scan_time, scan.range_min, scan.range_max = \
+        cdr.f32s(7)
+    scan.angle_min = angle_min
+    scan.ranges = cdr.f32s(cdr.u32())
+    cdr.f32s(cdr.u32())  # intensities: read only to check the message is whole
+    return scan
+
+
+class Odometry:
+    __slots__ = ("stamp_ns", "bag_ns", "child_frame", "x", "y", "yaw")
+
+
+def decode_odometry(cdr):
+    odom = Odometry()
+    odom.stamp_ns, _frame = cdr.header()
+    odom.child_frame = cdr.string()
+    odom.x, odom.y, _z, qx, qy, qz, qw = cdr.f64s(7)
+    odom.yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    cdr.f64s(36 + 6 + 36)  # pose covariance, twist and its covariance: read only to check the message is whole
+    return odom
+
+
+def decode_tf(cdr):
+    transforms = []
+    for _ in range(cdr.u32()):
+        _stamp, parent = cdr.header()
+        child = cdr.string()
+        translation = cdr.f64s(3)
+        rotation = cdr.f64s(4)
+        transforms.append((parent.lstrip("/"), child.lstrip("/"), Transform.from_ros(translation, rotation)))
+    return transforms
+
+
+DECODERS = {LASER_SCAN: decode_scan, ODOMETRY: decode_odometry, TF_MESSAGE: decode_tf}
+
+
+def decode_topic(bag, topic, type_name):
+    """Decodes every message of one topic; errors name the file, topic and message number."""
+    decoded = []
+    encoding = bag.topics[topic][1]
+    for number, msg in enumerate((m for m in bag.messages if m.topic == topic), start=1):
+        if encoding != "cdr":
+            raise BagError(msg.path, f"topic {topic} is serialized as '{encoding}'; expected 'cdr' (ROS 2's default)")
+        try:
+            value = DECODERS[type_name](CdrReader(msg.data))
+        except CdrEndsEarly as e:
+            raise BagError(msg.path, f"message {number} on topic {topic} ends early ({e}); expected a complete "
+                           f"CDR-encoded {type_name}") from None
+        except CdrError as e:
+            raise BagError(msg.path, f"message {number} on topic {topic}: {e}") from None
+        if type_name != TF_MESSAGE:
+            value.bag_ns = msg.bag_ns
+        decoded.append(value)
+    return decoded
+
+
+# ---------------------------------------------------------------- geometry
+
+
+class Transform:
+    """A 3D rigid transform: rotation matrix rows and translation."""
+
+    def __init__(self, rotation, translation):
+        self.r, self.t = rotation, translation
+
+    @staticmethod
+    def from_ros(translation, quaternion):
+        x, y, z, w = quaternion
+        norm = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
+        x, y, z, w = x / norm, y / norm, z / norm, w / norm
+        rotation = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                    [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                    [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
+        return Transform(rotation, list(translation))
+
+    def then(self, other):
+        """This transform followed by `other`, expressed in this one's parent frame."""
+        r = [[sum(self.r[i][k] * other.r[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+        t = [sum(self.r[i][k] * other.t[k] for k in range(3)) + self.t[i] for i in range(3)]
+        return Transform(r, t)
+
+    def inverse(self):
+        r = [[self.r[j][i] for j in range(3)] for i in range(3)]
+        t = [-sum(r[i][k] * self.t[k] for k in range(3)) for i in range(3)]
+        return Transform(r, t)
+
+
+def find_static_transform(transforms, base, target):
+    """The pose of `target` in `base` through the static tree, walked either way along its edges."""
+    edges = {}
+    for parent, child, transform in transforms:
+        edges.setdefault(parent, {})[child] = transform
+        edges.setdefault(child, {})[parent] = transform.inverse()
+    found = {base: Transform([[1, 0, 0], [0, 1, 0], [0, 0, 1]], [0, 0, 0])}
+    queue = [base]
+    while queue:
+        frame = queue.pop(0)
+        if frame == target:
+            return found[frame]
+        for neighbour, transform in edges.get(frame, {}).items():
+            if neighbour not in found:
+                found[neighbour] = found[frame].then(transform)
+                queue.append(neighbour)
+    return None
+
+
+def wrap(angle):
+    return math.atan2(math.sin(angle), math.cos(angle))
+
+
+class Mount:
+    """The laser's planar pose on the robot; `upside_down` lasers sweep the other way seen from above."""
+
+    def __init__(self, x, y, theta, upside_down, source):
+        self.x, self.y, self.theta, self.upside_down, self.source = x, y, theta, upside_down, source
+
+    @staticmethod
+    def from_transform(transform, source):
+        r = transform.r
+        # The yaw of where the laser's x-axis points; its z-axis pointing down means a flipped sweep.
+        return Mount(transform.t[0], transform.t[1], math.atan2(r[1][0], r[0][0]), r[2][2] < 0.0, source)
+
+
+def laser_mount(args, tf_transforms, base_frame, laser_frame):
+    if args.laser_offset is not None:
+        return Mount(*args.laser_offset, False, "--laser-offset")
+    if not tf_transforms:
+        warn(f"no {TF_STATIC_TOPIC} transforms and no --laser-offset: the laser is taken to sit at the robot's "
+             "origin (0, 0, 0)")
+        return Mount(0.0, 0.0, 0.0, False, "nowhere (assumed 0, 0, 0)")
+    transform = find_static_transform(tf_transforms, base_frame, laser_frame)
+    if transform is None:
+        frames = sorted({f for parent, child, _ in tf_transforms for f in (parent, child)})
+        warn(f"{TF_STATIC_TOPIC} links no path from '{base_frame}' to the laser frame '{laser_frame}' "
+             f"(frames: {', '.join(frames)}); the laser is taken to sit at the robot's origin (0, 0, 0): "
+             "give --base-frame or --laser-offset")
+        return Mount(0.0, 0.0, 0.0, False, "nowhere (assumed 0, 0, 0)")
+    return Mount.from_transform(transform, f"{TF_STATIC_TOPIC} {base_frame} -> {laser_frame}")
+
+
+class OdometryTrack:
+    """Robot poses by time, interpolated linearly; the heading along the shorter way round."""
+
+    def __init__(self, readings, stamp_of):
+        by_time = {}
+        for odom in readings:
+            by_time[stamp_of(odom)] = odom  # of equal stamps the last wins
+        self.times = sorted(by_time)
+        self.poses = [(by_time[t].x, by_time[t].y, by_time[t].yaw) for t in self.times]
+
+    def pose_at(self, t):
+        """The pose at time t [ns], or None further than the margin outside the track."""
+        times = self.times
+        if t < times[0] - ODOMETRY_MARGIN_NS or t > times[-1] + ODOMETRY_MARGIN_NS:
+            return None
+        i = bisect.bisect_left(times, t)
+        if i < len(times) and times[i] == t:
+            return self.poses[i]
+        if i == 0:
+            return self.poses[0]
+        if i == len(times):
+            return self.poses[-1]
+        (x0, y0, a0), (x1, y1, a1) = self.poses[i - 1], self.poses[i]
+        f = (t - times[i - 1]) / (times[i] - times[i - 1])
+        return x0 + f * (x1 - x0), y0 + f * (y1 - y0), wrap(a0 + f * wrap(a1 - a0))
+
+
+# ---------------------------------------------------------------- output
+
+
+def stamp_text(ns):
+    sign = "-" if ns < 0 else ""
+    sec, frac = divmod(abs(ns), 1_000_000_000)
+    return f"{sign}{sec}.{frac:09d}"
+
+
+def range_fields(scan, max_range_text):
+    """ROS ranges as lshloc reads them: no return (+inf, > range_max) as max_range, invalid beams (NaN, -inf,
+    < range_min) as nan."""
+    out = []
+    for r in scan.ranges:
+        if r != r or r < scan.range_min:
+            out.append("nan")
+        elif r > scan.range_max:
+            out.append(max_range_text)
+        else:
+            out.append("%.9g" % r)
+    return out
+
+
+def robotlaser_line(scan, robot, mount, stamp_ns):
+    ranges = range_fields(scan, "%.17g" % scan.range_max)
+    angle_min = scan.angle_min
+    n = len(ranges)
+    if mount.upside_down:
+        ranges.reverse()
+        angle_min = -(scan.angle_min + (n - 1) * scan.angle_increment)
+    fov = abs(scan.angle_increment) * max(n - 1, 1)
+    rx, ry, rt = robot
+    c, s = math.cos(rt), math.sin(rt)
+    laser = (rx + c * mount.x - s * mount.y, ry + s * mount.x + c * mount.y, wrap(rt + mount.theta))
+    stamp = stamp_text(stamp_ns)
+    # Exact float32 values in %.17g: max_range must compare equal to the no-return ranges written as it.
+    return " ".join([
+        "ROBOTLASER1 0", "%.17g" % angle_min, "%.17g" % fov, "%.17g" % scan.angle_increment,
+        "%.17g" % scan.range_max, "0.01 0", str(n), *ranges, "0",
+        "%.9f %.9f %.9f" % laser, "%.9f %.9f %.9f" % robot, "0 0 0 0 0", stamp, "rosbag", stamp])
+
+
+def choose_topic(bag, bag_path, type_name, option, requested):
+    candidates = sorted(t for t, (ty, _) in bag.topics.items() if ty == type_name)
+    if requested is not None:
+        if requested not in bag.topics:
+            raise BagError(bag_path, f"no topic {requested} ({option}); expected one of "
+                           f"{', '.join(sorted(bag.topics)) or 'none'}")
+        if bag.topics[requested][0] != type_name:
+            raise BagError(bag_path, f"topic {requested} ({option}) is a {bag.topics[requested][0]}; expected a "
+                           f"{type_name}")
+        return requested
+    if len(candidates) == 1:
+        return candidates[0]
+    if not candidates:
+        return None
+    raise BagError(bag_path, f"{len(candidates)} {type_name} topics ({', '.join(candidates)}); expected one, "
+                   f"or the one to use named with {option}")
+
+
+def open_output(path):
+    if str(path).endswith(".gz"):
+        return gzip.open(path, "wt", encoding="ascii")
+    return open(path, "w", encoding="ascii")
+
+
+def convert(args):
+    progress = Progress(args.quiet)
+    bag = read_bag(args.bag, progress)
+    progress.note(f"read {len(bag.messages)} scan, odometry and tf messages from {len(bag.files)} file(s)")
+
+    scan_topic = choose_topic(bag, args.bag, LASER_SCAN, "--scan-topic", args.scan_topic)
+    if scan_topic is None:
+        listed = ", ".join(f"{t} ({ty})" for t, (ty, _) in sorted(bag.topics.items())) or "no topics"
+        raise BagError(args.bag, f"no {LASER_SCAN} topic (found {listed}); expected a bag with laser scans")
+    odom_topic = choose_topic(bag, args.bag, ODOMETRY, "--odom-topic", args.odom_topic)
+
+    scans = decode_topic(bag, scan_topic, LASER_SCAN)
+    if not scans:
+        raise BagError(args.bag, f"topic {scan_topic} holds no message; expected laser scans")
+    odometry = decode_topic(bag, odom_topic, ODOMETRY) if odom_topic else []
+    tf_transforms = []
+    if bag.topics.get(TF_STATIC_TOPIC, ("",))[0] == TF_MESSAGE:
+        for message in decode_topic(bag, TF_STATIC_TOPIC, TF_MESSAGE):
+            tf_transforms.extend(message)
+    progress.note(f"decoded {len(scans)} scans on {scan_topic}, {len(odometry)} odometry messages on "
+                  f"{odom_topic or '(none)'}, {len(tf_transforms)} static transforms")
+
+    base_frame = args.base_frame or (odometry[0].child_frame.lstrip("/") if odometry else "") or "base_link"
+    mount = laser_mount(args, tf_transforms, base_frame, scans[0].frame.lstrip("/"))
+
+    def stamp_of(message):
+        return message.stamp_ns if args.stamp == "header" else message.bag_ns
+
+    track = OdometryTrack(odometry, stamp_of) if odometry else None
+    if track is None:
+        warn(f"no {ODOMETRY} topic: writing zero odometry; localize the log with `lshloc localize --no-odometry`")
+    lines = [f"# converted by rosbag_to_carmen.py from {args.bag} (topics {scan_topic}, {odom_topic or 'no odometry'}"
+             f"{', ' + TF_STATIC_TOPIC if tf_transforms else ''})"]
+    dropped = 0
+    for scan in scans:
+        stamp = stamp_of(scan)
+        robot = track.pose_at(stamp) if track else (0.0, 0.0, 0.0)
+        if robot is None:
+            dropped += 1
+            continue
+        lines.append(robotlaser_line(scan, robot, mount, stamp))
+
+    try:
+        with open_output(args.out) as out:
+            out.write("\n".join(lines) + "\n")
+    except OSError as e:
+        raise BagError(args.out, f"cannot write the log ({e.strerror}); expected a writable path") from None
+
+    print(f"rosbag_to_carmen: wrote {len(lines) - 1} scans to {args.out} (read {len(bag.messages)} messages; "
+          f"scans {scan_topic}, odometry {odom_topic or 'none'}, stamps from the {args.stamp})", file=sys.stderr)
+    if dropped:
+        print(f"rosbag_to_carmen: dropped {dropped} scans more than {ODOMETRY_MARGIN_NS / 1e9:g} s outside the "
+              "odometry's time span", file=sys.stderr)
+    flip = "; upside down: scans mirrored to read as seen from above" if mount.upside_down else ""
+    print(f"rosbag_to_carmen: laser mount x={mount.x:.6f} m y={mount.y:.6f} m theta={mount.theta:.6f} rad "
+          f"from {mount.source}{flip}", file=sys.stderr)
+
+
+# ---------------------------------------------------------------- command line
+
+
+def parse_offset(text):
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"'{text}': expected X,Y,THETA (metres, metres, radians)")
+    return tuple(values)
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(
+        prog="rosbag_to_carmen.py",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Convert a ROS 2 bag (sqlite3 .db3 or MCAP, MCAP chunks plain, zstd or lz4) of "
+                    f"{LASER_SCAN} and {ODOMETRY} messages into a CARMEN log of ROBOTLASER1 lines for lshloc. "
+                    "Each scan gets the odometry interpolated at its stamp and the laser's mount on the robot.",
+        epilog="Ranges: ROS's no-return readings (+inf, above range_max) are written as max_range, which lshloc "
+               "reads as no return; invalid ones (NaN, -inf, below range_min) as nan, an invalid beam.\n\n"
+               "example:\n"
+               "  rosbag_to_carmen.py my_bag/ --out run.log.gz\n"
+               "  lshloc localize --map map.yaml --target run.log.gz")
+    parser.add_argument("bag", metavar="BAG",
+                        help="a ROS 2 bag directory (its .db3 / .mcap files read in name order) or one .db3 / "
+                             ".mcap file"),
+    parser.add_argument("--out", required=True, metavar="LOG",
+                        help="the CARMEN log to write; gzip-compressed when it ends in .gz")
+    parser.add_argument("--scan-topic", metavar="T",
+                        help=f"the {LASER_SCAN} topic (default: the only one in the bag)")
+    parser.add_argument("--odom-topic", metavar="T",
+                        help=f"the {ODOMETRY} topic (default: the only one; with none, zero odometry is written)")
+    parser.add_argument("--base-frame", metavar="F",
+                        help="the robot frame the laser mount is measured from in /tf_static (default: the "
+                             "odometry's child_frame_id, else base_link)")
+    parser.add_argument("--laser-offset", metavar="X,Y,THETA", type=parse_offset,
+                        help="the laser's planar mount on the robot [m, m, rad], overriding /tf_static; the scans "
+                             "are taken as upright (write negative values as --laser-offset=-0.1,0,0)")
+    parser.add_argument("--stamp", choices=("header", "bag"), default="header",
+                        help="time stamps from the messages' headers (default) or the bag's receive times")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress on stderr (the summary and warnings stay)")
+    return parser.parse_args(argv)
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    try:
+        convert(args)
+    except BagError as e:
+        print(f"rosbag_to_carmen: error: {e}", file=sys.stderr)
+        return 1
+    except OSError as e:
+        print(f"rosbag_to_carmen: error: {e.filename}: {e.strerror}; expected a readable bag and a writable "
+              "output", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
