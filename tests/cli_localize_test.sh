@@ -162,6 +162,12 @@ if "$LSHLOC" localize --map "$d/named.map" --target "$d/unmounted.log" --length 
   >/dev/null 2>"$d/features.err"; then fail "localizer.features in a config was taken silently"; fi
 grep -q "map.features" "$d/features.err" || fail "the refusal of localizer.features does not say where they go"
 
+# A missing map file is named before the target log is read.
+if "$LSHLOC" localize --map "$d/no-such-map.log" --target "$b/sim-3-001.log.gz" >/dev/null 2>"$d/err.txt"; then
+  fail "a missing map file"
+fi
+grep -q "^lshloc: error: --map $d/no-such-map.log: no such file" "$d/err.txt" || fail "missing map: $(cat "$d/err.txt")"
+
 # A map log whose path holds a comma is a file, not LOG,POSES; a comma with nothing after it says what was expected.
 mkdir -p "$d/run,1"
 cp "$a/sim-3-000-corrected.log.gz" "$d/run,1/"

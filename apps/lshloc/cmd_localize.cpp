@@ -660,7 +660,13 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       throw Error("--target -: stdin can be the only target; it cannot be mixed with target logs");
     if (stream && (opt->from_s || opt->to_s || !opt->plot_dir.empty()))
       throw Error("--target -: the stream is localized scan by scan; --from/--to and --plot need a log file");
-    // Output paths first: a typo must not cost a whole run.
+    // Output paths and the map's files first: a typo must not cost reading a long target log.
+    for (const auto& m : opt->maps) {
+      if (m.starts_with("redis://")) continue;
+      const std::string file = m.substr(0, log_argument_comma(m));
+      std::error_code ec;
+      if (!std::filesystem::exists(file, ec)) throw FileError("--map " + file + ": no such file");
+    }
     const std::vector<std::string> outs = output_paths(*opt);
     for (const auto& out : outs)
       io::require_writable(output_files(out).tum), io::require_writable(output_files(out).csv);
