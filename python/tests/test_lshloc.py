@@ -257,6 +257,11 @@ def test_a_missing_file_is_an_oserror_and_an_lshloc_error(tmp_path):
             read(str(tmp_path / "missing.x"))
         with pytest.raises(lshloc.Error):
             read(str(tmp_path / "missing.x"))
+    # A file that cannot be written is an OSError too (a missing directory, a full disk).
+    with pytest.raises(OSError, match="no/such/dir/x.map"):
+        lshloc.GlobalMap().save(tmp_path / "no" / "such" / "dir" / "x.map")
+    with pytest.raises(OSError, match="no/such/dir/g"):
+        lshloc.write_ros_map(tmp_path / "no" / "such" / "dir" / "g", lshloc.OccupancyGrid(np.zeros((2, 2), np.int8), 0.1))
     (tmp_path / "bad.log").write_text("no log here\n")
     with pytest.raises(lshloc.Error) as bad:
         lshloc.read_carmen_log(str(tmp_path / "bad.log"))

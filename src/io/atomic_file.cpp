@@ -25,7 +25,7 @@ void write_all(int fd, std::span<const std::uint8_t> data, const std::string& pa
     const ssize_t n = ::write(fd, data.data(), data.size());
     if (n < 0) {
       if (errno == EINTR) continue;
-      throw Error(system_error(path, "cannot write"));
+      throw FileError(system_error(path, "cannot write"));
     }
     data = data.subspan(static_cast<std::size_t>(n));
   }
@@ -35,10 +35,10 @@ void sync_directory_of(const std::string& path) {
   const std::filesystem::path dir = std::filesystem::path(path).parent_path();
   const std::string name = dir.empty() ? "." : dir.string();
   const int fd = ::open(name.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) throw Error(system_error(name, "cannot open the directory to sync it"));
+  if (fd < 0) throw FileError(system_error(name, "cannot open the directory to sync it"));
   const int rc = ::fsync(fd);
   ::close(fd);
-  if (rc != 0) throw Error(system_error(name, "cannot sync the directory"));
+  if (rc != 0) throw FileError(system_error(name, "cannot sync the directory"));
 }
 
 std::string temporary_path_for(const std::string& path) {
@@ -50,12 +50,12 @@ std::string temporary_path_for(const std::string& path) {
 int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
   const std::string tmp = temporary_path_for(path);
   const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error(system_error(path, "cannot create its temporary file " + tmp));
+  if (fd < 0) throw FileError(system_error(path, "cannot create its temporary file " + tmp));
   try {
-    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw Error(system_error(tmp, "cannot lock"));
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) throw FileError(system_error(tmp, "cannot lock"));
     write_all(fd, bytes, tmp);
-    if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync"));
-    if (::rename(tmp.c_str(), path.c_str()) != 0) throw Error(system_error(path, "cannot replace it with " + tmp));
+    if (::fsync(fd) != 0) throw FileError(system_error(tmp, "cannot sync"));
+    if (::rename(tmp.c_str(), path.c_str()) != 0) throw FileError(system_error(path, "cannot replace it with " + tmp));
   } catch (...) {
     ::close(fd);
     ::unlink(tmp.c_str());
@@ -101,10 +101,10 @@ void write_files_atomically(std::span<const FileOutput> files) {
       temporaries.push_back(temporary_path_for(f.path));
       const std::string& tmp = temporaries.back();
       const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-      if (fd < 0) throw Error(system_error(f.path, "cannot create its temporary file " + tmp));
+      if (fd < 0) throw FileError(system_error(f.path, "cannot create its temporary file " + tmp));
       try {
         write_all(fd, {reinterpret_cast<const std::uint8_t*>(f.bytes.data()), f.bytes.size()}, tmp);
-        if (::fsync(fd) != 0) throw Error(system_error(tmp, "cannot sync"));
+        if (::fsync(fd) != 0) throw FileError(system_error(tmp, "cannot sync"));
       } catch (...) {
         ::close(fd);
         throw;
@@ -144,8 +144,8 @@ void require_writable(const std::string& path) {
   const fs::path dir = fs::path(path).parent_path();
   const std::string name = dir.empty() ? "." : dir.string();
   if (!fs::is_directory(name, ec))
-    throw Error(path + ": cannot write here (the directory " + name + " does not exist)");
-  if (::access(name.c_str(), W_OK) != 0) throw Error(system_error(path, "cannot write in " + name));
+    throw FileError(path + ": cannot write here (the directory " + name + " does not exist)");
+  if (::access(name.c_str(), W_OK) != 0) throw FileError(system_error(path, "cannot write in " + name));
 }
 
 void require_writable_directory(const std::string& dir, const std::string& what) {

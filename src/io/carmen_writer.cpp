@@ -132,7 +132,7 @@ void CarmenWriter::close() {
   }
   if (!error.empty()) {
     ::unlink(temp_path_.c_str());
-    throw Error(error);
+    throw FileError(error);
   }
 }
 

@@ -70,7 +70,7 @@ std::unique_ptr<FileBytes> read_whole_file(const std::string& path) {
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
     ::close(fd);
-    throw Error(system_error(path, "cannot stat the map"));
+    throw FileError(system_error(path, "cannot stat the map"));
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd);
@@ -419,10 +419,10 @@ void MapAppender::open_file() {
     if (parsed.info.torn_bytes > 0) {
       // Cut the torn record off so that new records follow the last good one.
       if (::ftruncate(fd_, static_cast<off_t>(parsed.journal_end)) != 0 || ::fsync(fd_) != 0)
-        throw Error(system_error(path_, "cannot cut off the torn journal record"));
+        throw FileError(system_error(path_, "cannot cut off the torn journal record"));
     }
     if (::lseek(fd_, static_cast<off_t>(parsed.journal_end), SEEK_SET) < 0)
-      throw Error(system_error(path_, "cannot seek to the journal's end"));
+      throw FileError(system_error(path_, "cannot seek to the journal's end"));
     journal_end_ = parsed.journal_end;
     acknowledged_scans_ = map_->stats().scans;
   } catch (...) {
@@ -486,14 +486,14 @@ void MapAppender::sync() {
   if (tail_dirty_) {  // an earlier write failed part-way: its bytes must not precede the records
     if (::ftruncate(fd_, static_cast<off_t>(journal_end_)) != 0 ||
         ::lseek(fd_, static_cast<off_t>(journal_end_), SEEK_SET) < 0)
-      throw Error(system_error(path_, "cannot cut off a failed write from the journal"));
+      throw FileError(system_error(path_, "cannot cut off a failed write from the journal"));
     tail_dirty_ = false;
   }
   tail_dirty_ = true;
   write_all(fd_, pending_, path_);
   if (::fdatasync(fd_) != 0) {
     sync_failed_ = true;
-    throw Error(system_error(path_, "cannot sync the journal"));
+    throw FileError(system_error(path_, "cannot sync the journal"));
   }
   tail_dirty_ = false;
   journal_end_ += pending_.size();
@@ -510,7 +510,7 @@ void MapAppender::compact(const nlohmann::json& meta) {
   ::close(fd_);
   fd_ = fd;  // locked, positioned at the end: the new, empty journal
   const off_t end = ::lseek(fd_, 0, SEEK_CUR);
-  if (end < 0) throw Error(system_error(path_, "cannot find the new journal's start"));
+  if (end < 0) throw FileError(system_error(path_, "cannot find the new journal's start"));
   journal_end_ = static_cast<std::uint64_t>(end);
 }
 

@@ -17,9 +17,10 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
 
-/// An Error about a file that cannot be opened or read at all (missing, no
-/// permission, an I/O error): callers may tell it from bad content (Python
-/// gets an OSError). The message names the file and the system's reason.
+/// An Error about a file that cannot be opened, read or written at all
+/// (missing, no permission, a full disk, an I/O error): callers may tell it
+/// from bad content (Python gets an OSError). The message names the file and
+/// the system's reason.
 class FileError : public Error {
  public:
   using Error::Error;
