@@ -13,6 +13,11 @@ if "$LSHLOC" --data /nonexistent/lshloc-data info --buildings 2>"${TMPDIR:-/tmp}
 fi
 grep -q "/nonexistent/lshloc-data" "${TMPDIR:-/tmp}/cli_info_err.$$" || fail "the error does not name the directory"
 rm -f "${TMPDIR:-/tmp}/cli_info_err.$$"
+# A data directory that holds none of the logs: listed, with a warning saying so.
+empty=$(mktemp -d)
+"$LSHLOC" --data "$empty" info --buildings >/dev/null 2>"$empty/err" || fail "an empty data directory"
+grep -q "warning: .*holds none of the buildings' logs" "$empty/err" || fail "no warning: $(cat "$empty/err")"
+rm -rf "$empty"
 if "$LSHLOC" info --buildings some.log 2>/dev/null; then fail "--buildings with a LOG was accepted"; fi
 if [ ! -d "$data" ]; then echo "shared data directory $data not found: skipped"; exit 0; fi
 "$LSHLOC" --data "$data" info --buildings | python3 -c '

@@ -88,6 +88,11 @@ void add_info_command(CLI::App& app, GlobalOptions& global) {
       const io::DatasetCatalog catalog(global.resolved_data_dir());
       for (const io::BuildingFiles& b : catalog.buildings())
         std::printf("%s\n", io::json_text(building_files(b)).c_str());
+      if (catalog.existing_logs().empty())
+        std::fprintf(stderr,
+                     "lshloc: warning: %s holds none of the buildings' logs (../shared/data/README.md names them); "
+                     "give the data directory with --data DIR or LSHLOC_DATA\n",
+                     catalog.data_dir().c_str());
       return;
     }
     std::vector<std::string> files = *logs;
