@@ -303,6 +303,27 @@ TEST(CarmenReaderBadInput, TimeStampsBackwardsOrRepeatedAreWarnedOncePerFileWith
   EXPECT_TRUE(read_carmen_log(path).warnings.empty());
 }
 
+TEST(CarmenReaderBadInput, AStampHoursAfterTheScanBeforeIsWarnedWithItsLine) {
+  const std::string path = test::temp_path(".log");
+  test::write_file(path, flaser_line(3, 1.0, 10.0) + flaser_line(3, 1.0, 11.0) + flaser_line(3, 1.0, 2e9) +
+                             flaser_line(3, 1.0, 12.0));
+  const CarmenLog log = read_carmen_log(path);
+  ASSERT_EQ(log.scans.size(), 4u);
+  ASSERT_EQ(log.warnings.size(), 2u);  // and the scan after it runs back
+  EXPECT_NE(log.warnings[1].find(
+                "1 laser scans are stamped more than an hour after the scan before (first at line 3, 11.000000 s to "
+                "2000000000.000000 s)"),
+            std::string::npos)
+      << log.warnings[1];
+}
+
+TEST(CarmenReaderBadInput, OurMessageInLowerCaseIsADamagedLine) {
+  std::string lower = flaser_line(3, 1.0, 11.0);
+  lower.replace(0, 6, "flaser");
+  const std::string e = expect_error(flaser_line(3, 1.0, 10.0) + lower);
+  EXPECT_NE(e.find(":2: 'flaser': expected FLASER"), std::string::npos) << e;
+}
+
 TEST(CarmenReaderBadInput, BytesAfterTheGzipStreamAreWarnedAndMembersAreRead) {
   const std::string one = test::temp_path(".log.gz"), two = test::temp_path(".log.gz");
   test::write_file(one, flaser_line(3, 1.0, 10.0));

@@ -1,6 +1,7 @@
 #include "lshloc/io/carmen_reader.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -204,6 +205,12 @@ bool CarmenReader::next(CarmenRecord& record) {
         if (v > 0.0 && std::isfinite(v)) flaser_max_range_ = v;
       }
     } else {
+      // A message of ours in the wrong case is a damaged line, not another message to skip.
+      std::string upper(type);
+      for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      if (upper != type && (upper == "FLASER" || upper == "ROBOTLASER1" || upper == "ODOM" || upper == "PARAM"))
+        throw Error(where + ": '" + std::string(type) + "': expected " + upper +
+                    " (CARMEN message names are upper case)");
       // NEFF, SYNC, RAWLASER*, ...: not ours, but telling (NEFF: GMapping).
       // A message is an upper-case name of 4 or more characters followed by a
       // number; other text ("ROS map" in a README) is no message at all.
@@ -225,6 +232,8 @@ bool CarmenReader::next(CarmenRecord& record) {
       const double t = record.scan.timestamp;
       if (t < last_scan_time_ && backwards_++ == 0) first_backwards_line_ = lines_.line_number();
       if (t == last_scan_time_ && repeated_++ == 0) first_repeated_line_ = lines_.line_number();
+      if (t - last_scan_time_ > kStampJumpS && std::isfinite(last_scan_time_) && jumps_++ == 0)
+        first_jump_line_ = lines_.line_number(), first_jump_from_ = last_scan_time_, first_jump_to_ = t;
       last_scan_time_ = t;
     }
     return true;
@@ -242,6 +251,13 @@ std::vector<std::string> CarmenReader::warnings() const {
     out.push_back(path() + ": " + std::to_string(repeated_) +
                   " laser scans have the same time stamp as the scan before (first at line " +
                   std::to_string(first_repeated_line_) + "); joins by time may pick either");
+  if (jumps_ > 0)
+    out.push_back(path() + ": " + std::to_string(jumps_) +
+                  " laser scans are stamped more than an hour after the scan before (first at line " +
+                  std::to_string(first_jump_line_) + ", " + std::to_string(first_jump_from_) + " s to " +
+                  std::to_string(first_jump_to_) +
+                  " s): a bad time stamp, or stamps written with too few digits? Durations and --from/--to take "
+                  "them as they are");
   if (lines_.trailing_bytes() > 0)
     out.push_back(path() + ": " + std::to_string(lines_.trailing_bytes()) +
                   " bytes after the end of the gzip stream were ignored (a damaged or appended file?)");

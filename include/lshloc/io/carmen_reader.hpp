@@ -90,6 +90,10 @@ class CarmenReader {
   // Laser time order: scans stamped before / at the previous scan's time.
   double last_scan_time_ = -std::numeric_limits<double>::infinity();
   std::size_t backwards_ = 0, repeated_ = 0, first_backwards_line_ = 0, first_repeated_line_ = 0;
+  // Scans stamped far after the previous scan: a bad stamp more likely than an hour-long gap in one log.
+  static constexpr double kStampJumpS = 3600.0;
+  std::size_t jumps_ = 0, first_jump_line_ = 0;
+  double first_jump_from_ = 0.0, first_jump_to_ = 0.0;
   std::optional<Pose2> robotlaser_offset_;
   bool robotlaser_offset_varies_ = false;
 };
