@@ -104,6 +104,15 @@ TEST(LshDatabase, RanksByCollisionCountAndReturnsTheQueryItselfFirst) {
   EXPECT_EQ(q.queries, 50u);
 }
 
+TEST(LshDatabase, SaysWhenInsertsWouldNotFitItsIdPools) {
+  // Checked before a scan enters a map, so that a full pool refuses the scan whole.
+  const auto data = clustered(4, 4, 0.0, 5);
+  LshDatabase db(LshConfig{});
+  for (std::uint32_t id = 0; id < data.size(); ++id) db.insert(data[id], id);
+  EXPECT_TRUE(db.has_room_for(1000));
+  EXPECT_FALSE(db.has_room_for(std::size_t{1} << 32));
+}
+
 TEST(LshDatabase, AnIdInsertedTwiceCountsAtMostLTimes) {
   // Ids need not be unique (a caller may give every feature of a place one
   // id): the ranking's counting sort must stay within its L + 1 counts.

@@ -270,6 +270,13 @@ void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
   place(id);
 }
 
+bool LshDatabase::has_room_for(std::size_t inserts) const {
+  const std::size_t block = std::size_t{1} << capacity_class_;
+  for (const Table& t : tables_)
+    if (t.pool.size() + inserts * block > kNone) return false;
+  return true;
+}
+
 void LshDatabase::check_key(LshKeyView key, const char* caller) const {
   if (key.tags.size() != config_.L || key.sketch.size() != sketch_words_) {
     throw Error(std::string(caller) + ": a key of " + std::to_string(key.tags.size()) + " tags and " +

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "lshloc/common/error.hpp"
@@ -90,6 +91,11 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
     m->free_space_plan_.clear();
   });
   if (grids == ScanGrids::kMark) plan_grids(submap, scan, laser_pose, surface, directions);
+  // So are the capacities: past one, a scan would enter the map in part (the journal relies on all or nothing).
+  if (locations_.size() + features.size() >= std::numeric_limits<std::uint32_t>::max() ||
+      !database_.has_room_for(features.size()) || !occupancy_.has_room_for(occupancy_plan_))
+    throw Error("GlobalMap::add_scan: the map is full (2^32 features, database ids or pose-grid slots); scan " +
+                std::to_string(state.scans) + " of submap " + std::to_string(submap) + " was not added");
   const double t2 = thread_cpu_seconds();
   for (const Feature& f : features) {
     const std::uint32_t id = locations_.append(submap, f.pose);

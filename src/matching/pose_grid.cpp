@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <random>
 #include <string>
 
@@ -111,6 +112,12 @@ void PoseGridHashMap::mark_cell(std::uint64_t xy, int itheta, CellFlags flags) {
     }
     i = (i + 1) & mask_;
   }
+}
+
+bool PoseGridHashMap::has_room_for(const MarkPlan& plan) const {
+  const auto most =
+      static_cast<std::size_t>(std::floor(config_.max_load_factor * static_cast<double>(std::size_t{1} << 32)));
+  return used_ + plan.writes.size() <= most;
 }
 
 void PoseGridHashMap::grow() {

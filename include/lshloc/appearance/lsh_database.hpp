@@ -231,6 +231,9 @@ class LshDatabase {
   /// (LshConfig::max_sketch_copies).
   bool sketches_in_buckets() const { return sketches_in_buckets_; }
 
+  /// Whether `inserts` more ids fit every table's id pool (2^32 ids), were
+  /// each to need a new bucket block: checked before a scan enters the map.
+  bool has_room_for(std::size_t inserts) const;
   std::size_t size() const { return entries_; }
   LshStats stats() const;
 

@@ -193,6 +193,10 @@ class PoseGridHashMap {
   /// mark's cost). Planned and made in order, the grid is the one mark() gives.
   void plan_mark(const PoseCell& cell, CellFlags flags, MarkPlan& plan) const;
   void mark_planned(const MarkPlan& plan);
+  /// Whether `plan` can be made within the table's 2^32 slots, were every
+  /// write a new cell: checked before a scan enters the map, so that it is
+  /// refused whole rather than cut off halfway.
+  bool has_room_for(const MarkPlan& plan) const;
 
   /// The OR of the flags in the tolerance window around (x, y, theta) of
   /// `submap` (in kDilateAtInsert mode that is the one cell's flags).
