@@ -121,8 +121,9 @@ class GlobalMap {
   /// `added`, also appends them there (for evaluations that need the
   /// descriptors, which the map itself does not keep). A scan the map cannot
   /// take throws lshloc::Error and leaves the map as it was (an unknown
-  /// submap, marks beyond the grids' +-65,536 cells); only running out of
-  /// memory part-way can leave part of a scan in.
+  /// submap, marks beyond the grids' +-65,536 cells, a full location store,
+  /// database id pool or pose grid); only running out of memory part-way can
+  /// leave part of a scan in.
   std::size_t add_scan(std::uint32_t submap, const LaserScan& scan, const Pose2& laser_pose,
                        ScanGrids grids = ScanGrids::kMark, std::vector<Feature>* added = nullptr);
 
