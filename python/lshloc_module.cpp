@@ -493,5 +493,28 @@ PYBIND11_MODULE(lshloc, m) {
           "place elsewhere), "
           "not_confident_because (the parts of the flag's test that keep it down, by name: unstable, weak_support, "
           "few_points, support_too_short, look_alike, newest_misfit, young_hypothesis, contradicted; empty while it "
-          "is up, and without an estimate)");
+          "is up, and without an estimate)")
+      .def(
+          "stats",
+          [](const PyLocalizer& l) {
+            LocalizerStats s;
+            {
+              py::gil_scoped_release release;  // an add_scan on another thread may hold the localizer
+              const std::lock_guard mine(*l.busy);
+              s = l.localizer->stats();
+            }
+            return py::dict(py::arg("scans") = s.scans, py::arg("features") = s.features,
+                            py::arg("hypotheses") = s.hypotheses, py::arg("data_points") = s.data_points,
+                            py::arg("scan_matching_s") = s.scan_matching_s, py::arg("extract_s") = s.extract_s,
+                            py::arg("query_s") = s.query_s, py::arg("ransac_s") = s.ransac_s,
+                            py::arg("candidates_touched") = s.candidates_touched,
+                            py::arg("us_query_per_feature") = s.us_query_per_feature());
+          },
+          "A dict of the localizer's counts and costs so far: scans, features (extracted), hypotheses, data_points "
+          "(added to iRANSAC), scan_matching_s, extract_s, query_s, ransac_s (this thread's CPU seconds), "
+          "candidates_touched (database entries read), us_query_per_feature")
+      .def(
+          "config_json", [](const PyLocalizer& l) { return io::json_text(nlohmann::json(l.localizer->config())); },
+          "The settings the localizer runs with, as JSON (the map's descriptor settings, the laser_offset and "
+          "config_json applied): the `localizer` shape `lshloc localize --print-config` writes");
 }

@@ -2,6 +2,7 @@
 ground truth, a bit-identical save and load, and a real scenario that must
 give the CLI's estimates scan by scan."""
 import csv
+import json
 import math
 import os
 import pathlib
@@ -92,6 +93,21 @@ def test_a_log_is_a_sequence_of_scans_and_paths_may_be_pathlib(world, tmp_path):
     lshloc.write_ros_map(tmp_path / "g", grid)
     assert lshloc.read_ros_map(tmp_path / "g.yaml").cells.shape == grid.cells.shape
     assert lshloc.__version__.count(".") == 2
+
+
+def test_a_localizer_reports_its_costs_and_the_settings_it_runs_with(world):
+    target = lshloc.read_carmen_log(world / "sim-3-001" / "sim-3-001.log.gz")
+    gmap = lshloc.GlobalMap('{"context_spacing": 0.5}')
+    feed(gmap, [("b", lshloc.read_carmen_log(world / "sim-3-001" / "sim-3-001-corrected.log.gz").scans[:200])])
+    loc = lshloc.Localizer(gmap, '{"candidates_per_feature": 40}', laser_offset=(0.1, 0.0, 0.0))
+    for scan in target.scans[:20]:
+        loc.add_scan(scan)
+    st = loc.stats()
+    assert st["scans"] == 20 and st["features"] > 0 and st["hypotheses"] > 0 and st["ransac_s"] > 0.0
+    settings = json.loads(loc.config_json())
+    assert settings["candidates_per_feature"] == 40  # asked
+    assert settings["context_spacing"] == 0.5  # the map's
+    assert settings["scan_matcher"]["laser_offset"]["x"] == 0.1  # the mount
 
 
 def test_localizes_in_the_right_building_against_ground_truth(world):
