@@ -300,7 +300,7 @@ PYBIND11_MODULE(lshloc, m) {
   m.def(
       "read_ros_map", [](const std::filesystem::path& path) { return io::read_ros_map(path.string()); },
       py::arg("yaml_path"), py::call_guard<py::gil_scoped_release>(),
-      "Reads a ROS map_server map (MAP.yaml and its PGM)");
+      "Reads a ROS map_server map (MAP.yaml and its PGM or 8-bit PNG)");
   m.def(
       "write_ros_map",
       [](const std::filesystem::path& stem, const OccupancyGrid& g) { io::write_ros_map(stem.string(), g); },

@@ -4,7 +4,7 @@
 # optional peer indexes of the database benchmark.
 set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev
-          libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev libyaml-dev python3 clang-format
+          libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev libyaml-dev libpng-dev python3 clang-format
           pybind11-dev python3-dev python3-numpy python3-pytest clang libclang-rt-14-dev ninja-build
           redis-server libhiredis-dev python3-zstandard python3-lz4)
 # --peers: also the indexes bench/lsh_peers_bench compares against (BENCHMARKS.md).

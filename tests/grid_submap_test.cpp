@@ -5,6 +5,7 @@
 #include "lshloc/localization/grid_submap.hpp"
 
 #include <gtest/gtest.h>
+#include <png.h>
 
 #include <cmath>
 #include <filesystem>
@@ -194,6 +195,46 @@ TEST(RosMap, ReadsWhatOtherToolsWriteAndWritesWhatTheyRead) {
   EXPECT_NE(message(missing_image).find(missing_image + ":1: image: "), std::string::npos) << message(missing_image);
   EXPECT_TRUE(io::is_ros_map_path("maps/FLOOR2.YAML") && io::is_ros_map_path("a.Yml"));
   EXPECT_FALSE(io::is_ros_map_path("a.log"));
+}
+
+// PNG map images (written here by libpng's own encoder) read as the same
+// pixels in a PGM do: grey as is, colour as its channels' mean (map_server's
+// rule), alpha ignored, a palette expanded; a 16-bit PNG is refused.
+TEST(RosMap, APngImageReadsAsThePgmOfTheSamePixels) {
+  const auto write_png = [](const std::vector<std::uint8_t>& samples, std::uint32_t format, std::uint32_t width) {
+    png_image png{};
+    png.version = PNG_IMAGE_VERSION;
+    png.width = width, png.height = 2, png.format = format;
+    const std::string path = test::temp_path(".png");
+    EXPECT_TRUE(png_image_write_to_file(&png, path.c_str(), 0, samples.data(), 0, nullptr)) << png.message;
+    return path;
+  };
+  const auto grid = [](const std::string& image, const std::string& extra = "") {
+    return io::read_ros_map(write_text(".yaml", "image: " + image + "\nresolution: 0.1\norigin: [0, 0, 0]\n" + extra))
+        .cells;
+  };
+  // Occupied (black), free (white), unknown (205) and a p of 0.5 (128: below occupied_thresh 0.65).
+  const std::string pgm = write_text(".pgm", "P2\n4 2\n255\n0 255 205 128\n255 0 128 205\n");
+  const std::vector<std::uint8_t> grey = {0, 255, 205, 128, 255, 0, 128, 205};
+  EXPECT_EQ(grid(write_png(grey, PNG_FORMAT_GRAY, 4)), grid(pgm));
+  EXPECT_EQ(grid(write_png(grey, PNG_FORMAT_GRAY, 4), "negate: 1\n"), grid(pgm, "negate: 1\n"));
+  EXPECT_EQ(grid(write_png(grey, PNG_FORMAT_GRAY, 4), "mode: raw\n"), grid(pgm, "mode: raw\n"));
+  std::vector<std::uint8_t> rgba, ga;
+  for (const std::uint8_t v : grey) rgba.insert(rgba.end(), {v, v, v, 17}), ga.insert(ga.end(), {v, 255});
+  EXPECT_EQ(grid(write_png(rgba, PNG_FORMAT_RGBA, 4)), grid(pgm));
+  EXPECT_EQ(grid(write_png(ga, PNG_FORMAT_GA, 4)), grid(pgm));
+  // Colour: p from the channels' mean, (0 + 0 + 255) / 3 = 85 is occupied (p 0.667), (255 + 255 + 0) / 3 = 170 free.
+  const std::vector<std::uint8_t> colour = {0, 0, 255, 255, 255, 0, 0, 0, 255, 255, 255, 0};
+  const std::string mean_pgm = write_text(".pgm", "P2\n2 2\n255\n85 170\n85 170\n");
+  EXPECT_EQ(grid(write_png(colour, PNG_FORMAT_RGB, 2)), grid(mean_pgm));
+  const std::vector<std::uint8_t> wide(2 * 2 * 2, 0);
+  const std::string wide_png = write_png(wide, PNG_FORMAT_LINEAR_Y, 2);
+  try {
+    grid(wide_png);
+    ADD_FAILURE() << "a 16-bit PNG was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("a 16-bit PNG; expected 8 bits per sample"), std::string::npos) << e.what();
+  }
 }
 
 TEST(GridSubmap, VirtualScansMatchTheRoomsExactDistances) {

@@ -194,7 +194,7 @@ void add_from_grid(CLI::App& map_cmd) {
   auto opt = std::make_shared<BuildOptions>();
   auto* cmd = map_cmd.add_subcommand(
       "from-grid",
-      "Build a global map from ROS occupancy grids (map_server's MAP.yaml + its PGM: resolution, origin,\n"
+      "Build a global map from ROS occupancy grids (map_server's MAP.yaml + its PGM or PNG: resolution, origin,\n"
       "thresholds, negate, mode), one submap per grid, and save it. Virtual laser scans ray-cast from free\n"
       "positions (a lattice, several headings each) fill the appearance database; the occupied cells, with\n"
       "their surface normals, fill the pose grid and the free cells the free-space grid. The virtual laser\n"

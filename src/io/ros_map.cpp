@@ -1,5 +1,6 @@
 #include "lshloc/io/ros_map.hpp"
 
+#include <png.h>
 #include <yaml.h>
 
 #include <algorithm>
@@ -189,15 +190,48 @@ double parse_number(const std::string& text, const std::string& where, const std
   return v;
 }
 
-/// A PGM image (binary P5 or plain P2) with its grey values as stored.
+/// A map image (PGM binary P5 or plain P2, or PNG) with its grey values as stored.
 struct GreyImage {
   std::size_t width = 0, height = 0;
   std::size_t maxval = 255;
   std::vector<std::uint16_t> pixels;  // row-major, row 0 at the top
 };
 
-GreyImage read_pgm(const std::string& path) {
+/// An 8-bit PNG (grey, colour or palette; alpha ignored, as map_server's
+/// trinary and raw modes do): a colour pixel's value is the sum of its
+/// channels over a maximum of 765, so that p is map_server's channel average.
+GreyImage read_png(const std::string& path, const std::string& data) {
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  const std::unique_ptr<png_image, void (*)(png_image*)> done(&png, png_image_free);
+  if (!png_image_begin_read_from_memory(&png, data.data(), data.size()))
+    throw Error(path + ": " + png.message + "; expected a PNG image");
+  // 16-bit samples come out gamma-converted from the simplified API: refused rather than thresholded off.
+  if (png.format & PNG_FORMAT_FLAG_LINEAR)
+    throw Error(path + ": a 16-bit PNG; expected 8 bits per sample (or a 16-bit PGM: `convert map.png map.pgm`)");
+  if (static_cast<double>(png.width) * static_cast<double>(png.height) > static_cast<double>(1u << 28))
+    throw Error(path + ": " + std::to_string(png.width) + " x " + std::to_string(png.height) + " pixels exceed 2^28");
+  const bool colour = (png.format & PNG_FORMAT_FLAG_COLOR) != 0;
+  png.format = colour ? PNG_FORMAT_RGBA : PNG_FORMAT_GA;
+  const std::size_t channels = colour ? 4 : 2;
+  std::vector<std::uint8_t> samples(PNG_IMAGE_SIZE(png));
+  if (!png_image_finish_read(&png, nullptr, samples.data(), 0, nullptr))
+    throw Error(path + ": " + png.message + "; expected a whole PNG image");
+  GreyImage img;
+  img.width = png.width, img.height = png.height;
+  img.maxval = colour ? 765 : 255;
+  img.pixels.resize(img.width * img.height);
+  for (std::size_t i = 0; i < img.pixels.size(); ++i) {
+    const std::uint8_t* s = &samples[i * channels];
+    img.pixels[i] = static_cast<std::uint16_t>(colour ? s[0] + s[1] + s[2] : s[0]);
+  }
+  return img;
+}
+
+/// The map image: a PGM, or a PNG by its signature.
+GreyImage read_map_image(const std::string& path) {
   const std::string data = read_regular_file(path, "the map image");
+  if (data.size() >= 8 && data.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0) return read_png(path, data);
   std::size_t pos = 0;
   const auto skip_space = [&] {
     while (pos < data.size()) {
@@ -220,9 +254,7 @@ GreyImage read_pgm(const std::string& path) {
     return v;
   };
   if (data.size() < 2 || data[0] != 'P' || (data[1] != '5' && data[1] != '2'))
-    throw Error(path +
-                ": expected a PGM image (P5 binary or P2 plain greyscale; convert PNG maps with e.g. "
-                "`convert map.png map.pgm`)");
+    throw Error(path + ": expected a PGM image (P5 binary or P2 plain greyscale) or an 8-bit PNG");
   const bool binary = data[1] == '5';
   pos = 2;
   GreyImage img;
@@ -343,7 +375,7 @@ OccupancyGrid read_ros_map(const std::string& yaml_path) {
   // Image errors also name the YAML's line that points at the image.
   GreyImage img;
   try {
-    img = read_pgm(image_path.string());
+    img = read_map_image(image_path.string());
   } catch (const FileError& e) {
     throw FileError(where(image) + ": image: " + e.what());
   } catch (const Error& e) {
