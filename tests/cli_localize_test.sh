@@ -153,8 +153,13 @@ if "$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" >/dev/nul
   fail "the same log appended twice"
 fi
 grep -q "holds 20 scans of this log already; --from 20" "$d/err.txt" || fail "appending twice: $(cat "$d/err.txt")"
-"$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" --from 20 --count 5 >/dev/null 2>&1 ||
+"$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" --from 20 --count 5 >"$d/resume.txt" 2>&1 ||
   fail "map append --from resumes"
+grep -q "to the submap sim-3-000-corrected.log.gz" "$d/resume.txt" || fail "resuming: $(cat "$d/resume.txt")"
+# A --submap the map lacks is made, and said to be new (a misspelt name must not pass unnoticed).
+"$LSHLOC" map append "$d/twice.map" "$a/sim-3-000-corrected.log.gz" --submap sim-3-00O --count 5 >"$d/new.txt" 2>&1 ||
+  fail "map append to a new submap"
+grep -q "to a new submap sim-3-00O" "$d/new.txt" || fail "a new submap not said so: $(cat "$d/new.txt")"
 
 # Descriptor settings asked of the localizer alone would be dropped: refused, pointing at map.features.
 echo '{"localizer": {"features": {"max_keypoints": 20}}}' >"$d/features.json"

@@ -292,8 +292,10 @@ void add_append(CLI::App& map_cmd) {
     if (opt->json) {
       std::printf("%s\n", io::json_text(j).c_str());
     } else if (!opt->ack_lines) {
-      std::printf("%s: appended %zu scans (%zu features) to submap %s in %.2f s (%.0f scans/s)\n", opt->map.c_str(),
-                  appended, features, name.c_str(), seconds, j["scans_per_s"].get<double>());
+      // A new submap is said so: a misspelt --submap makes one instead of extending the one meant.
+      std::printf("%s: appended %zu scans (%zu features) to %s submap %s in %.2f s (%.0f scans/s)\n", opt->map.c_str(),
+                  appended, features, existing ? "the" : "a new", name.c_str(), seconds,
+                  j["scans_per_s"].get<double>());
     }
   });
 }
