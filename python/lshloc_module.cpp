@@ -23,6 +23,7 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
+#include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/scan_record.hpp"
 #include "lshloc/io/config_json.hpp"
@@ -41,14 +42,6 @@ namespace {
 using PoseTuple = std::tuple<double, double, double>;
 PoseTuple to_tuple(const Pose2& p) { return {p.x, p.y, p.theta}; }
 Pose2 to_pose(const PoseTuple& t) { return {std::get<0>(t), std::get<1>(t), std::get<2>(t)}; }
-
-/// printf into a std::string, for the reprs.
-template <class... Args>
-std::string printed(const char* format, Args... args) {
-  std::string text(static_cast<std::size_t>(std::snprintf(nullptr, 0, format, args...)), '\0');
-  std::snprintf(text.data(), text.size() + 1, format, args...);
-  return text;
-}
 
 /// `p` unless a value is not finite.
 Pose2 finite_pose(const PoseTuple& t, const char* what) {
@@ -205,9 +198,11 @@ PYBIND11_MODULE(lshloc, m) {
       .def("__repr__", [](const LaserScan& s) {
         const double last =
             s.angle_min + s.angle_increment * static_cast<double>(s.ranges.empty() ? 0 : s.ranges.size() - 1);
-        return printed("<lshloc.LaserScan: %zu beams, %.1f..%.1f deg, max_range %g m, timestamp %.6f>", s.ranges.size(),
-                       s.angle_min * 180.0 / std::numbers::pi, last * 180.0 / std::numbers::pi, s.max_range,
-                       s.timestamp);
+        std::string text;
+        io::append_format(text, "<lshloc.LaserScan: %zu beams, %.1f..%.1f deg, max_range %g m, timestamp %.6f>",
+                          s.ranges.size(), s.angle_min * 180.0 / std::numbers::pi, last * 180.0 / std::numbers::pi,
+                          s.max_range, s.timestamp);
+        return text;
       });
 
   py::class_<io::CarmenLog>(m, "CarmenLog", "A CARMEN log in memory")
@@ -236,8 +231,10 @@ PYBIND11_MODULE(lshloc, m) {
           "__iter__", [](const io::CarmenLog& l) { return py::make_iterator(l.scans.begin(), l.scans.end()); },
           py::keep_alive<0, 1>(), "the laser scans in log order")
       .def("__repr__", [](const io::CarmenLog& l) {
-        return printed("<lshloc.CarmenLog %s: %zu scans, %s>", l.path.c_str(), l.scans.size(),
-                       l.gmapping_corrected() ? "corrected poses" : "raw");
+        std::string text;
+        io::append_format(text, "<lshloc.CarmenLog %s: %zu scans, %s>", l.path.c_str(), l.scans.size(),
+                          l.gmapping_corrected() ? "corrected poses" : "raw");
+        return text;
       });
   m.def(
       "read_carmen_log", [](const std::filesystem::path& path) { return io::read_carmen_log(path.string()); },
@@ -294,8 +291,10 @@ PYBIND11_MODULE(lshloc, m) {
                                return py::array_t<std::int8_t>({g.height, g.width}, g.cells.data());
                              })
       .def("__repr__", [](const OccupancyGrid& g) {
-        return printed("<lshloc.OccupancyGrid: %zu x %zu cells of %g m, origin (%g, %g, %g)>", g.width, g.height,
-                       g.resolution, g.origin.x(), g.origin.y(), g.origin_yaw);
+        std::string text;
+        io::append_format(text, "<lshloc.OccupancyGrid: %zu x %zu cells of %g m, origin (%g, %g, %g)>", g.width,
+                          g.height, g.resolution, g.origin.x(), g.origin.y(), g.origin_yaw);
+        return text;
       });
   m.def(
       "read_ros_map", [](const std::filesystem::path& path) { return io::read_ros_map(path.string()); },
@@ -417,7 +416,10 @@ PYBIND11_MODULE(lshloc, m) {
       .def("__repr__", [](const PyGlobalMap& g) {
         return g.read([](const GlobalMap& map) {
           const GlobalMapStats st = map.stats();
-          return printed("<lshloc.GlobalMap: %zu submaps, %zu scans, %zu features>", st.submaps, st.scans, st.features);
+          std::string text;
+          io::append_format(text, "<lshloc.GlobalMap: %zu submaps, %zu scans, %zu features>", st.submaps, st.scans,
+                            st.features);
+          return text;
         });
       });
   m.def(
