@@ -79,14 +79,15 @@ struct PoseGridScorer::PointEach {
 };
 
 void PoseGridScorerConfig::validate() const {
-  for (const auto& [name, v] : {std::pair{"hit", hit},
-                                {"free", free},
-                                {"unknown", unknown},
-                                {"ray_through_wall", ray_through_wall},
-                                {"ray_through_free", ray_through_free},
-                                {"ray_through_contested", ray_through_contested},
-                                {"surface_on_return", surface_on_return}}) {
-    require(std::isfinite(v), std::string("PoseGridScorerConfig.") + name, "a finite score", v);
+  // (Full names: a scorer is made per duel, and the check should cost no allocation.)
+  for (const auto& [name, v] : {std::pair{"PoseGridScorerConfig.hit", hit},
+                                {"PoseGridScorerConfig.free", free},
+                                {"PoseGridScorerConfig.unknown", unknown},
+                                {"PoseGridScorerConfig.ray_through_wall", ray_through_wall},
+                                {"PoseGridScorerConfig.ray_through_free", ray_through_free},
+                                {"PoseGridScorerConfig.ray_through_contested", ray_through_contested},
+                                {"PoseGridScorerConfig.surface_on_return", surface_on_return}}) {
+    require(std::isfinite(v), name, "a finite score", v);
   }
 }
 
