@@ -411,10 +411,62 @@ TEST(IncrementalRansac, NothingHappensWithoutFeaturesOrHypotheses) {
   EXPECT_EQ(ransac.stats().iterations, 0u);
 }
 
+// N_j is 32-bit: at max_scored it is halved with C_j, so C/N is kept and N
+// never wraps, however long a hypothesis is held.
+TEST(IncrementalRansac, HalvesLongScoredHypothesesKeepingTheirMean) {
+  IncrementalRansacConfig cfg;
+  cfg.max_scored = 8, cfg.block_size = 1'000'000, cfg.min_score = 0.0, cfg.preference_z = 0.0;
+  IncrementalRansac ransac(cfg);
+  std::vector<LocalPoint> features{{1.0f, 2.0f, 0.0f}};
+  ransac.add_features(features);
+  std::vector<Hypothesis> hyps{{0, Pose2(0.0, 0.0, 0.0)}, {1, Pose2(5.0, 0.0, 0.0)}};
+  ransac.add_hypotheses(hyps);
+  // Submap 0 scores 0.75 per point, submap 1 0.25: exact in binary.
+  auto scorer = [](const LocalPoint&, const HypothesisBatch& v, float* c) {
+    for (std::size_t j = 0; j < v.size; ++j) c[j] = v.submap[j] == 0 ? 0.75f : 0.25f;
+  };
+  std::uint32_t most = 0;
+  for (int k = 0; k < 1000; ++k) {
+    ransac.iterate(scorer, 1);
+    for (const ScoredHypothesis& h : ransac.active()) most = std::max(most, h.scored);
+  }
+  EXPECT_EQ(ransac.stats().iterations, 1000u);
+  EXPECT_LE(most, cfg.max_scored);
+  EXPECT_GT(ransac.stats().hypotheses_halved, 0u);
+  for (const ScoredHypothesis& h : ransac.active()) {
+    EXPECT_GE(h.scored, 1u);
+    EXPECT_DOUBLE_EQ(h.mean_score(), h.hypothesis.submap == 0 ? 0.75 : 0.25);
+  }
+  ASSERT_TRUE(ransac.best().has_value());
+  EXPECT_EQ(ransac.best()->hypothesis.submap, 0u);
+
+  // A caller's pre-scored N arrives within max_scored / 2, with its mean.
+  std::vector<ScoredHypothesis> scored{{{2, Pose2(9.0, 0.0, 0.0)}, 750.0, 1000}};
+  ransac.add_scored_hypotheses(scored);
+  for (const ScoredHypothesis& h : ransac.active()) {
+    if (h.hypothesis.submap != 2) continue;
+    EXPECT_LE(h.scored, cfg.max_scored / 2);
+    EXPECT_DOUBLE_EQ(h.mean_score(), 0.75);
+  }
+
+  // The default halves nothing within any test's reach.
+  IncrementalRansacConfig plain = cfg;
+  plain.max_scored = IncrementalRansacConfig{}.max_scored;
+  IncrementalRansac unhalved(plain);
+  unhalved.add_features(features);
+  unhalved.add_hypotheses(hyps);
+  unhalved.iterate(scorer, 1000);
+  EXPECT_EQ(unhalved.stats().hypotheses_halved, 0u);
+  for (const ScoredHypothesis& h : unhalved.active()) EXPECT_EQ(h.scored, 1000u);
+}
+
 TEST(IncrementalRansac, RejectsBadInput) {
   IncrementalRansacConfig bad;
   bad.block_size = 0;
   EXPECT_THROW(IncrementalRansac{bad}, Error);
+  IncrementalRansacConfig tiny_cap;
+  tiny_cap.max_scored = 3;
+  EXPECT_THROW(IncrementalRansac{tiny_cap}, Error);
   IncrementalRansac ransac;
   std::vector<Hypothesis> hyps{{0, Pose2()}};
   hyps[0].T_submap_local.x = std::nan("");

@@ -71,7 +71,8 @@ LSHLOC_JSON_FIELDS(LshConfig, K, L, w, seed, bucket_capacity, max_candidates, ra
 LSHLOC_JSON_FIELDS(PoseGridConfig, cell_size, theta_bins, xy_tolerance, theta_tolerance, tolerance_mode,
                    max_load_factor, initial_capacity, seed)
 LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_features_per_scan, new_hypotheses_per_scan,
-                   iterations_per_scan, min_score, preference_z, order_rule, recent_window, max_features, seed)
+                   iterations_per_scan, min_score, preference_z, order_rule, recent_window, max_features, max_scored,
+                   seed)
 LSHLOC_JSON_FIELDS(ScanMatcherConfig::Experimental, odometry_prior, point_sigma, odometry_sigma_translation,
                    odometry_sigma_per_meter, odometry_sigma_rotation, odometry_sigma_rotation_per_rad,
                    odometry_sigma_rotation_per_meter)

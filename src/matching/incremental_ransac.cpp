@@ -9,6 +9,18 @@
 
 namespace lshloc {
 
+namespace {
+
+/// Halves C and N, keeping C/N (to rounding): an odd N first drops one mean
+/// score. N >= 2 stays >= 1.
+void halve(double& score, std::uint32_t& scored) {
+  if (scored % 2 == 1) score -= score / scored, scored -= 1;
+  score *= 0.5;
+  scored /= 2;
+}
+
+}  // namespace
+
 void IncrementalRansacConfig::validate() const {
   require(block_size >= 1, "IncrementalRansacConfig.block_size", ">= 1 (B)", block_size);
   require(new_features_per_scan >= 1, "IncrementalRansacConfig.new_features_per_scan", ">= 1 (|U_new|)",
@@ -26,6 +38,8 @@ void IncrementalRansacConfig::validate() const {
   // Data-points are indexed by 32 bits.
   require(max_features <= std::numeric_limits<std::uint32_t>::max(), "IncrementalRansacConfig.max_features",
           "<= 2^32 - 1", max_features);
+  require(max_scored >= 4, "IncrementalRansacConfig.max_scored", ">= 4 (N_j is halved every max_scored / 2 iterations)",
+          max_scored);
 }
 
 IncrementalRansac::IncrementalRansac(IncrementalRansacConfig config) : config_(config), rng_(config.seed) {
@@ -116,6 +130,8 @@ void IncrementalRansac::insert_hypothesis(const Hypothesis& h, double score, std
   const Pose2& T = h.T_submap_local;
   if (!std::isfinite(T.x) || !std::isfinite(T.y) || !std::isfinite(T.theta))
     throw Error("iRANSAC: a hypothesis of submap " + std::to_string(h.submap) + " has a non-finite pose");
+  // A caller's N counts as iterations' do: within max_scored / 2 on arrival.
+  while (scored > config_.max_scored / 2) halve(score, scored), ++stats_.hypotheses_halved;
   const std::size_t m = tx_.size();
   const std::size_t j = random_below(m + 1);
   // Grow every column by one, move the element at j to the end (inside-out
@@ -152,6 +168,17 @@ std::size_t IncrementalRansac::next_feature() {
       break;
   }
   return n - window + random_below(window);
+}
+
+void IncrementalRansac::halve_long_scored() {
+  // Called every max_scored / 2 iterations, each adding at most 1 to N_j:
+  // N_j <= max_scored / 2 after this, so it stays within max_scored until the next call.
+  const std::uint32_t limit = config_.max_scored / 2;
+  for (std::size_t j = 0; j < tx_.size(); ++j) {
+    if (scored_[j] < limit) continue;
+    halve(score_[j], scored_[j]);
+    ++stats_.hypotheses_halved;
+  }
 }
 
 void IncrementalRansac::preempt(std::size_t keep) {

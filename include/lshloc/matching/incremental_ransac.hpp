@@ -69,6 +69,11 @@ struct IncrementalRansacConfig {
   /// about 14 hours of 40 points per scan at 1 Hz, 32 MB); every window
   /// anything reads is far smaller.
   std::size_t max_features = 2'000'000;
+  /// N_j stays at most this: every max_scored / 2 iterations, a hypothesis
+  /// scored max_scored / 2 times or more has C_j and N_j halved, which keeps
+  /// C_j / N_j. The 32-bit N_j would otherwise wrap after 2^32 scores, 25
+  /// days of one hypothesis held at 50 iterations per scan and 40 Hz.
+  std::uint32_t max_scored = 1u << 31;
   std::uint64_t seed = 0x5eed0002;  ///< random insertion and feature sampling
 
   /// Throws lshloc::Error when a field is out of range.
@@ -86,6 +91,7 @@ struct IncrementalRansacStats {
   std::size_t hypotheses_preempted = 0;    ///< cut by the preemption function
   std::size_t hypotheses_over_budget = 0;  ///< dropped by add_scan() beyond |V_new|
   std::size_t features_over_budget = 0;    ///< dropped by add_scan() beyond |U_new|
+  std::size_t hypotheses_halved = 0;       ///< C_j and N_j halved at max_scored
   double best_score = 0.0;                 ///< C of best() (0 when none qualifies)
   double best_mean_score = 0.0;            ///< C / N of best()
   std::uint32_t best_scored = 0;           ///< N of best()
@@ -172,6 +178,7 @@ class IncrementalRansac {
     for (std::size_t k = 0; k < n; ++k) {
       if (features_.empty() || tx_.empty()) return;
       const std::size_t i = ++stats_.iterations;
+      if (i % (config_.max_scored / 2) == 0) halve_long_scored();
       if (i % config_.block_size == 0) preempt(tx_.size() / 2);
       const LocalPoint& x = features_[next_feature()];
       const std::size_t m = tx_.size();
@@ -213,6 +220,7 @@ class IncrementalRansac {
 
  private:
   std::size_t next_feature();
+  void halve_long_scored();
   void drop_oldest_features();
   std::size_t random_below(std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
   void move_hypothesis(std::size_t from, std::size_t to);
