@@ -21,16 +21,13 @@ FreeSpaceGrid::FreeSpaceGrid(PoseGridConfig config) : config_(config) {
 
 void FreeSpaceGrid::set_table_capacity(std::size_t capacity) {
   table_capacity_ = capacity;
-  // As PoseGridHashMap::set_capacity(): a write grows the table first when used + 1 > floor(load * capacity).
-  table_grow_at_ = static_cast<std::size_t>(std::floor(config_.max_load_factor * static_cast<double>(capacity)));
+  table_grow_at_ = PoseGridHashMap::grow_threshold(config_.max_load_factor, capacity);
 }
 
 void FreeSpaceGrid::plan_mark(const PoseCell& c, CellFlags flags, MarkPlan& plan) const {
   if (flags == 0) throw Error("free-space grid: a mark needs non-zero flags");
   if (PoseGridHashMap::pack_xy(c.submap, c.ix, c.iy) == PoseGridHashMap::kInvalidXy)
-    throw Error("free-space grid: cell (" + std::to_string(c.ix) + ", " + std::to_string(c.iy) + ") of submap " +
-                std::to_string(c.submap) + " is outside the grid (submap < 16383, |x|, |y| < 65536 cells of " +
-                std::to_string(config_.cell_size) + " m)");
+    PoseGridHashMap::throw_outside_grid("free-space grid", c, config_.cell_size);
   plan.cells.push_back(c);
   plan.flags.push_back(flags);
 }

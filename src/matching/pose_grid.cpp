@@ -37,10 +37,15 @@ PoseGridHashMap::PoseGridHashMap(PoseGridConfig config) : config_(config) {
   set_capacity(std::bit_ceil(config_.initial_capacity));
 }
 
+void PoseGridHashMap::throw_outside_grid(const char* who, const PoseCell& c, double cell_size) {
+  throw Error(std::string(who) + ": cell (" + std::to_string(c.ix) + ", " + std::to_string(c.iy) + ") of submap " +
+              std::to_string(c.submap) + " is outside the grid (submap < " + std::to_string(kMaxSubmaps) +
+              ", |x|, |y| < " + std::to_string(kCoordBias) + " cells of " + std::to_string(cell_size) + " m)");
+}
+
 void PoseGridHashMap::set_capacity(std::size_t capacity) {
   slots_.assign(capacity, 0);
-  // used + 1 > load * capacity (in double, as the bound is documented) <=> used + 1 > floor(load * capacity).
-  grow_at_ = static_cast<std::size_t>(std::floor(config_.max_load_factor * static_cast<double>(capacity)));
+  grow_at_ = grow_threshold(config_.max_load_factor, capacity);
   mask_ = capacity - 1;
   shift_ = 64u - static_cast<unsigned>(std::countr_zero(capacity));
 }
@@ -57,9 +62,7 @@ void PoseGridHashMap::plan_mark(const PoseCell& c, CellFlags flags, MarkPlan& pl
   if (flags == 0) throw Error("pose grid: mark() needs non-zero flags");
   const int t = config_.xy_tolerance;
   if (pack_xy(c.submap, c.ix - t, c.iy - t) == kInvalidXy || pack_xy(c.submap, c.ix + t, c.iy + t) == kInvalidXy)
-    throw Error("pose grid: cell (" + std::to_string(c.ix) + ", " + std::to_string(c.iy) + ") of submap " +
-                std::to_string(c.submap) + " is outside the grid (submap < 16383, |x|, |y| < 65536 cells of " +
-                std::to_string(config_.cell_size) + " m)");
+    throw_outside_grid("pose grid", c, config_.cell_size);
   plan.cells.push_back(c);
   std::vector<CellMark>& out = plan.writes;
   if (config_.tolerance_mode == ToleranceMode::kProbeNeighbours) {

@@ -244,6 +244,15 @@ class PoseGridHashMap {
     return (std::uint64_t{submap} << 34) | (std::uint64_t{bx} << 17) | std::uint64_t{by};
   }
 
+  /// The error for a cell outside pack_xy()'s limits, naming the grid (`who`).
+  [[noreturn]] static void throw_outside_grid(const char* who, const PoseCell& c, double cell_size);
+  /// The number of used slots past which a write grows a table of `capacity`:
+  /// used + 1 > load * capacity (in double, as the bound is documented) <=>
+  /// used + 1 > floor(load * capacity). The free-space grid replays it.
+  static std::size_t grow_threshold(double max_load_factor, std::size_t capacity) {
+    return static_cast<std::size_t>(std::floor(max_load_factor * static_cast<double>(capacity)));
+  }
+
   /// The cell (itheta 0) of a key pack_xy() made.
   static PoseCell unpack_xy(std::uint64_t xy) {
     return {static_cast<std::uint32_t>(xy >> 34),
