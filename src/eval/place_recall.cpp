@@ -61,6 +61,31 @@ bool is_hit(const MapLocation& l, std::uint32_t submap, const Pose2& pose, const
          angle_distance(l.theta, pose.theta) <= config.match_angle_deg * std::numbers::pi / 180.0;
 }
 
+using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// The exact L2 baseline: |q - m|^2 - |q|^2 (the same for every map row of a
+/// query) from each of `n_queries` descriptors to every row of `map`, by a
+/// matrix product over blocks of 256 queries. visit(query, row of distances).
+template <class DescriptorOf, class Visit>
+void for_each_query_distances(const Eigen::Ref<const RowMatrix>& map, std::size_t n_queries, DescriptorOf descriptor_of,
+                              Visit visit) {
+  const Eigen::VectorXf m_norm = map.rowwise().squaredNorm();
+  const Eigen::Index dim = map.cols();
+  constexpr std::size_t kBlock = 256;
+  RowMatrix qb(static_cast<Eigen::Index>(kBlock), dim);
+  for (std::size_t b = 0; b < n_queries; b += kBlock) {
+    const std::size_t nb = std::min(kBlock, n_queries - b);
+    for (std::size_t j = 0; j < nb; ++j) {
+      const auto& descriptor = descriptor_of(b + j);
+      for (Eigen::Index c = 0; c < dim; ++c)
+        qb(static_cast<Eigen::Index>(j), c) = descriptor[static_cast<std::size_t>(c)];
+    }
+    const RowMatrix d =
+        (-2.0f * qb.topRows(static_cast<Eigen::Index>(nb)) * map.transpose()).rowwise() + m_norm.transpose();
+    for (std::size_t j = 0; j < nb; ++j) visit(b + j, d.row(static_cast<Eigen::Index>(j)));
+  }
+}
+
 }  // namespace
 
 PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRecallConfig& config) {
@@ -150,44 +175,34 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
   std::vector<std::size_t> exact_hits(ks.size(), 0);
   std::vector<float> true_match_distance, nearest_distance, hundredth_distance;
   if (config.exact && !map_descriptors.empty()) {
-    using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const auto n_map = static_cast<Eigen::Index>(map_descriptors.size());
-    const Eigen::Map<const Matrix> m(map_descriptors[0].data(), n_map, static_cast<Eigen::Index>(kDescriptorSize));
-    const Eigen::VectorXf m_norm = m.rowwise().squaredNorm();
+    const Eigen::Map<const RowMatrix> m(map_descriptors[0].data(), n_map, static_cast<Eigen::Index>(kDescriptorSize));
     std::vector<std::size_t> covered_ids;
     for (std::size_t i = 0; i < queries.size(); ++i)
       if (covered[i]) covered_ids.push_back(i);
-    constexpr std::size_t kBlock = 256;
-    Matrix qb(static_cast<Eigen::Index>(kBlock), static_cast<Eigen::Index>(kDescriptorSize));
     std::vector<std::pair<float, std::uint32_t>> row(map_descriptors.size());
     std::vector<std::uint32_t> ranked;
-    for (std::size_t b = 0; b < covered_ids.size(); b += kBlock) {
-      const std::size_t nb = std::min(kBlock, covered_ids.size() - b);
-      for (std::size_t j = 0; j < nb; ++j)
-        for (std::size_t c = 0; c < kDescriptorSize; ++c)
-          qb(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(c)) = queries[covered_ids[b + j]].descriptor[c];
-      const Matrix d =
-          (-2.0f * qb.topRows(static_cast<Eigen::Index>(nb)) * m.transpose()).rowwise() + m_norm.transpose();
-      for (std::size_t j = 0; j < nb; ++j) {
-        for (Eigen::Index c = 0; c < n_map; ++c)
-          row[static_cast<std::size_t>(c)] = {d(static_cast<Eigen::Index>(j), c), static_cast<std::uint32_t>(c)};
-        const Feature& q = queries[covered_ids[b + j]];
-        float best_true = std::numeric_limits<float>::infinity();
-        grid.for_near(q.pose.x, q.pose.y, [&](std::uint32_t id) {
-          if (matches(q, id)) best_true = std::min(best_true, row[id].first);
+    for_each_query_distances(
+        m, covered_ids.size(), [&](std::size_t i) -> const Descriptor& { return queries[covered_ids[i]].descriptor; },
+        [&](std::size_t i, const auto& d) {
+          for (Eigen::Index c = 0; c < n_map; ++c)
+            row[static_cast<std::size_t>(c)] = {d(c), static_cast<std::uint32_t>(c)};
+          const Feature& q = queries[covered_ids[i]];
+          float best_true = std::numeric_limits<float>::infinity();
+          grid.for_near(q.pose.x, q.pose.y, [&](std::uint32_t id) {
+            if (matches(q, id)) best_true = std::min(best_true, row[id].first);
+          });
+          const std::size_t top = std::min(k_eval, row.size());
+          std::partial_sort(row.begin(), row.begin() + static_cast<std::ptrdiff_t>(top), row.end());
+          ranked.clear();
+          for (std::size_t t = 0; t < top; ++t) ranked.push_back(row[t].second);
+          // Squared distances plus |q|^2 = 1 give the distances.
+          if (std::isfinite(best_true)) true_match_distance.push_back(std::sqrt(std::max(best_true + 1.0f, 0.0f)));
+          nearest_distance.push_back(std::sqrt(std::max(row[0].first + 1.0f, 0.0f)));
+          hundredth_distance.push_back(std::sqrt(std::max(row[top - 1].first + 1.0f, 0.0f)));
+          const std::size_t r = first_hit(q, ranked);
+          for (std::size_t x = 0; x < ks.size(); ++x) exact_hits[x] += r < ks[x];
         });
-        const std::size_t top = std::min(k_eval, row.size());
-        std::partial_sort(row.begin(), row.begin() + static_cast<std::ptrdiff_t>(top), row.end());
-        ranked.clear();
-        for (std::size_t t = 0; t < top; ++t) ranked.push_back(row[t].second);
-        // Squared distances plus |q|^2 = 1 give the distances.
-        if (std::isfinite(best_true)) true_match_distance.push_back(std::sqrt(std::max(best_true + 1.0f, 0.0f)));
-        nearest_distance.push_back(std::sqrt(std::max(row[0].first + 1.0f, 0.0f)));
-        hundredth_distance.push_back(std::sqrt(std::max(row[top - 1].first + 1.0f, 0.0f)));
-        const std::size_t r = first_hit(queries[covered_ids[b + j]], ranked);
-        for (std::size_t x = 0; x < ks.size(); ++x) exact_hits[x] += r < ks[x];
-      }
-    }
   }
 
   auto ratio = [&](std::size_t hits) {
@@ -235,44 +250,34 @@ bool PlaceRecallProbe::hit(const RecallQuery& q, const MapLocation& l) const {
 
 void PlaceRecallProbe::add_map_features(std::uint32_t submap, std::span<const Feature> features) {
   if (features.empty() || queries_.empty()) return;
-  using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const auto n = static_cast<Eigen::Index>(features.size());
   const auto dim = static_cast<Eigen::Index>(kDescriptorSize);
-  Matrix m(n, dim);
+  RowMatrix m(n, dim);
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index c = 0; c < dim; ++c)
       m(i, c) = features[static_cast<std::size_t>(i)].descriptor[static_cast<std::size_t>(c)];
-  const Eigen::VectorXf m_norm = m.rowwise().squaredNorm();
   const std::size_t k = config_.k;
-  constexpr std::size_t kBlock = 256;
-  Matrix qb(static_cast<Eigen::Index>(kBlock), dim);
-  for (std::size_t b = 0; b < queries_.size(); b += kBlock) {
-    const std::size_t nb = std::min(kBlock, queries_.size() - b);
-    for (std::size_t j = 0; j < nb; ++j)
-      for (Eigen::Index c = 0; c < dim; ++c)
-        qb(static_cast<Eigen::Index>(j), c) = queries_[b + j].feature.descriptor[static_cast<std::size_t>(c)];
-    // |q - m|^2 without |q|^2, the same for every map feature of a query.
-    const Matrix d = (-2.0f * qb.topRows(static_cast<Eigen::Index>(nb)) * m.transpose()).rowwise() + m_norm.transpose();
-    for (std::size_t j = 0; j < nb; ++j) {
-      const RecallQuery& q = queries_[b + j];
-      auto& best = nearest_[b + j];
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const Feature& f = features[static_cast<std::size_t>(i)];
-        const MapLocation l{submap, static_cast<float>(f.pose.x), static_cast<float>(f.pose.y),
-                            static_cast<float>(f.pose.theta)};
-        if (submap == q.submap &&
-            std::hypot(f.pose.x - q.feature.pose.x, f.pose.y - q.feature.pose.y) <= config_.match_distance)
-          covered_[b + j] = 1;
-        best.push_back({d(static_cast<Eigen::Index>(j), i), l});
-        // Keep the k nearest: trim once the list doubles.
-        if (best.size() >= 2 * k) {
-          std::nth_element(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(k - 1), best.end(),
-                           [](const Neighbour& a, const Neighbour& c) { return a.distance2 < c.distance2; });
-          best.resize(k);
+  for_each_query_distances(
+      m, queries_.size(), [&](std::size_t j) -> const Descriptor& { return queries_[j].feature.descriptor; },
+      [&](std::size_t j, const auto& d) {
+        const RecallQuery& q = queries_[j];
+        auto& best = nearest_[j];
+        for (Eigen::Index i = 0; i < n; ++i) {
+          const Feature& f = features[static_cast<std::size_t>(i)];
+          const MapLocation l{submap, static_cast<float>(f.pose.x), static_cast<float>(f.pose.y),
+                              static_cast<float>(f.pose.theta)};
+          if (submap == q.submap &&
+              std::hypot(f.pose.x - q.feature.pose.x, f.pose.y - q.feature.pose.y) <= config_.match_distance)
+            covered_[j] = 1;
+          best.push_back({d(i), l});
+          // Keep the k nearest: trim once the list doubles.
+          if (best.size() >= 2 * k) {
+            std::nth_element(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(k - 1), best.end(),
+                             [](const Neighbour& a, const Neighbour& c) { return a.distance2 < c.distance2; });
+            best.resize(k);
+          }
         }
-      }
-    }
-  }
+      });
 }
 
 PlaceRecallProbe::Result PlaceRecallProbe::finish(const LshDatabase& database, const LocationStore& store) const {
