@@ -2,33 +2,49 @@
 """Convert a ROS 2 bag (sqlite3 or MCAP) of laser scans and odometry into a
 CARMEN log (ROBOTLASER1 lines) that lshloc reads.
 
-Standard library only; zstandard and lz4 are imported when an MCAP chunk is
-compressed with them. Messages are decoded from CDR by hand, so no ROS
-installation is needed.
+rosbag2's compression is undone: storage files compressed whole
+(compression_mode file: NAME.db3.zstd, NAME.mcap.zstd, decompressed into a
+temporary file) and messages compressed one by one (compression_mode
+message); metadata.yaml says which, and a single file is recognised by its
+zstd magic bytes. The laser's mount comes from /tf_static, else from /tf when
+the base -> laser chain there stays fixed over the bag, else --laser-offset.
+
+Standard library only; zstandard (python3-zstandard) and lz4 (python3-lz4) are
+imported when something is compressed with them. Messages are decoded from CDR
+by hand, so no ROS installation is needed.
 """
 import argparse
 import bisect
+import collections
 import gzip
 import math
 import mmap
 import pathlib
+import re
 import sqlite3
 import struct
 import sys
+import tempfile
 import zlib
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 ODOMETRY = "nav_msgs/msg/Odometry"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 TF_STATIC_TOPIC = "/tf_static"
+TF_TOPIC = "/tf"
 WANTED_TYPES = (LASER_SCAN, ODOMETRY, TF_MESSAGE)
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+STORAGE_SUFFIXES = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
 OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x02, 0x03, 0x04, 0x05, 0x06
 
 # Scans further than this outside the odometry's time span have no robot pose.
 ODOMETRY_MARGIN_NS = 500_000_000
+# A base -> laser transform on /tf that strays further than this from its first value is a moving laser.
+MOUNT_STEADY_M = 0.001
+MOUNT_STEADY_RAD = math.radians(0.1)
 
 
 class BagError(Exception):
@@ -66,47 +82,187 @@ class Bag:
         self.topics = {}
         self.messages = []
         self.files = []
+        self.compressed_messages = False  # metadata.yaml says compression_mode message
+        self.zstd = None  # the zstd decompressor, made at the first compressed message
 
 
 # ---------------------------------------------------------------- storage
 
 
 def storage_files(bag_path):
+    """The bag's storage files, and whether metadata.yaml says each message is compressed."""
     path = pathlib.Path(bag_path)
     if not path.exists():
-        raise BagError(bag_path, "no such file or directory; expected a ROS 2 bag directory or a .db3 / .mcap file")
+        raise BagError(bag_path, "no such file or directory; expected a ROS 2 bag directory or a .db3 / .mcap file "
+                       "(or one compressed as .zstd)")
     if path.is_file():
-        return [path]
-    files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix in (".db3", ".mcap"))
+        return [path], False
+    metadata = read_metadata(path / "metadata.yaml")
+    compressed_messages = metadata_compression(path / "metadata.yaml", metadata)
+    return listed_files(path, metadata) or found_files(path), compressed_messages
+
+
+def read_metadata(path):
+    """The keys of a rosbag2 metadata.yaml this script uses: relative_file_paths (a list), compression_mode and
+    compression_format (strings). rosbag2 writes them in block style, one key a line; {} when there is no file."""
+    if not path.is_file():
+        return {}
+    lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    metadata = {}
+    for number, line in enumerate(lines):
+        match = re.match(r"(\s*)(relative_file_paths|compression_mode|compression_format):\s*(.*?)\s*$", line)
+        if match is None or match[2] in metadata:
+            continue
+        indent, key, value = len(match[1]), match[2], match[3]
+        if key != "relative_file_paths":
+            metadata[key] = yaml_scalar(value)
+        elif value.startswith("["):
+            metadata[key] = [yaml_scalar(v) for v in value.strip("[]").split(",") if v.strip()]
+        else:
+            metadata[key] = yaml_block_list(lines[number + 1:], indent)
+    return metadata
+
+
+def yaml_scalar(text):
+    text = text.strip()
+    if len(text) >= 2 and text[0] == text[-1] and text[0] in "\"'":
+        return text[1:-1]
+    return text
+
+
+def yaml_block_list(lines, key_indent):
+    """The items of a block list ("- item" lines, indented at least as its key) at the start of `lines`."""
+    items = []
+    for line in lines:
+        match = re.match(r"(\s*)-\s+(.*?)\s*$", line)
+        if match is None or len(match[1]) < key_indent:
+            if line.strip():
+                break
+            continue
+        items.append(yaml_scalar(match[2]))
+    return items
+
+
+def metadata_compression(path, metadata):
+    """Whether each message is zstd-compressed; files compressed whole are recognised by their magic bytes."""
+    mode = metadata.get("compression_mode", "").lower()
+    compression = metadata.get("compression_format", "")
+    if mode not in ("", "none", "file", "message"):
+        raise BagError(path, f"compression_mode '{mode}'; expected file, message or none")
+    if mode in ("file", "message") and compression != "zstd":
+        raise BagError(path, f"compression_mode {mode} with compression_format '{compression}'; expected zstd, the "
+                       "format rosbag2 compresses with")
+    return mode == "message"
+
+
+def listed_files(directory, metadata):
+    """The files metadata.yaml's relative_file_paths lists: beside it, or (rosbag2 before version 4) relative to the
+    directory above; a file listed as NAME.zstd may have been decompressed to NAME."""
+    files = []
+    for listed in metadata.get("relative_file_paths", []):
+        name = pathlib.Path(listed)
+        names = (name, name.with_suffix("")) if name.suffix == ".zstd" else (name,)
+        places = [place for n in names for place in (directory / n, directory.parent / n, directory / n.name)]
+        found = next((place for place in places if place.is_file()), None)
+        if found is None:
+            raise BagError(directory / "metadata.yaml", f"relative_file_paths lists {listed}, which is not in "
+                           f"{directory}; expected the bag's storage files beside metadata.yaml")
+        files.append(found)
+    return files
+
+
+def found_files(directory):
+    files = sorted(p for p in directory.iterdir() if p.is_file() and p.name.endswith(STORAGE_SUFFIXES))
     if not files:
-        found = ", ".join(sorted(p.name for p in path.iterdir())[:8]) or "nothing"
-        raise BagError(bag_path, f"no .db3 or .mcap file in the directory (found {found}); expected a ROS 2 bag "
-                       "directory (metadata.yaml and its storage files; decompress .zstd files first)")
+        found = ", ".join(sorted(p.name for p in directory.iterdir())[:8]) or "nothing"
+        raise BagError(directory, f"no .db3 or .mcap file (nor .db3.zstd, .mcap.zstd) in the directory (found "
+                       f"{found}); expected a ROS 2 bag directory (metadata.yaml and its storage files)")
     return files
 
 
 def read_bag(bag_path, progress):
     bag = Bag()
-    for path in storage_files(bag_path):
-        with open(path, "rb") as f:
-            start = f.read(16)
+    files, bag.compressed_messages = storage_files(bag_path)
+    for path in files:
         progress.note(f"reading {path}")
-        if start.startswith(MCAP_MAGIC):
-            read_mcap(path, bag)
-        elif start == SQLITE_MAGIC:
-            read_sqlite(path, bag)
-        else:
-            raise BagError(path, "neither a sqlite3 database nor an MCAP file (by its first bytes); expected a ROS 2 "
-                           "bag's .db3 or .mcap storage file")
+        read_storage_file(path, bag, progress)
         bag.files.append(path)
     # Storage order need not be time order (MCAP chunks, several files).
     bag.messages.sort(key=lambda m: m.bag_ns)
     return bag
 
 
-def read_sqlite(path, bag):
+def first_bytes(path, count=16):
+    with open(path, "rb") as f:
+        return f.read(count)
+
+
+def read_storage_file(path, bag, progress):
+    """Reads one storage file; one compressed whole (compression_mode file) through a temporary copy."""
+    start = first_bytes(path)
+    if start.startswith(ZSTD_MAGIC):
+        with tempfile.TemporaryDirectory(prefix="rosbag_to_carmen-") as scratch:
+            plain = pathlib.Path(scratch) / (path.name[:-len(".zstd")] if path.name.endswith(".zstd") else "bag")
+            size = decompress_file(path, plain)
+            progress.note(f"decompressed {path} to {size} bytes in {plain}")
+            read_plain_storage(plain, bag, path, "decompressed, ")
+    elif path.name.endswith(".zstd"):
+        raise BagError(path, f"begins {start[:4].hex(' ') or 'empty'}, not a zstd frame; expected a zstd-compressed "
+                       "ROS 2 storage file (zstd frames begin 28 b5 2f fd)")
+    else:
+        read_plain_storage(path, bag, path)
+
+
+def read_plain_storage(file, bag, name, what=""):
+    """Reads `file`; errors and messages name `name`, the file as the bag holds it."""
+    start = first_bytes(file)
+    if start.startswith(MCAP_MAGIC):
+        read_mcap(file, bag, name)
+    elif start == SQLITE_MAGIC:
+        read_sqlite(file, bag, name)
+    else:
+        raise BagError(name, f"{what}neither a sqlite3 database nor an MCAP file (by its first bytes); expected a "
+                       "ROS 2 bag's .db3 or .mcap storage file")
+
+
+def zstandard_module(path, what):
     try:
-        db = sqlite3.connect(path.resolve().as_uri() + "?mode=ro", uri=True)
+        import zstandard
+    except ImportError:
+        raise BagError(path, f"{what} and the Python module zstandard is missing; expected it installed "
+                       "(apt install python3-zstandard)") from None
+    return zstandard
+
+
+def decompress_file(path, out_path):
+    """Decompresses the zstd frames of `path` into `out_path` by streaming (frames need not hold their size)."""
+    zstandard = zstandard_module(path, "is zstd-compressed")
+    decompressor = zstandard.ZstdDecompressor()
+    size, inside_frame = 0, False
+    with open(path, "rb") as source, open(out_path, "wb") as out:
+        frame = decompressor.decompressobj()
+        while data := source.read(1 << 20):
+            while data:
+                try:
+                    plain = frame.decompress(data)
+                except zstandard.ZstdError as e:
+                    raise BagError(path, f"zstd says {e} (after {size} bytes decompressed); expected a valid zstd "
+                                   "frame (a damaged file?)") from None
+                out.write(plain)
+                size += len(plain)
+                inside_frame, data = not frame.eof, b""
+                if frame.eof:  # another frame may follow
+                    data, frame = frame.unused_data, decompressor.decompressobj()
+    if inside_frame:
+        raise BagError(path, f"ends inside a zstd frame (after {size} bytes decompressed); expected whole zstd "
+                       "frames (a truncated file, or one still being compressed?)")
+    return size
+
+
+def read_sqlite(file, bag, path):
+    """Reads the database `file`; errors and messages name `path`."""
+    try:
+        db = sqlite3.connect(file.resolve().as_uri() + "?mode=ro", uri=True)
     except sqlite3.Error as e:
         raise BagError(path, f"cannot open the sqlite3 database ({e})") from None
     try:
@@ -187,11 +343,12 @@ class McapFields:
         return self.blob(self.end - self.pos)
 
 
-def read_mcap(path, bag):
-    size = path.stat().st_size
+def read_mcap(file, bag, path):
+    """Reads the MCAP file `file`; errors and messages name `path`."""
+    size = file.stat().st_size
     if size < 2 * len(MCAP_MAGIC):
         raise BagError(path, f"{size} bytes; expected an MCAP file with a header, records and a footer")
-    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+    with open(file, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         state = McapState(path, bag)
         records = McapRecords(buf, len(MCAP_MAGIC), size, path, "at")
         for opcode, at, fields in records:
@@ -255,11 +412,7 @@ def decompress(data, compression, uncompressed_size, path, at):
     if compression == "":
         return data
     if compression == "zstd":
-        try:
-            import zstandard
-        except ImportError:
-            raise BagError(path, f"chunk at byte {at} is zstd-compressed and the Python module zstandard is "
-                           "missing; expected it installed (apt install python3-zstandard)") from None
+        zstandard = zstandard_module(path, f"chunk at byte {at} is zstd-compressed")
         try:
             return zstandard.ZstdDecompressor().decompress(data, max_output_size=uncompressed_size)
         except zstandard.ZstdError as e:
@@ -386,7 +539,7 @@ def decode_topic(bag, topic, type_name):
         if encoding != "cdr":
             raise BagError(msg.path, f"topic {topic} is serialized as '{encoding}'; expected 'cdr' (ROS 2's default)")
         try:
-            value = DECODERS[type_name](CdrReader(msg.data))
+            value = DECODERS[type_name](CdrReader(message_bytes(bag, msg, f"message {number} on topic {topic}")))
         except CdrEndsEarly as e:
             raise BagError(msg.path, f"message {number} on topic {topic} ends early ({e}); expected a complete "
                            f"CDR-encoded {type_name}") from None
@@ -396,6 +549,27 @@ def decode_topic(bag, topic, type_name):
             value.bag_ns = msg.bag_ns
         decoded.append(value)
     return decoded
+
+
+def message_bytes(bag, msg, where):
+    """A message's serialized bytes, decompressed when rosbag2 compressed it alone (compression_mode message).
+    CDR begins with a 00 byte, so a zstd frame's magic tells the two apart without metadata.yaml."""
+    if not msg.data.startswith(ZSTD_MAGIC):
+        if bag.compressed_messages:
+            raise BagError(msg.path, f"{where} begins {msg.data[:4].hex(' ') or 'empty'}, not a zstd frame; "
+                           "expected each message zstd-compressed, as metadata.yaml says compression_mode message")
+        return msg.data
+    zstandard = zstandard_module(msg.path, f"{where} is zstd-compressed")
+    if bag.zstd is None:
+        bag.zstd = zstandard.ZstdDecompressor()
+    frame = bag.zstd.decompressobj()  # streaming: the frame need not hold its size
+    try:
+        data = frame.decompress(msg.data)
+    except zstandard.ZstdError as e:
+        raise BagError(msg.path, f"{where}: zstd says {e}; expected a valid zstd frame") from None
+    if not frame.eof:
+        raise BagError(msg.path, f"{where} ends inside its zstd frame; expected a whole frame (a damaged message?)")
+    return data
 
 
 # ---------------------------------------------------------------- geometry
@@ -429,23 +603,71 @@ class Transform:
         return Transform(r, t)
 
 
-def find_static_transform(transforms, base, target):
-    """The pose of `target` in `base` through the static tree, walked either way along its edges."""
-    edges = {}
-    for parent, child, transform in transforms:
-        edges.setdefault(parent, {})[child] = transform
-        edges.setdefault(child, {})[parent] = transform.inverse()
-    found = {base: Transform([[1, 0, 0], [0, 1, 0], [0, 0, 1]], [0, 0, 0])}
-    queue = [base]
+IDENTITY = Transform([[1, 0, 0], [0, 1, 0], [0, 0, 1]], [0, 0, 0])
+
+
+def tf_history(bag, topic):
+    """Each edge (parent, child) of a tf topic -> [(message number, Transform)] in bag order; {} without it."""
+    history = {}
+    if bag.topics.get(topic, ("",))[0] == TF_MESSAGE:
+        for number, message in enumerate(decode_topic(bag, topic, TF_MESSAGE), start=1):
+            for parent, child, transform in message:
+                history.setdefault((parent, child), []).append((number, transform))
+    return history
+
+
+def tf_path(edges, base, target):
+    """The edges (parent, child) from `base` to `target` through the tree of `edges`, each with whether it is
+    walked from parent to child; None when no path links them."""
+    neighbours = {}
+    for parent, child in edges:
+        neighbours.setdefault(parent, {})[child] = ((parent, child), True)
+        neighbours.setdefault(child, {})[parent] = ((parent, child), False)
+    came_from = {base: None}
+    queue = collections.deque([base])
     while queue:
-        frame = queue.pop(0)
+        frame = queue.popleft()
         if frame == target:
-            return found[frame]
-        for neighbour, transform in edges.get(frame, {}).items():
-            if neighbour not in found:
-                found[neighbour] = found[frame].then(transform)
+            steps = []
+            while came_from[frame] is not None:
+                frame, edge, forward = came_from[frame]
+                steps.append((edge, forward))
+            return steps[::-1]
+        for neighbour, (edge, forward) in neighbours.get(frame, {}).items():
+            if neighbour not in came_from:
+                came_from[neighbour] = (frame, edge, forward)
                 queue.append(neighbour)
     return None
+
+
+def compose_path(steps, transforms):
+    """The pose of a path's last frame in its first: its transforms chained, those walked backwards inverted."""
+    pose = IDENTITY
+    for edge, forward in steps:
+        pose = pose.then(transforms[edge] if forward else transforms[edge].inverse())
+    return pose
+
+
+def rotation_angle(a, b):
+    """The angle [rad] of the rotation between the orientations of transforms a and b."""
+    trace = sum(a.r[i][j] * b.r[i][j] for i in range(3) for j in range(3))
+    return math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0)))
+
+
+def steady_transform(bag_path, edge, history, base_frame, laser_frame):
+    """The first of an edge's /tf transforms, when none of the others strays from it further than a fixed mount's
+    tolerance (1 mm, 0.1 degrees)."""
+    first_number, first = history[0]
+    for number, transform in history[1:]:
+        shift = math.dist(first.t, transform.t)
+        turn = rotation_angle(first, transform)
+        if shift > MOUNT_STEADY_M or turn > MOUNT_STEADY_RAD:
+            raise BagError(bag_path, f"{TF_TOPIC} message {number}: {edge[0]} -> {edge[1]}, on the chain from "
+                           f"'{base_frame}' to the laser frame '{laser_frame}', is {shift * 1000:.1f} mm and "
+                           f"{math.degrees(turn):.2f} degrees from its value in message {first_number}: the laser "
+                           "moves relative to the base; expected a fixed mount (give it with --laser-offset "
+                           "X,Y,THETA)")
+    return first
 
 
 def wrap(angle):
@@ -453,33 +675,49 @@ def wrap(angle):
 
 
 class Mount:
-    """The laser's planar pose on the robot; `upside_down` lasers sweep the other way seen from above."""
+    """The laser's planar pose on the robot; `upside_down` lasers sweep the other way seen from above. `topics`:
+    the tf topics it came from."""
 
-    def __init__(self, x, y, theta, upside_down, source):
+    def __init__(self, x, y, theta, upside_down, source, topics=()):
         self.x, self.y, self.theta, self.upside_down, self.source = x, y, theta, upside_down, source
+        self.topics = topics
 
     @staticmethod
-    def from_transform(transform, source):
+    def from_transform(transform, source, topics):
         r = transform.r
         # The yaw of where the laser's x-axis points; its z-axis pointing down means a flipped sweep.
-        return Mount(transform.t[0], transform.t[1], math.atan2(r[1][0], r[0][0]), r[2][2] < 0.0, source)
+        return Mount(transform.t[0], transform.t[1], math.atan2(r[1][0], r[0][0]), r[2][2] < 0.0, source, topics)
 
 
-def laser_mount(args, tf_transforms, base_frame, laser_frame):
+def laser_mount(args, static, read_tf, base_frame, laser_frame):
+    """The mount from --laser-offset, else the chain base -> laser in /tf_static, else that chain with the edges
+    /tf_static lacks taken from /tf (`read_tf()` decodes it: only read when needed), else (0, 0, 0)."""
     if args.laser_offset is not None:
         return Mount(*args.laser_offset, False, "--laser-offset")
-    if not tf_transforms:
-        warn(f"no {TF_STATIC_TOPIC} transforms and no --laser-offset: the laser is taken to sit at the robot's "
-             "origin (0, 0, 0)")
+    fixed = {edge: values[-1][1] for edge, values in static.items()}  # of repeated static transforms the last wins
+    steps = tf_path(fixed, base_frame, laser_frame)
+    if steps is not None:
+        return Mount.from_transform(compose_path(steps, fixed), f"{TF_STATIC_TOPIC} {base_frame} -> {laser_frame}",
+                                    (TF_STATIC_TOPIC,))
+    moving = read_tf()
+    steps = tf_path([*fixed, *(edge for edge in moving if edge not in fixed)], base_frame, laser_frame)
+    if steps is None:
+        if not fixed and not moving:
+            warn(f"no {TF_STATIC_TOPIC} transforms and no --laser-offset (nor {TF_TOPIC} ones): the laser is taken "
+                 "to sit at the robot's origin (0, 0, 0)")
+        else:
+            frames = sorted({frame for edge in (*fixed, *moving) for frame in edge})
+            warn(f"neither {TF_STATIC_TOPIC} nor {TF_TOPIC} links a path from '{base_frame}' to the laser frame "
+                 f"'{laser_frame}' (frames: {', '.join(frames)}); the laser is taken to sit at the robot's origin "
+                 "(0, 0, 0): give --base-frame or --laser-offset")
         return Mount(0.0, 0.0, 0.0, False, "nowhere (assumed 0, 0, 0)")
-    transform = find_static_transform(tf_transforms, base_frame, laser_frame)
-    if transform is None:
-        frames = sorted({f for parent, child, _ in tf_transforms for f in (parent, child)})
-        warn(f"{TF_STATIC_TOPIC} links no path from '{base_frame}' to the laser frame '{laser_frame}' "
-             f"(frames: {', '.join(frames)}); the laser is taken to sit at the robot's origin (0, 0, 0): "
-             "give --base-frame or --laser-offset")
-        return Mount(0.0, 0.0, 0.0, False, "nowhere (assumed 0, 0, 0)")
-    return Mount.from_transform(transform, f"{TF_STATIC_TOPIC} {base_frame} -> {laser_frame}")
+    from_static = any(edge in fixed for edge, _ in steps)
+    for edge, _ in steps:
+        if edge not in fixed:
+            fixed[edge] = steady_transform(args.bag, edge, moving[edge], base_frame, laser_frame)
+    topics = (TF_STATIC_TOPIC, TF_TOPIC) if from_static else (TF_TOPIC,)
+    return Mount.from_transform(compose_path(steps, fixed), f"{' and '.join(topics)} {base_frame} -> {laser_frame}",
+                                topics)
 
 
 class OdometryTrack:
@@ -590,15 +828,12 @@ def convert(args):
     if not scans:
         raise BagError(args.bag, f"topic {scan_topic} holds no message; expected laser scans")
     odometry = decode_topic(bag, odom_topic, ODOMETRY) if odom_topic else []
-    tf_transforms = []
-    if bag.topics.get(TF_STATIC_TOPIC, ("",))[0] == TF_MESSAGE:
-        for message in decode_topic(bag, TF_STATIC_TOPIC, TF_MESSAGE):
-            tf_transforms.extend(message)
+    static = tf_history(bag, TF_STATIC_TOPIC)
     progress.note(f"decoded {len(scans)} scans on {scan_topic}, {len(odometry)} odometry messages on "
-                  f"{odom_topic or '(none)'}, {len(tf_transforms)} static transforms")
+                  f"{odom_topic or '(none)'}, {sum(map(len, static.values()))} static transforms")
 
     base_frame = args.base_frame or (odometry[0].child_frame.lstrip("/") if odometry else "") or "base_link"
-    mount = laser_mount(args, tf_transforms, base_frame, scans[0].frame.lstrip("/"))
+    mount = laser_mount(args, static, lambda: tf_history(bag, TF_TOPIC), base_frame, scans[0].frame.lstrip("/"))
 
     def stamp_of(message):
         return message.stamp_ns if args.stamp == "header" else message.bag_ns
@@ -607,7 +842,7 @@ def convert(args):
     if track is None:
         warn(f"no {ODOMETRY} topic: writing zero odometry; localize the log with `lshloc localize --no-odometry`")
     lines = [f"# converted by rosbag_to_carmen.py from {args.bag} (topics {scan_topic}, {odom_topic or 'no odometry'}"
-             f"{', ' + TF_STATIC_TOPIC if tf_transforms else ''})"]
+             f"{''.join(', ' + topic for topic in mount.topics)})"]
     dropped = 0
     for scan in scans:
         stamp = stamp_of(scan)
@@ -653,14 +888,22 @@ def parse_args(argv):
         description="Convert a ROS 2 bag (sqlite3 .db3 or MCAP, MCAP chunks plain, zstd or lz4) of "
                     f"{LASER_SCAN} and {ODOMETRY} messages into a CARMEN log of ROBOTLASER1 lines for lshloc. "
                     "Each scan gets the odometry interpolated at its stamp and the laser's mount on the robot.",
-        epilog="Ranges: ROS's no-return readings (+inf, above range_max) are written as max_range, which lshloc "
+        epilog="Compression: bags recorded with --compression-mode file (storage files NAME.db3.zstd, "
+               "NAME.mcap.zstd, decompressed into a temporary file) or --compression-mode message (each message "
+               "zstd-compressed) are read as they are; metadata.yaml says which, and a single file given is "
+               "recognised by its zstd magic bytes. Needs the Python module zstandard (python3-zstandard).\n\n"
+               "Laser mount: the chain of transforms from the base frame to the scans' frame_id in /tf_static; "
+               "where /tf_static lacks a link of it, the link from /tf, when it stays within 1 mm and 0.1 degrees "
+               "of its first value over the bag (a laser that moves is refused: give --laser-offset). "
+               "The odom -> base transforms on /tf play no part.\n\n"
+               "Ranges: ROS's no-return readings (+inf, above range_max) are written as max_range, which lshloc "
                "reads as no return; invalid ones (NaN, -inf, below range_min) as nan, an invalid beam.\n\n"
                "example:\n"
                "  rosbag_to_carmen.py my_bag/ --out run.log.gz\n"
                "  lshloc localize --map map.yaml --target run.log.gz")
     parser.add_argument("bag", metavar="BAG",
-                        help="a ROS 2 bag directory (its .db3 / .mcap files read in name order) or one .db3 / "
-                             ".mcap file"),
+                        help="a ROS 2 bag directory (the storage files its metadata.yaml lists, else its .db3 / "
+                             ".mcap files in name order, each maybe compressed as .zstd) or one such file")
     parser.add_argument("--out", required=True, metavar="LOG",
                         help="the CARMEN log to write; gzip-compressed when it ends in .gz")
     parser.add_argument("--scan-topic", metavar="T",
@@ -668,10 +911,11 @@ def parse_args(argv):
     parser.add_argument("--odom-topic", metavar="T",
                         help=f"the {ODOMETRY} topic (default: the only one; with none, zero odometry is written)")
     parser.add_argument("--base-frame", metavar="F",
-                        help="the robot frame the laser mount is measured from in /tf_static (default: the "
-                             "odometry's child_frame_id, else base_link)")
+                        help="the robot frame the laser mount is measured from in /tf_static or /tf (default: "
+                             "the odometry's child_frame_id, else base_link)")
     parser.add_argument("--laser-offset", metavar="X,Y,THETA", type=parse_offset,
-                        help="the laser's planar mount on the robot [m, m, rad], overriding /tf_static; the scans "
+                        help="the laser's planar mount on the robot [m, m, rad], overriding /tf_static and /tf; "
+                             "the scans "
                              "are taken as upright (write negative values as --laser-offset=-0.1,0,0)")
     parser.add_argument("--stamp", choices=("header", "bag"), default="header",
                         help="time stamps from the messages' headers (default) or the bag's receive times")

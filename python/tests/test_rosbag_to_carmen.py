@@ -1,8 +1,9 @@
 """scripts/rosbag_to_carmen.py against known answers: a simulated robot's raw
 log turned into ROS 2 bags (sqlite3 and MCAP, plain, zstd and lz4 chunks) by
 this file's own CDR encoder and bag writers, converted back and compared scan
-by scan and by localizing it; CDR golden bytes written out by hand; an
-upside-down laser; and bad input."""
+by scan and by localizing it; the same bags compressed by rosbag2's file and
+message modes, and with the laser mount on /tf; CDR golden bytes written out
+by hand; an upside-down laser; and bad input."""
 import gzip
 import json
 import math
@@ -35,9 +36,11 @@ def cli():
     return str(built) if built.exists() else None
 
 
-def convert(bag, out, *options, expect_ok=True):
-    run = subprocess.run([sys.executable, str(CONVERTER), str(bag), "--out", str(out), "--quiet", *options],
-                         capture_output=True, text=True)
+def convert(bag, out, *options, expect_ok=True, env=None, quiet=True):
+    """env: variables added to the converter's environment."""
+    run = subprocess.run([sys.executable, str(CONVERTER), str(bag), "--out", str(out), *(["--quiet"] * quiet),
+                          *options],
+                         capture_output=True, text=True, env={**os.environ, **env} if env else None)
     if expect_ok:
         assert run.returncode == 0, run.stderr
     return run
@@ -259,9 +262,10 @@ class TargetBag:
         self.messages = []
         self.topics = {"/scan": LASER_SCAN, "/odom": ODOMETRY, "/tf_static": TF_MESSAGE}
         x, y, theta = self.mount
-        tf = [("base_footprint", "base_link", (0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0)),
-              ("base_footprint", "laser", (x, y, 0.25), yaw_quaternion(theta))]
-        self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], tf)))
+        # The chain base_link -> laser walks the first edge backwards.
+        self.mount_tf = [("base_footprint", "base_link", (0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0)),
+                         ("base_footprint", "laser", (x, y, 0.25), yaw_quaternion(theta))]
+        self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], self.mount_tf)))
         self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], [
             ("base_link", "imu", (0.0, 0.0, 0.2), (0.0, 0.0, 0.0, 1.0))])))
         for i, scan in enumerate(log.scans):
@@ -384,6 +388,195 @@ def test_the_converted_log_localizes_as_the_original(world, sqlite_log):
     # final_pose is the laser's pose, the same in both logs
     assert math.hypot(got["final_pose"][0] - want["final_pose"][0], got["final_pose"][1] - want["final_pose"][1]) \
         < 0.05
+
+
+# ---------------------------------------------------------------- rosbag2 compression
+
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+
+
+def log_body(path):
+    """A converted log's bytes after its first line, the comment naming the bag."""
+    with (gzip.open if str(path).endswith(".gz") else open)(path, "rb") as f:
+        f.readline()
+        return f.read()
+
+
+def write_storage(path, storage, topics, messages):
+    if storage == "db3":
+        write_sqlite(path, topics, messages)
+    else:
+        write_mcap(path, topics, messages)
+
+
+def write_metadata(bag_dir, files, mode="", compression=""):
+    """metadata.yaml as rosbag2 (version 5) writes it: the keys the converter reads among the others."""
+    listed = "".join(f"    - {name}\n" for name in files)
+    described = "".join(f"    - path: {name}\n      starting_time:\n        nanoseconds_since_epoch: 0\n"
+                        "      duration:\n        nanoseconds: 0\n      message_count: 0\n" for name in files)
+    empty = '""'
+    (bag_dir / "metadata.yaml").write_text(
+        "rosbag2_bagfile_information:\n"
+        "  version: 5\n"
+        "  storage_identifier: sqlite3\n"
+        "  duration:\n    nanoseconds: 0\n"
+        "  starting_time:\n    nanoseconds_since_epoch: 0\n"
+        "  message_count: 0\n"
+        "  topics_with_message_count:\n"
+        "    - topic_metadata:\n"
+        "        name: /scan\n"
+        "        type: sensor_msgs/msg/LaserScan\n"
+        "        serialization_format: cdr\n"
+        '        offered_qos_profiles: "- history: 3\\n  depth: 0\\n  reliability: 1"\n'
+        "      message_count: 0\n"
+        f"  compression_format: {compression or empty}\n"
+        f"  compression_mode: {mode or empty}\n"
+        f"  relative_file_paths:\n{listed}"
+        f"  files:\n{described}")
+
+
+def zstd_pack(data, packing):
+    """zstd frames as rosbag2 or the zstd tool may write them: one frame holding its size, one streamed without
+    it, or two frames."""
+    import zstandard
+    compressor = zstandard.ZstdCompressor()
+    if packing == "one frame":
+        packed = compressor.compress(data)
+        assert zstandard.frame_content_size(packed) == len(data)
+    elif packing == "streamed":
+        stream = compressor.compressobj()
+        packed = stream.compress(data) + stream.flush()
+        assert zstandard.frame_content_size(packed) == -1  # the frame header holds no content size
+    else:
+        half = len(data) // 2
+        packed = compressor.compress(data[:half]) + compressor.compress(data[half:])
+    return packed
+
+
+@pytest.mark.parametrize("storage, packing, mode", [
+    ("db3", "one frame", "FILE"), ("db3", "streamed", "file"), ("db3", "two frames", "FILE"),
+    ("mcap", "one frame", "FILE"), ("mcap", "streamed", "file")])
+def test_bags_compressed_whole_give_the_same_log(target, sqlite_log, tmp_path, storage, packing, mode):
+    pytest.importorskip("zstandard")
+    plain = tmp_path / f"plain.{storage}"
+    write_storage(plain, storage, target.topics, target.messages)
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    name = f"bag_0.{storage}.zstd"
+    (bag / name).write_bytes(zstd_pack(plain.read_bytes(), packing))
+    write_metadata(bag, [name], mode, "zstd")
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    for given in (bag, bag / name):  # the directory, and the file alone: known by its magic bytes
+        out = tmp_path / "out.log.gz"
+        run = convert(given, out, env={"TMPDIR": str(scratch)}, quiet=False)
+        assert "wrote 1200 scans" in run.stderr
+        assert f"in {scratch}{os.sep}rosbag_to_carmen-" in run.stderr  # decompressed into a temporary file
+        assert log_body(out) == log_body(sqlite_log)
+        assert list(scratch.iterdir()) == []  # which is gone
+
+
+def test_a_bag_of_several_compressed_files_reads_those_metadata_yaml_lists(target, sqlite_log, tmp_path):
+    pytest.importorskip("zstandard")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    half = len(target.messages) // 2
+    write_sqlite(bag / "bag_0.db3", target.topics, target.messages[:half])
+    (bag / "bag_0.db3.zstd").write_bytes(zstd_pack((bag / "bag_0.db3").read_bytes(), "streamed"))
+    (bag / "bag_0.db3").unlink()
+    write_sqlite(bag / "bag_1.db3", target.topics, target.messages[half:])  # listed as .zstd, decompressed by hand
+    (bag / "bag_2.db3").write_text("not listed in metadata.yaml, so never read\n")
+    # rosbag2 before version 4 listed paths with the bag directory's name in front
+    write_metadata(bag, ["bag/bag_0.db3.zstd", "bag_1.db3.zstd"], "FILE", "zstd")
+    out = tmp_path / "out.log.gz"
+    convert(bag, out)
+    assert log_body(out) == log_body(sqlite_log)
+
+
+@pytest.mark.parametrize("storage", ["db3", "mcap"])
+def test_bags_of_compressed_messages_give_the_same_log(target, sqlite_log, tmp_path, storage):
+    pytest.importorskip("zstandard")
+    # every other message streamed: its frame holds no content size
+    messages = [(topic, stamp, zstd_pack(data, "streamed" if n % 2 else "one frame"))
+                for n, (topic, stamp, data) in enumerate(target.messages)]
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    write_storage(bag / f"bag_0.{storage}", storage, target.topics, messages)
+    write_metadata(bag, [f"bag_0.{storage}"], "MESSAGE", "zstd")
+    for given in (bag, bag / f"bag_0.{storage}"):  # the file alone: each message known by its magic bytes
+        out = tmp_path / "out.log.gz"
+        convert(given, out)
+        assert log_body(out) == log_body(sqlite_log)
+
+
+# ---------------------------------------------------------------- the laser mount on /tf
+
+
+def write_tf_bag(target, path, static_mount, tf_mount):
+    """The target bag with the mount transforms `static_mount` on /tf_static (the imu's stays), odom -> base_link
+    on /tf at each scan (/tf message i + 1 at scan i), and at every 100th scan, the k-th, tf_mount(k) with it."""
+    messages = target.messages[1:]
+    if static_mount:
+        messages.append(("/tf_static", target.stamps[0] - 10**9, tf_cdr(target.stamps[0], static_mount)))
+    for i, stamp in enumerate(target.stamps):
+        x, y, yaw = target.robot[i]
+        transforms = [("odom", "base_link", (x, y, 0.0), yaw_quaternion(yaw))]
+        if i % 100 == 0:
+            transforms += tf_mount(i // 100)
+        messages.append(("/tf", stamp + BAG_LATENCY_NS, tf_cdr(stamp, transforms)))
+    write_sqlite(path, {**target.topics, "/tf": TF_MESSAGE}, messages)
+
+
+def moved(transform, dx=0.0, dyaw=0.0):
+    parent, child, (x, y, z), (qx, qy, qz, qw) = transform
+    yaw = 2 * math.atan2(qz, qw)
+    return parent, child, (x + dx, y, z), yaw_quaternion(yaw + dyaw)
+
+
+@pytest.mark.parametrize("split", [False, True])
+def test_a_laser_mount_on_tf_gives_the_same_log_as_on_tf_static(target, sqlite_log, tmp_path, split):
+    """The chain base_link -> base_footprint -> laser all on /tf, or its first link on /tf_static (split)."""
+    footprint_base, footprint_laser = target.mount_tf
+
+    def tf_mount(k):
+        # 0.4 mm and 0.05 degrees off the first: within a fixed mount's tolerance, and the first value is used
+        laser = moved(footprint_laser, 0.0004, math.radians(0.05)) if k == 5 else footprint_laser
+        return [laser] if split else [footprint_base, laser]
+
+    bag = tmp_path / "bag.db3"
+    write_tf_bag(target, bag, [footprint_base] if split else [], tf_mount)
+    out = tmp_path / "out.log.gz"
+    run = convert(bag, out)
+    source = "/tf_static and /tf" if split else "/tf"
+    assert f"from {source} base_link -> laser" in run.stderr
+    assert log_body(out) == log_body(sqlite_log)
+    with gzip.open(out, "rt") as f:
+        assert f.readline().rstrip().endswith("(topics /scan, /odom" + (", /tf_static, /tf)" if split else ", /tf)"))
+
+
+def test_tf_static_wins_over_tf(target, sqlite_log, tmp_path):
+    bag = tmp_path / "bag.db3"
+    # /tf's base_footprint -> laser moves 5 cm and 0.1 rad at each message: not read, as /tf_static has the chain
+    write_tf_bag(target, bag, target.mount_tf, lambda k: [moved(target.mount_tf[1], 0.05 * k, 0.1 * k)])
+    out = tmp_path / "out.log.gz"
+    run = convert(bag, out)
+    assert "from /tf_static base_link -> laser" in run.stderr
+    assert log_body(out) == log_body(sqlite_log)
+
+
+def test_a_laser_that_moves_on_tf_is_refused(target, tmp_path):
+    footprint_base, footprint_laser = target.mount_tf
+    out = tmp_path / "out.log"
+    for name, change, numbers in (("shift", (0.05, 0.0), "50.0 mm and 0.00 degrees"),
+                                  ("turn", (0.0, math.radians(0.2)), "0.0 mm and 0.20 degrees")):
+        bag = tmp_path / f"{name}.db3"
+        write_tf_bag(target, bag, [], lambda k: [footprint_base, moved(footprint_laser, *change) if k == 3
+                                                 else footprint_laser])
+        assert_refused(convert(bag, out, expect_ok=False), str(bag), "/tf message 301: base_footprint -> laser",
+                       f"is {numbers} from its value in message 1", "the laser moves relative to the base",
+                       "--laser-offset")
+    run = convert(bag, out, "--laser-offset=0.1,0.2,0.3")
+    assert "from --laser-offset" in run.stderr
 
 
 # ---------------------------------------------------------------- an upside-down laser
@@ -518,3 +711,51 @@ def test_bad_input_is_refused_naming_the_file_and_what_was_expected(tmp_path):
     write_sqlite(no_scans, {"/odom": ODOMETRY}, [("/odom", 1, odometry_cdr(1, 0.0, 0.0, 0.0))])
     assert_refused(convert(no_scans, out, expect_ok=False), str(no_scans), "no sensor_msgs/msg/LaserScan topic",
                    "/odom (nav_msgs/msg/Odometry)")
+
+
+def test_bad_compressed_input_is_refused_and_leaves_no_temporary_file(tmp_path):
+    zstandard = pytest.importorskip("zstandard")
+    out = tmp_path / "out.log"
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    tiny_bag(tmp_path / "tiny.db3", [1.0, 1.1], [1.0, 1.1])
+    data = (tmp_path / "tiny.db3").read_bytes()
+    pack = zstandard.ZstdCompressor().compress
+
+    def refused(name, content, *parts, env=None):
+        path = tmp_path / name
+        path.write_bytes(content)
+        assert_refused(convert(path, out, expect_ok=False, env={"TMPDIR": str(scratch), **(env or {})}),
+                       str(path), *parts)
+        assert list(scratch.iterdir()) == []
+
+    refused("plain.db3.zstd", data, "begins 53 51 4c 69, not a zstd frame", "expected a zstd-compressed ROS 2 "
+            "storage file (zstd frames begin 28 b5 2f fd)")
+    refused("cut.db3.zstd", pack(data)[:-40], "ends inside a zstd frame", "a truncated file")
+    refused("garbled.db3.zstd", ZSTD_MAGIC + bytes(range(64)), "zstd says", "expected a valid zstd frame")
+    refused("text.db3.zstd", pack(b"hello\n"), "decompressed, neither a sqlite3 database nor an MCAP file")
+    refused("half.db3.zstd", pack(data[:len(data) // 2]), "not a readable rosbag2 database")
+    shadow = tmp_path / "shadow"
+    shadow.mkdir()
+    (shadow / "zstandard.py").write_text("raise ImportError('hidden by the test')\n")
+    refused("hidden.db3.zstd", pack(data), "is zstd-compressed and the Python module zstandard is missing",
+            "apt install python3-zstandard", env={"PYTHONPATH": str(shadow)})
+
+    # compression_mode message: each message must be a whole zstd frame
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    tiny_bag(bag / "bag_0.db3", [1.0, 1.1], [1.0, 1.1])
+    write_metadata(bag, ["bag_0.db3"], "MESSAGE", "zstd")
+    assert_refused(convert(bag, out, expect_ok=False), str(bag / "bag_0.db3"),
+                   "message 1 on topic /scan begins 00 01 00 00, not a zstd frame", "compression_mode message")
+    scan = laser_scan_cdr(1, "laser", -0.1, 0.1, [1.0, 2.0])
+    damaged = tmp_path / "damaged.db3"
+    write_sqlite(damaged, {"/scan": LASER_SCAN}, [("/scan", 1, pack(scan)), ("/scan", 2, pack(scan)[:-3])])
+    assert_refused(convert(damaged, out, expect_ok=False), str(damaged),
+                   "message 2 on topic /scan ends inside its zstd frame")
+    write_metadata(bag, ["bag_0.db3"], "FILE", "lz4")
+    assert_refused(convert(bag, out, expect_ok=False), str(bag / "metadata.yaml"), "compression_format 'lz4'",
+                   "expected zstd")
+    write_metadata(bag, ["bag_0.db3", "bag_1.db3.zstd"], "FILE", "zstd")
+    assert_refused(convert(bag, out, expect_ok=False), str(bag / "metadata.yaml"),
+                   "relative_file_paths lists bag_1.db3.zstd", "expected the bag's storage files beside metadata.yaml")
