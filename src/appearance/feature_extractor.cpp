@@ -11,6 +11,7 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/geometry/fast_atan2.hpp"
+#include "lshloc/geometry/line_fit.hpp"
 
 namespace lshloc {
 
@@ -333,7 +334,7 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
         ++stats_.rejected_rough;
         continue;
       }
-      Point2 normal = eig.eigenvectors().col(0);
+      const Point2 axis = eig.eigenvectors().col(0);
       const Point2 tangent = eig.eigenvectors().col(1);
       // The keypoint: the point at arc length `at`, projected onto the fitted line.
       std::size_t j1 = lo;
@@ -343,7 +344,7 @@ std::vector<Feature> FeatureExtractor::extract(const ScanSurface& scan, std::spa
       const Point2 on_scan = (1.0 - t) * scan.points[b + j1].position + t * scan.points[b + j2].position;
       const Point2 position = mean + tangent * tangent.dot(on_scan - mean);
       if ((position - sensor).norm() > config_.keypoint_max_range) continue;
-      if (normal.dot(sensor - position) < 0.0) normal = -normal;  // the side the sensor saw
+      const Point2 normal = facing(axis, sensor, position);  // the side the sensor saw
       const Pose2 keypoint(position.x(), position.y(), std::atan2(normal.y(), normal.x()));
       const Support s = support(keypoint, scan, context, runs);
       if (s.surface < config_.min_descriptor_support) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace lshloc {
 
@@ -28,9 +29,17 @@ LineFit fit_line(std::span<const Point2> points) {
 }
 
 Point2 LineFit::normal_towards(const Point2& sensor, const Point2& at) const {
-  Point2 normal(-direction.y(), direction.x());
-  if (normal.dot(sensor - at) < 0.0) normal = -normal;
-  return normal;
+  return facing(Point2(-direction.y(), direction.x()), sensor, at);
+}
+
+Point2 facing(const Point2& normal, const Point2& sensor, const Point2& at) {
+  return normal.dot(sensor - at) < 0.0 ? Point2(-normal) : normal;
+}
+
+double normal_angle_towards(const Point2& point, double tangent, const Point2& sensor) {
+  const double n = tangent + std::numbers::pi / 2;
+  const Point2 to_sensor = sensor - point;
+  return wrap_angle(std::cos(n) * to_sensor.x() + std::sin(n) * to_sensor.y() >= 0.0 ? n : n + std::numbers::pi);
 }
 
 }  // namespace lshloc

@@ -7,6 +7,7 @@
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
+#include "lshloc/geometry/line_fit.hpp"
 #include "lshloc/common/cpu_time.hpp"
 
 namespace lshloc {
@@ -33,12 +34,6 @@ double GlobalMapStats::bytes_per_feature() const {
   const double bytes = static_cast<double>(database.bytes + occupancy.memory_bytes + free_space.memory_bytes +
                                            location_bytes + recent_key_bytes);
   return bytes / static_cast<double>(features);
-}
-
-double normal_towards(const Point2& point, double tangent, const Point2& sensor) {
-  const double n = tangent + M_PI / 2;
-  const Point2 to_sensor = sensor - point;
-  return wrap_angle(std::cos(n) * to_sensor.x() + std::sin(n) * to_sensor.y() >= 0.0 ? n : n + M_PI);
 }
 
 GlobalMap::GlobalMap(GlobalMapConfig config)
@@ -200,7 +195,7 @@ void GlobalMap::plan_grids(std::uint32_t submap, const LaserScan& scan, const Po
   // Occupancy: endpoints with their normal direction, thinned along the scan;
   // the free-space grid notes where the map has a normal (kNormal).
   for_each_spaced(surface.points, config_.endpoint_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
-    mark_surface_point(submap, p.position, normal_towards(p.position, p.tangent, sensor));
+    mark_surface_point(submap, p.position, normal_angle_towards(p.position, p.tangent, sensor));
   });
   // Free space: cells the beams crossed, stopping short of the endpoint; the
   // endpoints' cells and their neighbours are marked occupied in the same 2-D

@@ -74,11 +74,6 @@ std::vector<float> chamfer_distance(const OccupancyGrid& g, Matches matches, boo
   return d;
 }
 
-/// The centre of cell (c, r) in the grid's own frame [m].
-Point2 cell_centre(const OccupancyGrid& g, std::size_t c, std::size_t r) {
-  return {(static_cast<double>(c) + 0.5) * g.resolution, (static_cast<double>(r) + 0.5) * g.resolution};
-}
-
 /// Range [m] along the unit vector (dx, dy) from `o` (grid frame, metres),
 /// or `max_range` for a no-return. Amanatides-Woo traversal of the cells.
 double cast_ray(const OccupancyGrid& g, const Point2& o, double dx, double dy, double max_range) {
@@ -221,9 +216,8 @@ GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32
            grid.at(static_cast<std::size_t>(c), static_cast<std::size_t>(r)) == occupancy::kOccupied;
   };
   const auto free_at = [&](const Point2& q) {
-    const double c = std::floor(q.x() / res), r = std::floor(q.y() / res);
-    return c >= 0 && r >= 0 && c < static_cast<double>(w) && r < static_cast<double>(h) &&
-           grid.at(static_cast<std::size_t>(c), static_cast<std::size_t>(r)) == occupancy::kFree;
+    std::size_t c = 0, r = 0;
+    return grid.cell_of_in_grid(q, c, r) && grid.at(c, r) == occupancy::kFree;
   };
   const long window = std::max(1L, static_cast<long>(std::ceil(config.normal_radius / res)));
   const double window2 = static_cast<double>(window * window);
@@ -232,7 +226,7 @@ GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32
   for (std::size_t r = 0; r < h; ++r) {
     for (std::size_t c = 0; c < w; ++c) {
       const std::int8_t v = grid.at(c, r);
-      const Point2 centre = cell_centre(grid, c, r);
+      const Point2 centre = grid.cell_centre_in_grid(c, r);
       if (v == occupancy::kFree) {
         if (static_cast<double>(to_occupied[r * w + c]) * res >= config.free_margin) {
           map.mark_free(submap, origin.transform(centre));

@@ -8,6 +8,7 @@
 #include "lshloc/common/cpu_time.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
+#include "lshloc/geometry/line_fit.hpp"
 
 namespace lshloc {
 
@@ -360,7 +361,7 @@ void Localizer::sample_data_points(const LaserScan& scan) {
   const Point2 sensor = sensor_pose.translation();
   for_each_spaced(surface_.points, config_.data_point_spacing, position_of_surface_point, [&](const SurfacePoint& p) {
     data_points_.push_back({static_cast<float>(p.position.x()), static_cast<float>(p.position.y()),
-                            static_cast<float>(normal_towards(p.position, p.tangent, sensor)),
+                            static_cast<float>(normal_angle_towards(p.position, p.tangent, sensor)),
                             LocalPoint::Kind::kSurface});
   });
   // Free-space points on evenly spread beams, as many as surface points.

@@ -20,7 +20,10 @@ void OccupancyGridConfig::validate() const {
 }
 
 bool OccupancyGrid::cell_of(const Point2& p, std::size_t& col, std::size_t& row) const {
-  const Point2 q = origin_yaw == 0.0 ? Point2(p - origin) : origin_pose().inverse().transform(p);
+  return cell_of_in_grid(origin_yaw == 0.0 ? Point2(p - origin) : origin_pose().inverse().transform(p), col, row);
+}
+
+bool OccupancyGrid::cell_of_in_grid(const Point2& q, std::size_t& col, std::size_t& row) const {
   const double c = std::floor(q.x() / resolution), r = std::floor(q.y() / resolution);
   if (!(c >= 0 && r >= 0 && c < static_cast<double>(width) && r < static_cast<double>(height))) return false;
   col = static_cast<std::size_t>(c), row = static_cast<std::size_t>(r);

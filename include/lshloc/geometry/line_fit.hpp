@@ -21,4 +21,11 @@ struct LineFit {
 /// The fit of `points` (at least one).
 LineFit fit_line(std::span<const Point2> points);
 
+/// `normal` or its opposite: the one facing `sensor` from `at`.
+Point2 facing(const Point2& normal, const Point2& sensor, const Point2& at);
+
+/// The direction [rad] of the normal of a surface with direction `tangent`
+/// [rad] at `point`, chosen to face `sensor`.
+double normal_angle_towards(const Point2& point, double tangent, const Point2& sensor);
+
 }  // namespace lshloc

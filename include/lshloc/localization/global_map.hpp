@@ -236,8 +236,4 @@ class GlobalMap {
   std::uint32_t recent_first_ = 0;              ///< the first location id add_scan() added (a snapshot's come before)
 };
 
-/// The direction [rad] of the normal of a surface with direction `tangent`
-/// at `point`, chosen to point towards `sensor`.
-double normal_towards(const Point2& point, double tangent, const Point2& sensor);
-
 }  // namespace lshloc

@@ -45,11 +45,16 @@ struct OccupancyGrid {
   /// The pose of the grid's frame (cell (0, 0)'s lower left corner, x along
   /// the rows) in the map frame.
   Pose2 origin_pose() const { return {origin.x(), origin.y(), origin_yaw}; }
+  /// The centre of cell (col, row) in the grid's frame (origin_pose()).
+  Point2 cell_centre_in_grid(std::size_t col, std::size_t row) const {
+    return {(static_cast<double>(col) + 0.5) * resolution, (static_cast<double>(row) + 0.5) * resolution};
+  }
   /// The centre of cell (col, row) in the map frame.
   Point2 cell_centre(std::size_t col, std::size_t row) const {
-    return origin_pose().transform(
-        Point2((static_cast<double>(col) + 0.5) * resolution, (static_cast<double>(row) + 0.5) * resolution));
+    return origin_pose().transform(cell_centre_in_grid(col, row));
   }
+  /// The cell holding point q of the grid's frame, or false when it lies outside.
+  bool cell_of_in_grid(const Point2& q, std::size_t& col, std::size_t& row) const;
   /// The cell holding point p (map frame), or false when it lies outside.
   bool cell_of(const Point2& p, std::size_t& col, std::size_t& row) const;
 };
