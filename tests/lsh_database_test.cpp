@@ -256,6 +256,33 @@ TEST(LshDatabase, QueryObjectFromAnotherConfigurationIsRefused) {
   EXPECT_THROW(b.query(Descriptor{}, 5, out, qa), Error);
 }
 
+// A non-finite component is refused by name; a finite but huge one hashes to
+// the edge cells (no overflowing cast) and still finds itself.
+TEST(LshDatabase, NonFiniteDescriptorsAreRefusedAndHugeOnesHashToEdgeCells) {
+  LshDatabase db;
+  const std::vector<Descriptor> d = clustered(50, 5, 0.05, 11);
+  for (std::uint32_t i = 0; i < d.size(); ++i) db.insert(d[i], i);
+  Descriptor bad = d[0];
+  bad[7] = std::numeric_limits<float>::quiet_NaN();
+  std::vector<std::uint32_t> out;
+  try {
+    db.query(bad, 5, out);
+    ADD_FAILURE() << "a NaN component was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("descriptor component 7"), std::string::npos) << e.what();
+  }
+  bad[7] = std::numeric_limits<float>::infinity();
+  EXPECT_THROW(db.insert(bad, 50), Error);
+  EXPECT_EQ(db.size(), d.size());
+
+  Descriptor huge{};
+  huge[0] = 1e30f, huge[1] = -1e30f;
+  db.insert(huge, 51);
+  db.query(huge, 5, out);
+  ASSERT_FALSE(out.empty());
+  EXPECT_EQ(out[0], 51u);
+}
+
 TEST(LocationStore, IdsAreIndicesAndUnknownIdsThrow) {
   LocationStore store;
   EXPECT_EQ(store.append(2, Pose2(1.0, 2.0, 0.5)), 0u);

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/common/saturated_cell.hpp"
 
 namespace lshloc {
 
@@ -199,7 +200,7 @@ void LshDatabase::hash(const Descriptor& descriptor, Eigen::VectorXf& projection
     const std::uint64_t* m = tuple_multipliers_.data() + t * k;
     std::uint64_t h = table_seed_[t];
     for (std::size_t i = 0; i < k; ++i)
-      h += static_cast<std::uint64_t>(static_cast<std::uint32_t>(static_cast<std::int32_t>(std::floor(p[i])))) * m[i];
+      h += static_cast<std::uint64_t>(static_cast<std::uint32_t>(saturated_cell(p[i]))) * m[i];
     tags[t] = static_cast<std::uint32_t>(mix64(h) >> 32);
   }
 }
@@ -265,6 +266,7 @@ void LshDatabase::push(Table& t, Slot& slot, std::uint32_t id, const std::uint64
 }
 
 void LshDatabase::insert(const Descriptor& descriptor, std::uint32_t id) {
+  check_descriptor(descriptor, "LshDatabase::insert");
   hash(descriptor, insert_projections_, insert_tags_);
   if (sketch_words_ > 0) sketch(descriptor, insert_sketch_.data(), insert_signs_);
   place(id);
@@ -275,6 +277,13 @@ bool LshDatabase::has_room_for(std::size_t inserts) const {
   for (const Table& t : tables_)
     if (t.pool.size() + inserts * block > kNone) return false;
   return true;
+}
+
+void LshDatabase::check_descriptor(const Descriptor& descriptor, const char* caller) {
+  for (std::size_t i = 0; i < descriptor.size(); ++i)
+    if (!std::isfinite(descriptor[i]))
+      throw Error(std::string(caller) + ": descriptor component " + std::to_string(i) + " is " +
+                  std::to_string(descriptor[i]) + ", expected a finite number");
 }
 
 void LshDatabase::check_key(LshKeyView key, const char* caller) const {
@@ -375,6 +384,7 @@ void LshDatabase::query(const Descriptor& descriptor, std::size_t k, std::vector
 void LshDatabase::query_counts(const Descriptor& descriptor, std::size_t k, std::vector<std::uint32_t>& out,
                                std::vector<std::uint16_t>& counts, LshQuery& q) const {
   check_scratch(q);
+  check_descriptor(descriptor, "LshDatabase::query");
   hash(descriptor, q.projections_, q.tags_);
   q.sketch_.resize(sketch_words_);
   if (sketch_words_ > 0) sketch(descriptor, q.sketch_.data(), q.signs_);

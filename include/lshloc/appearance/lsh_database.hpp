@@ -306,6 +306,8 @@ class LshDatabase {
   void check_scratch(const LshQuery& q) const;
   /// Throws lshloc::Error naming `caller` unless `key` has L tags and this database's sketch words.
   void check_key(LshKeyView key, const char* caller) const;
+  /// Throws lshloc::Error naming `caller` and the component unless every component is finite.
+  static void check_descriptor(const Descriptor& descriptor, const char* caller);
   /// query_counts() once the query's tags (and sketch) are known.
   void query_tags(std::span<const std::uint32_t> tags, std::span<const std::uint64_t> sketch, std::size_t k,
                   std::vector<std::uint32_t>& out, std::vector<std::uint16_t>& counts, LshQuery& q) const;

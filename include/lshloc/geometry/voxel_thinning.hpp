@@ -11,18 +11,10 @@
 #include <utility>
 #include <vector>
 
+#include "lshloc/common/saturated_cell.hpp"
 #include "lshloc/geometry/pose2.hpp"
 
 namespace lshloc {
-
-/// floor(v) as an int32, saturated (and NaN as the lowest value): cells of
-/// absurd coordinates share the edge cell instead of overflowing the cast.
-inline std::int32_t saturated_cell(double v) {
-  const double f = std::floor(v);
-  if (!(f > -2147483648.0)) return INT32_MIN;
-  if (f > 2147483647.0) return INT32_MAX;
-  return static_cast<std::int32_t>(f);
-}
 
 /// The key of the square cell holding p, for cells of side 1 / inv_voxel.
 inline std::uint64_t voxel_key(const Point2& p, double inv_voxel) {
