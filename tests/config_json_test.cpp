@@ -27,7 +27,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   ScenarioRunConfig c;
   c.map.occupancy.cell_size = 0.3;
   c.map.database.bucket_capacity = 32;
-  c.localizer.ransac.order_rule = FeatureOrderRule::kUniform;
+  c.localizer.ransac.order_rule = DataPointOrderRule::kUniform;
   c.localizer.report.confidence.duel_z = 2.5;
   c.localizer.report.confidence.young_place_scans = 7;  // was once left out of the JSON
   c.localizer.report.confidence.young_refined_margin = 0.2;
@@ -56,7 +56,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_EQ(nlohmann::json(back), j);
   EXPECT_EQ(back.map.occupancy.cell_size, 0.3);
   EXPECT_EQ(back.map.database.bucket_capacity, 32u);
-  EXPECT_EQ(back.localizer.ransac.order_rule, FeatureOrderRule::kUniform);
+  EXPECT_EQ(back.localizer.ransac.order_rule, DataPointOrderRule::kUniform);
   EXPECT_EQ(back.localizer.report.confidence.duel_z, 2.5);
   EXPECT_EQ(back.localizer.report.confidence.young_place_scans, 7u);
   EXPECT_EQ(back.localizer.report.confidence.young_refined_margin, 0.2);
@@ -89,7 +89,7 @@ TEST(ConfigJson, APatchChangesOnlyWhatItNames) {
                                                                   "ransac": {"order_rule": "fresh"}}})"),
                          c, "cfg.json");
   EXPECT_EQ(c.localizer.scan_matcher.max_range, 20.0);
-  EXPECT_EQ(c.localizer.ransac.order_rule, FeatureOrderRule::kFreshFirst);
+  EXPECT_EQ(c.localizer.ransac.order_rule, DataPointOrderRule::kFreshFirst);
   // The localizer's own matcher setting (not ScanMatcherConfig's default) stays.
   EXPECT_EQ(c.localizer.scan_matcher.scan_voxel, defaults.localizer.scan_matcher.scan_voxel);
   EXPECT_NE(c.localizer.scan_matcher.scan_voxel, ScanMatcherConfig{}.scan_voxel);
@@ -98,6 +98,24 @@ TEST(ConfigJson, APatchChangesOnlyWhatItNames) {
   expected["localizer"]["scan_matcher"]["max_range"] = 20.0;
   expected["localizer"]["ransac"]["order_rule"] = "fresh";
   EXPECT_EQ(nlohmann::json(c), expected);
+}
+
+// Config files written before iRANSAC's settings were named after data-points still apply.
+TEST(ConfigJson, FormerNamesOfSettingsStillApply) {
+  ScenarioRunConfig c;
+  io::apply_config_patch(nlohmann::json::parse(R"({"localizer": {"ransac": {"max_features": 16000,
+                                                                             "new_features_per_scan": 25}}})"),
+                         c, "old.json");
+  EXPECT_EQ(c.localizer.ransac.max_data_points, 16000u);
+  EXPECT_EQ(c.localizer.ransac.new_data_points_per_scan, 25u);
+  const std::string both =
+      error_of({{"localizer", {{"ransac", {{"max_features", 16000}, {"max_data_points", 20000}}}}}});
+  EXPECT_NE(both.find("cfg.json: localizer.ransac.max_features and max_data_points name one setting"),
+            std::string::npos)
+      << both;
+  // Only where the current name lives: elsewhere the former one is unknown.
+  EXPECT_NE(error_of({{"map", {{"max_features", 3}}}}).find("cfg.json: map.max_features: unknown setting"),
+            std::string::npos);
 }
 
 TEST(ConfigJson, MistakesNameTheSourceAndTheKey) {

@@ -71,7 +71,7 @@ struct RecoveryResult {
   IncrementalRansacStats stats;
 };
 
-RecoveryResult run_recovery(double outlier_share, FeatureOrderRule rule, std::uint32_t seed, int scans = 40) {
+RecoveryResult run_recovery(double outlier_share, DataPointOrderRule rule, std::uint32_t seed, int scans = 40) {
   const Scene scene = make_scene(seed);
   PoseGridConfig gcfg;
   gcfg.cell_size = 0.2, gcfg.theta_bins = 36, gcfg.xy_tolerance = 1, gcfg.theta_tolerance = 1;
@@ -79,7 +79,7 @@ RecoveryResult run_recovery(double outlier_share, FeatureOrderRule rule, std::ui
   for (const Pose2& g : scene.global) grid.insert(0, g.x, g.y, g.theta);
 
   IncrementalRansacConfig cfg;  // the paper's synthetic setting
-  cfg.block_size = 10, cfg.new_features_per_scan = 10, cfg.iterations_per_scan = 10;
+  cfg.block_size = 10, cfg.new_data_points_per_scan = 10, cfg.iterations_per_scan = 10;
   cfg.preference_z = 0.0, cfg.recent_window = 200;
   cfg.order_rule = rule;
   cfg.seed = seed;
@@ -124,7 +124,7 @@ TEST(IncrementalRansac, ScoresKeepGrowingPastWhatAFloatHolds) {
   config.block_size = std::size_t{1} << 40;  // no preemption
   IncrementalRansac ransac(config);
   const double start = 16777216.0 - 10.0;
-  ransac.add_features(std::vector<LocalPoint>{{0.0f, 0.0f, 0.0f}});
+  ransac.add_data_points(std::vector<LocalPoint>{{0.0f, 0.0f, 0.0f}});
   ransac.add_scored_hypotheses(
       std::vector<ScoredHypothesis>{{{0, Pose2(1.0, 2.0, 0.3)}, start, static_cast<std::uint32_t>(start)}});
   ransac.iterate([](const LocalPoint&, const HypothesisBatch& v, float* c) { std::fill_n(c, v.size, 1.0f); }, 1000);
@@ -135,10 +135,11 @@ TEST(IncrementalRansac, ScoresKeepGrowingPastWhatAFloatHolds) {
 }
 
 TEST(IncrementalRansac, ALongRunKeepsItsNewestDataPointsWithinMaxFeatures) {
-  for (const auto rule : {FeatureOrderRule::kRecentWindow, FeatureOrderRule::kFreshFirst, FeatureOrderRule::kUniform}) {
+  for (const auto rule :
+       {DataPointOrderRule::kRecentWindow, DataPointOrderRule::kFreshFirst, DataPointOrderRule::kUniform}) {
     IncrementalRansacConfig config;
-    config.recent_window = 100, config.max_features = 400, config.order_rule = rule;
-    config.new_features_per_scan = 40, config.block_size = 1000000;
+    config.recent_window = 100, config.max_data_points = 400, config.order_rule = rule;
+    config.new_data_points_per_scan = 40, config.block_size = 1000000;
     IncrementalRansac ransac(config);
     ransac.add_hypotheses(std::vector<Hypothesis>{{0, Pose2(0.0, 0.0, 0.0)}});
     std::vector<LocalPoint> scan(40);
@@ -153,31 +154,31 @@ TEST(IncrementalRansac, ALongRunKeepsItsNewestDataPointsWithinMaxFeatures) {
             std::fill_n(c, v.size, 0.0f);
           },
           50);
-      ASSERT_LE(ransac.features().size(), 400u);
-      ASSERT_EQ(ransac.features_dropped() + ransac.features().size(), added);
+      ASSERT_LE(ransac.data_points().size(), 400u);
+      ASSERT_EQ(ransac.data_points_dropped() + ransac.data_points().size(), added);
     }
     // The newest are kept, in order, and the last scan's iterations read only them.
-    EXPECT_EQ(ransac.features().back().x, static_cast<float>(added - 1));
-    EXPECT_EQ(ransac.features().front().x, static_cast<float>(ransac.features_dropped()));
+    EXPECT_EQ(ransac.data_points().back().x, static_cast<float>(added - 1));
+    EXPECT_EQ(ransac.data_points().front().x, static_cast<float>(ransac.data_points_dropped()));
     EXPECT_GE(oldest_scored,
-              static_cast<float>(rule == FeatureOrderRule::kUniform ? ransac.features_dropped() : added - 100));
-    EXPECT_EQ(ransac.stats().features_dropped, ransac.features_dropped());
+              static_cast<float>(rule == DataPointOrderRule::kUniform ? ransac.data_points_dropped() : added - 100));
+    EXPECT_EQ(ransac.stats().data_points_dropped, ransac.data_points_dropped());
   }
 }
 
 TEST(IncrementalRansac, RecoversTransformAt90PercentOutliers) {
-  const auto r = run_recovery(0.90, FeatureOrderRule::kUniform, 101);
+  const auto r = run_recovery(0.90, DataPointOrderRule::kUniform, 101);
   expect_recovered(r, make_scene(101).T_true);
   EXPECT_LE(r.stats.active_hypotheses_max, 2000u);  // steady state: 2 |V_new|
 }
 
 TEST(IncrementalRansac, RecoversTransformAt99PercentOutliers) {
-  const auto r = run_recovery(0.99, FeatureOrderRule::kUniform, 202);
+  const auto r = run_recovery(0.99, DataPointOrderRule::kUniform, 202);
   expect_recovered(r, make_scene(202).T_true);
 }
 
 TEST(IncrementalRansac, RecoversTransformAt99PercentOutliersWithEveryOrderRule) {
-  for (const auto rule : {FeatureOrderRule::kRecentWindow, FeatureOrderRule::kFreshFirst}) {
+  for (const auto rule : {DataPointOrderRule::kRecentWindow, DataPointOrderRule::kFreshFirst}) {
     const auto r = run_recovery(0.99, rule, 303);
     expect_recovered(r, make_scene(303).T_true);
   }
@@ -220,7 +221,7 @@ void check_against_nister(bool binary_scores, std::size_t M) {
   }
   IncrementalRansacConfig cfg;
   cfg.block_size = B;
-  cfg.order_rule = FeatureOrderRule::kUniform;
+  cfg.order_rule = DataPointOrderRule::kUniform;
   IncrementalRansac ransac(cfg);
   // Hypothesis j carries its id in `submap`; feature x its id in x.x.
   std::vector<Hypothesis> hyps(M);
@@ -228,7 +229,7 @@ void check_against_nister(bool binary_scores, std::size_t M) {
   ransac.add_hypotheses(hyps);
   std::vector<LocalPoint> features(kFeatures);
   for (std::size_t x = 0; x < kFeatures; ++x) features[x].x = static_cast<float>(x);
-  ransac.add_features(features);
+  ransac.add_data_points(features);
 
   std::vector<std::uint32_t> seq;
   std::vector<std::set<std::uint32_t>> scored;
@@ -281,7 +282,7 @@ TEST(IncrementalRansac, RandomInsertionKeepsEveryElementOnce) {
 
 TEST(IncrementalRansac, ScanBudgetsAndStatistics) {
   IncrementalRansacConfig cfg;
-  cfg.new_features_per_scan = 3, cfg.new_hypotheses_per_scan = 4, cfg.block_size = 2;
+  cfg.new_data_points_per_scan = 3, cfg.new_hypotheses_per_scan = 4, cfg.block_size = 2;
   cfg.iterations_per_scan = 2, cfg.min_score = 2.0;
   IncrementalRansac ransac(cfg);
   std::vector<LocalPoint> features(5);
@@ -289,9 +290,9 @@ TEST(IncrementalRansac, ScanBudgetsAndStatistics) {
   for (std::uint32_t j = 0; j < 6; ++j) hyps[j].submap = j;
   ransac.add_scan(features, hyps);
   auto s = ransac.stats();
-  EXPECT_EQ(s.features, 3u);
+  EXPECT_EQ(s.data_points, 3u);
   EXPECT_EQ(s.active_hypotheses, 4u);
-  EXPECT_EQ(s.features_over_budget, 2u);
+  EXPECT_EQ(s.data_points_over_budget, 2u);
   EXPECT_EQ(s.hypotheses_over_budget, 2u);
   for (const auto& a : ransac.active()) EXPECT_LT(a.hypothesis.submap, 4u);  // the first |V_new|, best first
 
@@ -318,7 +319,7 @@ TEST(IncrementalRansac, ScanBudgetsAndStatistics) {
 
 TEST(IncrementalRansac, FreshFirstScoresEachNewFeatureOnceThenRecentOnes) {
   IncrementalRansacConfig cfg;
-  cfg.order_rule = FeatureOrderRule::kFreshFirst;
+  cfg.order_rule = DataPointOrderRule::kFreshFirst;
   cfg.recent_window = 5;
   IncrementalRansac ransac(cfg);
   std::vector<Hypothesis> hyps(4);
@@ -330,7 +331,7 @@ TEST(IncrementalRansac, FreshFirstScoresEachNewFeatureOnceThenRecentOnes) {
   };
   std::vector<LocalPoint> features(3);
   for (int k = 0; k < 3; ++k) features[k].x = static_cast<float>(k);
-  ransac.add_features(features);
+  ransac.add_data_points(features);
   ransac.iterate(scorer, 5);
   ASSERT_EQ(seen.size(), 5u);
   EXPECT_EQ(std::vector<float>(seen.begin(), seen.begin() + 3), (std::vector<float>{0, 1, 2}));
@@ -339,7 +340,7 @@ TEST(IncrementalRansac, FreshFirstScoresEachNewFeatureOnceThenRecentOnes) {
   seen.clear();
   features.resize(20);
   for (int k = 0; k < 20; ++k) features[k].x = static_cast<float>(100 + k);
-  ransac.add_features(features);
+  ransac.add_data_points(features);
   ransac.iterate(scorer, 5);
   EXPECT_EQ(seen, (std::vector<float>{115, 116, 117, 118, 119}));
 }
@@ -352,7 +353,7 @@ TEST(IncrementalRansac, ReachBackWidensTheRecentWindowUntilReset) {
   ransac.add_hypotheses(std::vector<Hypothesis>(3));
   std::vector<LocalPoint> features(100);
   for (int k = 0; k < 100; ++k) features[k].x = static_cast<float>(k);
-  ransac.add_features(features);
+  ransac.add_data_points(features);
   float oldest = 1e9f;
   auto scorer = [&](const LocalPoint& x, const HypothesisBatch& v, float* out) {
     oldest = std::min(oldest, x.x);
@@ -387,7 +388,7 @@ TEST(IncrementalRansac, PreScoredHypothesesKeepTheirScoresAndCompeteByThem) {
     EXPECT_EQ(h.scored, pre_scored ? 40u : 0u);
     EXPECT_EQ(h.score, pre_scored ? 30.0 : 0.0);
   }
-  ransac.add_features(std::vector<LocalPoint>(1));
+  ransac.add_data_points(std::vector<LocalPoint>(1));
   // Every data-point scores 0.5 for both: b's head start (0.75 over 40) keeps it ahead.
   auto half = [](const LocalPoint&, const HypothesisBatch& v, float* out) {
     for (std::size_t j = 0; j < v.size; ++j) out[j] = 0.5f;
@@ -418,7 +419,7 @@ TEST(IncrementalRansac, HalvesLongScoredHypothesesKeepingTheirMean) {
   cfg.max_scored = 8, cfg.block_size = 1'000'000, cfg.min_score = 0.0, cfg.preference_z = 0.0;
   IncrementalRansac ransac(cfg);
   std::vector<LocalPoint> features{{1.0f, 2.0f, 0.0f}};
-  ransac.add_features(features);
+  ransac.add_data_points(features);
   std::vector<Hypothesis> hyps{{0, Pose2(0.0, 0.0, 0.0)}, {1, Pose2(5.0, 0.0, 0.0)}};
   ransac.add_hypotheses(hyps);
   // Submap 0 scores 0.75 per point, submap 1 0.25: exact in binary.
@@ -453,7 +454,7 @@ TEST(IncrementalRansac, HalvesLongScoredHypothesesKeepingTheirMean) {
   IncrementalRansacConfig plain = cfg;
   plain.max_scored = IncrementalRansacConfig{}.max_scored;
   IncrementalRansac unhalved(plain);
-  unhalved.add_features(features);
+  unhalved.add_data_points(features);
   unhalved.add_hypotheses(hyps);
   unhalved.iterate(scorer, 1000);
   EXPECT_EQ(unhalved.stats().hypotheses_halved, 0u);
@@ -472,7 +473,7 @@ TEST(IncrementalRansac, RejectsBadInput) {
   hyps[0].T_submap_local.x = std::nan("");
   EXPECT_THROW(ransac.add_hypotheses(hyps), Error);
   std::vector<LocalPoint> features{{0.0f, std::numeric_limits<float>::infinity(), 0.0f}};
-  EXPECT_THROW(ransac.add_features(features), Error);
+  EXPECT_THROW(ransac.add_data_points(features), Error);
 }
 
 }  // namespace

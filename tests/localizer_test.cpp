@@ -97,7 +97,7 @@ TEST(Localizer, SettingsThatCannotWorkAreRefusedByName) {
   refused([](LocalizerConfig& c) { c.context_spacing = -0.3; }, "context_spacing");
   refused([](LocalizerConfig& c) { c.free_point_fraction = 2.0; }, "free_point_fraction");
   refused([](LocalizerConfig& c) { c.ransac.iterations_per_scan = 0; }, "iterations_per_scan");
-  refused([](LocalizerConfig& c) { c.ransac.max_features = std::size_t{1} << 33; }, "max_features");
+  refused([](LocalizerConfig& c) { c.ransac.max_data_points = std::size_t{1} << 33; }, "max_data_points");
   refused([](LocalizerConfig& c) { c.scan_matcher.degeneracy_threshold = 0.0; }, "degeneracy_threshold");
   refused([](LocalizerConfig& c) { c.free_space_penalty = HUGE_VAL; }, "free_space_penalty");
   refused([](LocalizerConfig& c) { c.report.track_step_m = std::nan(""); }, "track_step_m");

@@ -42,11 +42,11 @@ struct MatchingSettings {
   // localizer's defaults.
   PoseGridConfig grid{.cell_size = 0.1};
   IncrementalRansacConfig ransac{.block_size = 10,
-                                 .new_features_per_scan = 10,
+                                 .new_data_points_per_scan = 10,
                                  .iterations_per_scan = 10,
                                  .min_score = 3.0,
                                  .preference_z = 0.0,
-                                 .order_rule = FeatureOrderRule::kFreshFirst,
+                                 .order_rule = DataPointOrderRule::kFreshFirst,
                                  .recent_window = 200};
 };
 LSHLOC_JSON_FIELDS(MatchingSettings, grid, ransac)
@@ -168,7 +168,7 @@ nlohmann::json run_bench(const BenchMatchingOptions& o) {
     const Pose2 T_now = T_true * drift;
     const Pose2 T_local_submap = T_now.inverse();
     const auto& group = groups[vp % groups.size()];
-    for (std::size_t k = 0; k < ransac_config.new_features_per_scan; ++k) {
+    for (std::size_t k = 0; k < ransac_config.new_data_points_per_scan; ++k) {
       const Pose2& g = group.empty() ? map_points[any_map(rng)]
                                      : group[std::uniform_int_distribution<std::size_t>(0, group.size() - 1)(rng)];
       const Pose2 l = T_local_submap * g;
@@ -226,7 +226,7 @@ nlohmann::json run_bench(const BenchMatchingOptions& o) {
   out["active_hypotheses_max"] = stats.active_hypotheses_max;
   out["viewpoints"] = o.viewpoints;
   out["scores"] = stats.scores;
-  out["features"] = stats.features;
+  out["data_points"] = stats.data_points;
   out["map"] = o.map_log.empty() ? std::string("synthetic") : o.map_log;
   out["map_points"] = map_points.size();
   if (!o.map_log.empty()) out["valid_endpoints"] = valid_endpoints;

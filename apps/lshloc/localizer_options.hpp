@@ -54,7 +54,7 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool resea
   if (!research_flags) return;
   auto& l = o.config.localizer;
   add_enum_option(cmd, "--order-rule", l.ransac.order_rule,
-                  {FeatureOrderRule::kUniform, FeatureOrderRule::kRecentWindow, FeatureOrderRule::kFreshFirst},
+                  {DataPointOrderRule::kUniform, DataPointOrderRule::kRecentWindow, DataPointOrderRule::kFreshFirst},
                   "iRANSAC order rule: uniform (the paper: any data-point), recent (the newest "
                   "localizer.ransac.recent_window), fresh (new data-points first)")
       ->group(group);

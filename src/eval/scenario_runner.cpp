@@ -115,7 +115,7 @@ ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, Local
   if (!run.estimates.empty() && run.estimates.back().has_estimate) {
     // The newest surface data-points placed by the final estimate.
     const LocalizationEstimate& last = run.estimates.back();
-    const auto points = localizer.ransac().features();
+    const auto points = localizer.ransac().data_points();
     const std::size_t window = std::min(points.size(), config.ransac.recent_window);
     for (const LocalPoint& x : points.last(window)) {
       if (x.kind != LocalPoint::Kind::kSurface) continue;

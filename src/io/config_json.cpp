@@ -42,9 +42,9 @@ void enum_from_json(const nlohmann::json& j, Enum& v, const std::array<std::pair
 
 constexpr std::array kToleranceModeNames{std::pair{ToleranceMode::kDilateAtInsert, "dilate_at_insert"},
                                          std::pair{ToleranceMode::kProbeNeighbours, "probe_neighbours"}};
-constexpr std::array kOrderRuleNames{std::pair{FeatureOrderRule::kUniform, "uniform"},
-                                     std::pair{FeatureOrderRule::kRecentWindow, "recent"},
-                                     std::pair{FeatureOrderRule::kFreshFirst, "fresh"}};
+constexpr std::array kOrderRuleNames{std::pair{DataPointOrderRule::kUniform, "uniform"},
+                                     std::pair{DataPointOrderRule::kRecentWindow, "recent"},
+                                     std::pair{DataPointOrderRule::kFreshFirst, "fresh"}};
 constexpr std::array kHypothesisSourceNames{std::pair{HypothesisSource::kDatabase, "database"},
                                             std::pair{HypothesisSource::kRandomMapFeatures, "random"}};
 
@@ -56,8 +56,8 @@ void from_json(const nlohmann::json& j, Pose2& p) {
 }
 void to_json(nlohmann::json& j, ToleranceMode v) { enum_to_json(j, v, kToleranceModeNames); }
 void from_json(const nlohmann::json& j, ToleranceMode& v) { enum_from_json(j, v, kToleranceModeNames); }
-void to_json(nlohmann::json& j, FeatureOrderRule v) { enum_to_json(j, v, kOrderRuleNames); }
-void from_json(const nlohmann::json& j, FeatureOrderRule& v) { enum_from_json(j, v, kOrderRuleNames); }
+void to_json(nlohmann::json& j, DataPointOrderRule v) { enum_to_json(j, v, kOrderRuleNames); }
+void from_json(const nlohmann::json& j, DataPointOrderRule& v) { enum_from_json(j, v, kOrderRuleNames); }
 void to_json(nlohmann::json& j, HypothesisSource v) { enum_to_json(j, v, kHypothesisSourceNames); }
 void from_json(const nlohmann::json& j, HypothesisSource& v) { enum_from_json(j, v, kHypothesisSourceNames); }
 
@@ -70,8 +70,8 @@ LSHLOC_JSON_FIELDS(LshConfig, K, L, w, seed, bucket_capacity, max_candidates, ra
                    sketch_collision_weight, max_sketch_copies, initial_slots)
 LSHLOC_JSON_FIELDS(PoseGridConfig, cell_size, theta_bins, xy_tolerance, theta_tolerance, tolerance_mode,
                    max_load_factor, initial_capacity, seed)
-LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_features_per_scan, new_hypotheses_per_scan,
-                   iterations_per_scan, min_score, preference_z, order_rule, recent_window, max_features, max_scored,
+LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_data_points_per_scan, new_hypotheses_per_scan,
+                   iterations_per_scan, min_score, preference_z, order_rule, recent_window, max_data_points, max_scored,
                    seed)
 LSHLOC_JSON_FIELDS(ScanMatcherConfig::Experimental, odometry_prior, point_sigma, odometry_sigma_translation,
                    odometry_sigma_per_meter, odometry_sigma_rotation, odometry_sigma_rotation_per_rad,
@@ -161,6 +161,26 @@ void check_config_patch(const nlohmann::json& patch, const nlohmann::json& curre
       throw Error(source + ": " + key_path + ": expected " + type_name(wanted) + ", got " + value.dump());
     }
   }
+}
+
+nlohmann::json with_current_names(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
+                                  const std::string& path) {
+  static constexpr std::array<std::pair<const char*, const char*>, 2> kFormerNames{
+      {{"new_features_per_scan", "new_data_points_per_scan"}, {"max_features", "max_data_points"}}};
+  if (!patch.is_object() || !current.is_object()) return patch;
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& [key, value] : patch.items()) {
+    const std::string key_path = path.empty() ? key : path + "." + key;
+    std::string name = key;
+    for (const auto& [former, now] : kFormerNames) {
+      if (key != former || current.contains(key) || !current.contains(now)) continue;
+      if (patch.contains(now))
+        throw Error(source + ": " + key_path + " and " + now + " name one setting (" + key + " is its former name)");
+      name = now;
+    }
+    out[name] = current.contains(name) ? with_current_names(value, current.at(name), source, key_path) : value;
+  }
+  return out;
 }
 
 void throw_config_error(const std::string& source, const std::string& what) { throw Error(source + ": " + what); }

@@ -20,7 +20,7 @@ class Localizer::DataPointSample final : public SampleScorer {
       : ransac_(ransac), scorer_(scorer), rng_(rng) {}
 
   std::size_t draw(std::size_t window, std::size_t n) override {
-    const std::size_t size = ransac_.features().size();
+    const std::size_t size = ransac_.data_points().size();
     sample_.clear();
     if (size == 0 || n == 0) return 0;
     const std::size_t first = window > 0 && window < size ? size - window : 0;
@@ -30,14 +30,14 @@ class Localizer::DataPointSample final : public SampleScorer {
   }
 
   std::size_t take_newest(std::size_t n) override {
-    const std::size_t size = ransac_.features().size();
+    const std::size_t size = ransac_.data_points().size();
     sample_.clear();
     for (std::size_t i = size - std::min(n, size); i < size; ++i) sample_.push_back(static_cast<std::uint32_t>(i));
     return sample_.size();
   }
 
   std::size_t take_spread(std::size_t n) override {
-    const std::size_t size = ransac_.features().size();
+    const std::size_t size = ransac_.data_points().size();
     sample_.clear();
     const std::size_t m = std::min(n, size);
     for (std::size_t k = 0; k < m; ++k) sample_.push_back(static_cast<std::uint32_t>(k * size / m));
@@ -50,7 +50,7 @@ class Localizer::DataPointSample final : public SampleScorer {
     sums.assign(m, 0.0);
     // Every (data-point, hypothesis) pair in one batch: a few hypotheses
     // scored one point at a time leave each grid lookup waiting alone.
-    const std::span<const LocalPoint> points = ransac_.features();
+    const std::span<const LocalPoint> points = ransac_.data_points();
     pair_points_.clear(), pair_hypotheses_.clear();
     for (std::uint32_t i : sample_) {
       for (std::size_t j = 0; j < m; ++j) {
@@ -383,8 +383,8 @@ void Localizer::sample_data_points(const LaserScan& scan) {
 void Localizer::verify_hypotheses() {
   CpuStopwatch watch;
   ransac_.add_scan(data_points_, hypotheses_);
-  data_points_end_.push_back(ransac_.features_dropped() + ransac_.features().size());
-  while (data_points_end_.size() > 1 && data_points_end_.front() <= ransac_.features_dropped()) {
+  data_points_end_.push_back(ransac_.data_points_dropped() + ransac_.data_points().size());
+  while (data_points_end_.size() > 1 && data_points_end_.front() <= ransac_.data_points_dropped()) {
     data_points_end_.pop_front();
     ++data_points_end_first_;
   }
@@ -398,7 +398,7 @@ void Localizer::verify_hypotheses() {
     reach_back_from_.reset();
     ransac_.reach_back(0);
   }
-  stats_.data_points += std::min(data_points_.size(), config_.ransac.new_features_per_scan);
+  stats_.data_points += std::min(data_points_.size(), config_.ransac.new_data_points_per_scan);
   ransac_.run(scorer_);
   stats_.ransac_s += watch.seconds();
 }
@@ -417,7 +417,7 @@ void Localizer::prescore_newly_mapped() {
   constexpr std::uint32_t kBlock = 10;
   std::stable_sort(newly_mapped_hypotheses_.begin(), newly_mapped_hypotheses_.end(),
                    [](const auto& a, const auto& b) { return a.second / kBlock < b.second / kBlock; });
-  const std::span<const LocalPoint> points = ransac_.features();
+  const std::span<const LocalPoint> points = ransac_.data_points();
   const std::size_t w = config_.newly_mapped_scan_window, scans = data_points_end_first_ + data_points_end_.size();
   scored_newly_mapped_.clear();
   prescore_groups_.clear();
@@ -431,7 +431,7 @@ void Localizer::prescore_newly_mapped() {
     const std::size_t begin = first_scan > 0 ? data_points_by_end_of(first_scan - 1) : 0,
                       end = data_points_by_end_of(last_scan);
     // (absolute data-point numbers; U may have dropped its oldest: what is left of them)
-    const std::size_t dropped = ransac_.features_dropped();
+    const std::size_t dropped = ransac_.data_points_dropped();
     const std::size_t kept_begin = std::max(begin, dropped) - dropped, kept_end = std::max(end, dropped) - dropped;
     const std::size_t n = kept_end > kept_begin ? std::min(kept_end - kept_begin, config_.newly_mapped_points) : 0;
     prescore_groups_.push_back({g, e, kept_begin, kept_end, n});
@@ -509,7 +509,7 @@ void Localizer::prescore_newly_mapped() {
 }
 
 double Localizer::mean_score_of(const Hypothesis& h, std::size_t window) const {
-  const std::span<const LocalPoint> points = ransac_.features();
+  const std::span<const LocalPoint> points = ransac_.data_points();
   const std::size_t first = window > 0 && window < points.size() ? points.size() - window : 0;
   if (first >= points.size()) return 0.0;
   PoseGridScorer scorer(map_.occupancy(), map_.free_space(), scorer_config());

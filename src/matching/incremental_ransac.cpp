@@ -23,8 +23,8 @@ void halve(double& score, std::uint32_t& scored) {
 
 void IncrementalRansacConfig::validate() const {
   require(block_size >= 1, "IncrementalRansacConfig.block_size", ">= 1 (B)", block_size);
-  require(new_features_per_scan >= 1, "IncrementalRansacConfig.new_features_per_scan", ">= 1 (|U_new|)",
-          new_features_per_scan);
+  require(new_data_points_per_scan >= 1, "IncrementalRansacConfig.new_data_points_per_scan", ">= 1 (|U_new|)",
+          new_data_points_per_scan);
   require(new_hypotheses_per_scan >= 1, "IncrementalRansacConfig.new_hypotheses_per_scan", ">= 1 (|V_new|)",
           new_hypotheses_per_scan);
   require(std::isfinite(min_score), "IncrementalRansacConfig.min_score", "a finite C_o", min_score);
@@ -33,11 +33,11 @@ void IncrementalRansacConfig::validate() const {
   require(std::isfinite(preference_z) && preference_z >= 0.0, "IncrementalRansacConfig.preference_z", "finite and >= 0",
           preference_z);
   require(recent_window >= 1, "IncrementalRansacConfig.recent_window", ">= 1 data-point", recent_window);
-  require(max_features >= 2 * recent_window, "IncrementalRansacConfig.max_features", ">= 2 recent_window",
-          max_features);
+  require(max_data_points >= 2 * recent_window, "IncrementalRansacConfig.max_data_points", ">= 2 recent_window",
+          max_data_points);
   // Data-points are indexed by 32 bits.
-  require(max_features <= std::numeric_limits<std::uint32_t>::max(), "IncrementalRansacConfig.max_features",
-          "<= 2^32 - 1", max_features);
+  require(max_data_points <= std::numeric_limits<std::uint32_t>::max(), "IncrementalRansacConfig.max_data_points",
+          "<= 2^32 - 1", max_data_points);
   require(max_scored >= 4, "IncrementalRansacConfig.max_scored", ">= 4 (N_j is halved every max_scored / 2 iterations)",
           max_scored);
 }
@@ -46,28 +46,28 @@ IncrementalRansac::IncrementalRansac(IncrementalRansacConfig config) : config_(c
   config_.validate();
 }
 
-void IncrementalRansac::add_scan(std::span<const LocalPoint> features, std::span<const Hypothesis> hypotheses) {
-  const std::size_t nu = config_.new_features_per_scan;
-  if (features.size() <= nu) {
-    add_features(features);
+void IncrementalRansac::add_scan(std::span<const LocalPoint> data_points, std::span<const Hypothesis> hypotheses) {
+  const std::size_t nu = config_.new_data_points_per_scan;
+  if (data_points.size() <= nu) {
+    add_data_points(data_points);
   } else {
-    // A uniform subset of |U_new| features (partial Fisher-Yates on indices).
-    std::vector<LocalPoint> pick(features.begin(), features.end());
+    // A uniform subset of |U_new| data-points (partial Fisher-Yates on indices).
+    std::vector<LocalPoint> pick(data_points.begin(), data_points.end());
     for (std::size_t k = 0; k < nu; ++k) std::swap(pick[k], pick[k + random_below(pick.size() - k)]);
-    add_features(std::span<const LocalPoint>(pick.data(), nu));
-    stats_.features_over_budget += features.size() - nu;
+    add_data_points(std::span<const LocalPoint>(pick.data(), nu));
+    stats_.data_points_over_budget += data_points.size() - nu;
   }
   const std::size_t nv = std::min(hypotheses.size(), config_.new_hypotheses_per_scan);
   add_hypotheses(hypotheses.first(nv));
   stats_.hypotheses_over_budget += hypotheses.size() - nv;
 }
 
-void IncrementalRansac::add_features(std::span<const LocalPoint> features) {
-  for (const LocalPoint& f : features) {
+void IncrementalRansac::add_data_points(std::span<const LocalPoint> data_points) {
+  for (const LocalPoint& f : data_points) {
     if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.theta))
-      throw Error("iRANSAC: a local feature has a non-finite pose");
-    const auto index = static_cast<std::uint32_t>(features_.size());
-    features_.push_back({f.x, f.y, static_cast<float>(wrap_angle(f.theta)), f.kind});
+      throw Error("iRANSAC: a data-point has a non-finite pose");
+    const auto index = static_cast<std::uint32_t>(data_points_.size());
+    data_points_.push_back({f.x, f.y, static_cast<float>(wrap_angle(f.theta)), f.kind});
     // Inside-out Fisher-Yates: put the new index at a uniform position j of the
     // permutation and move the element that was there to the end. The
     // permutation stays uniformly random at O(1) per insertion.
@@ -79,17 +79,17 @@ void IncrementalRansac::add_features(std::span<const LocalPoint> features) {
       permutation_[j] = index;
     }
   }
-  if (features_.size() > config_.max_features) drop_oldest_features();
+  if (data_points_.size() > config_.max_data_points) drop_oldest_data_points();
 }
 
-void IncrementalRansac::drop_oldest_features() {
-  const std::size_t n = features_.size() / 2;
-  features_.erase(features_.begin(), features_.begin() + static_cast<std::ptrdiff_t>(n));
+void IncrementalRansac::drop_oldest_data_points() {
+  const std::size_t n = data_points_.size() / 2;
+  data_points_.erase(data_points_.begin(), data_points_.begin() + static_cast<std::ptrdiff_t>(n));
   dropped_ += n;
-  stats_.features_dropped = dropped_;
+  stats_.data_points_dropped = dropped_;
   fresh_next_ = fresh_next_ > n ? fresh_next_ - n : 0;
   // A new uniform permutation of what is left (kUniform's order).
-  permutation_.resize(features_.size());
+  permutation_.resize(data_points_.size());
   for (std::size_t i = 0; i < permutation_.size(); ++i) permutation_[i] = static_cast<std::uint32_t>(i);
   std::shuffle(permutation_.begin(), permutation_.end(), rng_);
   cursor_ = 0;
@@ -150,21 +150,21 @@ void IncrementalRansac::insert_hypothesis(const Hypothesis& h, double score, std
   stats_.active_hypotheses_max = std::max(stats_.active_hypotheses_max, tx_.size());
 }
 
-std::size_t IncrementalRansac::next_feature() {
-  const std::size_t n = features_.size();
+std::size_t IncrementalRansac::next_data_point() {
+  const std::size_t n = data_points_.size();
   const std::size_t window = std::min(n, std::max(config_.recent_window, reach_back_));
   switch (config_.order_rule) {
-    case FeatureOrderRule::kUniform: {
+    case DataPointOrderRule::kUniform: {
       if (cursor_ >= n) cursor_ = 0;
       return permutation_[cursor_++];
     }
-    case FeatureOrderRule::kFreshFirst:
-      // A backlog (more new features than iterations) never reaches back
-      // past the recent window: stale "fresh" features are skipped.
+    case DataPointOrderRule::kFreshFirst:
+      // A backlog (more new data-points than iterations) never reaches back
+      // past the recent window: stale "fresh" data-points are skipped.
       fresh_next_ = std::max(fresh_next_, n - window);
       if (fresh_next_ < n) return fresh_next_++;
       [[fallthrough]];
-    case FeatureOrderRule::kRecentWindow:
+    case DataPointOrderRule::kRecentWindow:
       break;
   }
   return n - window + random_below(window);
@@ -240,7 +240,7 @@ std::vector<ScoredHypothesis> IncrementalRansac::active() const {
 IncrementalRansacStats IncrementalRansac::stats() const {
   IncrementalRansacStats s = stats_;
   s.active_hypotheses = tx_.size();
-  s.features = features_.size();
+  s.data_points = data_points_.size();
   if (const auto b = best()) s.best_score = b->score, s.best_mean_score = b->mean_score(), s.best_scored = b->scored;
   return s;
 }

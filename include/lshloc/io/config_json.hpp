@@ -37,8 +37,8 @@ void to_json(nlohmann::json& j, const Pose2& p);
 void from_json(const nlohmann::json& j, Pose2& p);
 void to_json(nlohmann::json& j, ToleranceMode v);
 void from_json(const nlohmann::json& j, ToleranceMode& v);
-void to_json(nlohmann::json& j, FeatureOrderRule v);
-void from_json(const nlohmann::json& j, FeatureOrderRule& v);
+void to_json(nlohmann::json& j, DataPointOrderRule v);
+void from_json(const nlohmann::json& j, DataPointOrderRule& v);
 void to_json(nlohmann::json& j, HypothesisSource v);
 void from_json(const nlohmann::json& j, HypothesisSource& v);
 void to_json(nlohmann::json& j, const FeatureExtractorConfig& c);
@@ -82,6 +82,13 @@ namespace lshloc::io {
 void check_config_patch(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
                         const std::string& path = "");
 
+/// `patch` with settings under a former name (iRANSAC's new_features_per_scan
+/// and max_features) under their current one, where `current` has it, so
+/// that older config files still apply. Both names at once throw
+/// lshloc::Error naming `source`.
+nlohmann::json with_current_names(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
+                                  const std::string& path = "");
+
 /// `j` as a Config; errors (an enum's unknown name) name `source`.
 template <class Config>
 Config config_from_json(const nlohmann::json& j, const std::string& source) {
@@ -99,8 +106,9 @@ Config config_from_json(const nlohmann::json& j, const std::string& source) {
 template <class Config>
 void apply_config_patch(const nlohmann::json& patch, Config& config, const std::string& source) {
   nlohmann::json merged = config;
-  check_config_patch(patch, merged, source);
-  merged.merge_patch(patch);
+  const nlohmann::json renamed = with_current_names(patch, merged, source);
+  check_config_patch(renamed, merged, source);
+  merged.merge_patch(renamed);
   config = config_from_json<Config>(merged, source);
 }
 

@@ -1,7 +1,8 @@
 #pragma once
 // Incremental preemptive RANSAC (iRANSAC; paper §III-B/C and §IV-B,
-// docs/design.md section 2). The feature set U (local data-points) and the hypothesis set
-// V grow while the robot moves; each iteration scores one feature against
+// docs/design.md section 2). The data-point set U (the paper's features: oriented
+// points of the local map) and the hypothesis set V grow while the robot
+// moves; each iteration scores one data-point against
 // every active hypothesis and the preemption function halves the active set
 // every B-th iteration, so the work per scan stays constant however long the
 // task runs.
@@ -31,18 +32,18 @@ struct LocalPoint {
   Kind kind = Kind::kSurface;
 };
 
-/// Which feature iteration i scores (the order rule f_o).
-enum class FeatureOrderRule : std::uint8_t {
+/// Which data-point iteration i scores (the order rule f_o).
+enum class DataPointOrderRule : std::uint8_t {
   /// The paper's rule: cycle through U, which random insertion keeps randomly
-  /// permuted, so every feature old or new is equally likely.
+  /// permuted, so every data-point old or new is equally likely.
   kUniform,
-  /// Uniform over the newest `recent_window` features: recent data-points
+  /// Uniform over the newest `recent_window` data-points: recent ones
   /// carry the decision, as old ones drift away from the map (paper §V).
   kRecentWindow,
-  /// Each new feature is scored once against the active set before any other
-  /// (every survivor is rescored against each scan's new features; a backlog
-  /// older than `recent_window` features is skipped); when none is waiting,
-  /// uniform over the newest `recent_window` features.
+  /// Each new data-point is scored once against the active set before any
+  /// other (every survivor is rescored against each scan's new data-points; a
+  /// backlog older than `recent_window` of them is skipped); when none is
+  /// waiting, uniform over the newest `recent_window` data-points.
   kFreshFirst,
 };
 
@@ -50,7 +51,7 @@ struct IncrementalRansacConfig {
   // The defaults are the localizer's (docs/design.md section 2.3); the
   // paper's synthetic setting is B = 10, |U_new| = 10, 10 iterations.
   std::size_t block_size = 50;                 ///< B: the active set halves every B-th iteration
-  std::size_t new_features_per_scan = 40;      ///< |U_new|: add_scan() keeps a random subset this large
+  std::size_t new_data_points_per_scan = 40;   ///< |U_new|: add_scan() keeps a random subset this large
   std::size_t new_hypotheses_per_scan = 1000;  ///< |V_new|: add_scan() keeps the first this many
   std::size_t iterations_per_scan = 50;        ///< iterations run() does per scan (= B: steady state 2|V_new|)
   double min_score = 30.0;                     ///< C_o: best() ignores hypotheses with C_j below it
@@ -62,19 +63,19 @@ struct IncrementalRansacConfig {
   /// kRecentWindow: only the newest recent_window data-points (about 200
   /// scans) decide, as older ones have drifted with the local map
   /// (RESULTS.md, "iRANSAC order rules"; docs/results/matching.md).
-  FeatureOrderRule order_rule = FeatureOrderRule::kRecentWindow;
-  std::size_t recent_window = 8000;  ///< [features] window of kRecentWindow / kFreshFirst
+  DataPointOrderRule order_rule = DataPointOrderRule::kRecentWindow;
+  std::size_t recent_window = 8000;  ///< [data-points] window of kRecentWindow / kFreshFirst
   /// U keeps at most this many data-points: past it the oldest half is
   /// dropped, so that a day-long run's memory stays bounded (2e6 points:
   /// about 14 hours of 40 points per scan at 1 Hz, 32 MB); every window
   /// anything reads is far smaller.
-  std::size_t max_features = 2'000'000;
+  std::size_t max_data_points = 2'000'000;
   /// N_j stays at most this: every max_scored / 2 iterations, a hypothesis
   /// scored max_scored / 2 times or more has C_j and N_j halved, which keeps
   /// C_j / N_j. The 32-bit N_j would otherwise wrap after 2^32 scores, 25
   /// days of one hypothesis held at 50 iterations per scan and 40 Hz.
   std::uint32_t max_scored = 1u << 31;
-  std::uint64_t seed = 0x5eed0002;  ///< random insertion and feature sampling
+  std::uint64_t seed = 0x5eed0002;  ///< random insertion and data-point sampling
 
   /// Throws lshloc::Error when a field is out of range.
   void validate() const;
@@ -83,18 +84,18 @@ struct IncrementalRansacConfig {
 struct IncrementalRansacStats {
   std::size_t active_hypotheses = 0;      ///< |V| now
   std::size_t active_hypotheses_max = 0;  ///< largest |V| seen
-  std::size_t features = 0;               ///< |U| now
-  std::size_t features_dropped = 0;       ///< the oldest data-points dropped past max_features
-  std::size_t iterations = 0;             ///< iterations done (those with features and hypotheses)
-  std::size_t scores = 0;                 ///< feature-hypothesis pairs scored
+  std::size_t data_points = 0;            ///< |U| now
+  std::size_t data_points_dropped = 0;    ///< the oldest data-points dropped past max_data_points
+  std::size_t iterations = 0;             ///< iterations done (those with data-points and hypotheses)
+  std::size_t scores = 0;                 ///< data-point-hypothesis pairs scored
   std::size_t hypotheses_added = 0;
-  std::size_t hypotheses_preempted = 0;    ///< cut by the preemption function
-  std::size_t hypotheses_over_budget = 0;  ///< dropped by add_scan() beyond |V_new|
-  std::size_t features_over_budget = 0;    ///< dropped by add_scan() beyond |U_new|
-  std::size_t hypotheses_halved = 0;       ///< C_j and N_j halved at max_scored
-  double best_score = 0.0;                 ///< C of best() (0 when none qualifies)
-  double best_mean_score = 0.0;            ///< C / N of best()
-  std::uint32_t best_scored = 0;           ///< N of best()
+  std::size_t hypotheses_preempted = 0;     ///< cut by the preemption function
+  std::size_t hypotheses_over_budget = 0;   ///< dropped by add_scan() beyond |V_new|
+  std::size_t data_points_over_budget = 0;  ///< dropped by add_scan() beyond |U_new|
+  std::size_t hypotheses_halved = 0;        ///< C_j and N_j halved at max_scored
+  double best_score = 0.0;                  ///< C of best() (0 when none qualifies)
+  double best_mean_score = 0.0;             ///< C / N of best()
+  std::uint32_t best_scored = 0;            ///< N of best()
 };
 
 /// The active hypotheses as structure-of-arrays, the way scorers read them:
@@ -122,7 +123,7 @@ class HypothesisBatchBuffer {
   std::vector<float> tx_, ty_, cos_, sin_, theta_;
 };
 
-/// A hypothesis with its accumulated score C and the number N of features it
+/// A hypothesis with its accumulated score C and the number N of data-points it
 /// was scored against.
 struct ScoredHypothesis {
   Hypothesis hypothesis;
@@ -146,11 +147,11 @@ class IncrementalRansac {
 
   const IncrementalRansacConfig& config() const { return config_; }
 
-  /// Adds one scan's data: a random subset of at most |U_new| features and the
+  /// Adds one scan's data: a random subset of at most |U_new| data-points and the
   /// first |V_new| hypotheses (pass them ranked best first).
-  void add_scan(std::span<const LocalPoint> features, std::span<const Hypothesis> hypotheses);
-  /// Adds every feature, each at a random position of U (O(1) each).
-  void add_features(std::span<const LocalPoint> features);
+  void add_scan(std::span<const LocalPoint> data_points, std::span<const Hypothesis> hypotheses);
+  /// Adds every data-point, each at a random position of U (O(1) each).
+  void add_data_points(std::span<const LocalPoint> data_points);
   /// Adds every hypothesis, each at a random position of V (O(1) each), with
   /// C = N = 0. Throws lshloc::Error on a non-finite pose.
   void add_hypotheses(std::span<const Hypothesis> hypotheses);
@@ -171,16 +172,16 @@ class IncrementalRansac {
 
   /// Runs `n` iterations. Iteration i (counted over the whole task) first cuts
   /// the active set to f_b(i) = m(i-1)/2 when i mod B = 0 (else keeps all),
-  /// then scores one feature x_i (order rule) against every active hypothesis:
+  /// then scores one data-point x_i (order rule) against every active hypothesis:
   /// C_j += c(p_j, x_i), N_j += 1. Does nothing while U or V is empty.
   template <class Scorer>
   void iterate(Scorer&& scorer, std::size_t n) {
     for (std::size_t k = 0; k < n; ++k) {
-      if (features_.empty() || tx_.empty()) return;
+      if (data_points_.empty() || tx_.empty()) return;
       const std::size_t i = ++stats_.iterations;
       if (i % (config_.max_scored / 2) == 0) halve_long_scored();
       if (i % config_.block_size == 0) preempt(tx_.size() / 2);
-      const LocalPoint& x = features_[next_feature()];
+      const LocalPoint& x = data_points_[next_data_point()];
       const std::size_t m = tx_.size();
       if (scratch_.size() < m) scratch_.resize(m);
       scorer(x, batch(), scratch_.data());
@@ -210,31 +211,31 @@ class IncrementalRansac {
   HypothesisBatch batch() const {
     return {submap_.data(), tx_.data(), ty_.data(), cos_.data(), sin_.data(), theta_.data(), tx_.size()};
   }
-  std::span<const LocalPoint> features() const { return features_; }
-  /// Data-points dropped from U's front so far (max_features): features()[i]
-  /// is the (features_dropped() + i)-th data-point ever added.
-  std::size_t features_dropped() const { return dropped_; }
+  std::span<const LocalPoint> data_points() const { return data_points_; }
+  /// Data-points dropped from U's front so far (max_data_points): data_points()[i]
+  /// is the (data_points_dropped() + i)-th data-point ever added.
+  std::size_t data_points_dropped() const { return dropped_; }
 
   /// Counters, plus best()'s scores (an O(|V|) scan).
   IncrementalRansacStats stats() const;
 
  private:
-  std::size_t next_feature();
+  std::size_t next_data_point();
   void halve_long_scored();
-  void drop_oldest_features();
+  void drop_oldest_data_points();
   std::size_t random_below(std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
   void move_hypothesis(std::size_t from, std::size_t to);
   void insert_hypothesis(const Hypothesis& h, double score, std::uint32_t scored);
 
   IncrementalRansacConfig config_;
   std::mt19937_64 rng_;
-  // U: features in arrival order, and a random permutation of their indices.
-  std::vector<LocalPoint> features_;
+  // U: data-points in arrival order, and a random permutation of their indices.
+  std::vector<LocalPoint> data_points_;
   std::vector<std::uint32_t> permutation_;
   std::size_t cursor_ = 0;      ///< kUniform: next position in permutation_
-  std::size_t fresh_next_ = 0;  ///< kFreshFirst: first feature not yet scored on arrival
+  std::size_t fresh_next_ = 0;  ///< kFreshFirst: first data-point not yet scored on arrival
   std::size_t reach_back_ = 0;  ///< reach_back()
-  std::size_t dropped_ = 0;     ///< features_dropped()
+  std::size_t dropped_ = 0;     ///< data_points_dropped()
   // V: the active hypotheses, structure-of-arrays, randomly permuted.
   std::vector<std::uint32_t> submap_;
   std::vector<float> tx_, ty_, cos_, sin_, theta_;
