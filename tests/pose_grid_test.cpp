@@ -407,7 +407,7 @@ void check_score_pairs(ToleranceMode mode, int xy_tol, int theta_tol) {
     nonzero += expected != 0.0f;
   }
   EXPECT_GT(nonzero, 30u);
-  EXPECT_EQ(pairs.lookups(), one.lookups());
+  EXPECT_EQ(pairs.stats().lookups, one.stats().lookups);
   EXPECT_THROW(pairs.score_pairs(points, std::span(of).first(3), v, scores.data()), Error);
   of[5] = static_cast<std::uint32_t>(hypotheses.size());
   EXPECT_THROW(pairs.score_pairs(points, of, v, scores.data()), Error);
@@ -472,7 +472,7 @@ void check_pose_cell_hints(int xy_tol, double origin) {
   EXPECT_GT(hits, 1000u);
   EXPECT_GT(surface_on_return, 100u);
   EXPECT_GT(other, 1000u);
-  EXPECT_EQ(with.lookups(), without.lookups());
+  EXPECT_EQ(with.stats().lookups, without.stats().lookups);
 }
 
 TEST(PoseGridScorer, PoseCellHintsChangeNoScore) { check_pose_cell_hints(0, 0.0); }

@@ -263,85 +263,86 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
   nlohmann::json reasons = nlohmann::json::array();
   if (e.localized || !e.has_estimate) return reasons;
   const FlagDownReasons& why = e.flag_down_because;
-  auto reason = [&](const char* name, const std::string& text) {
-    reasons.push_back({{"reason", name}, {"text", text}});
-    return &reasons.back();
+  // Each reason: its name, the sentence in `text` (written just before), and its numbers.
+  std::string text;
+  auto reason = [&](const char* name, const nlohmann::json& numbers = nlohmann::json::object()) {
+    nlohmann::json r = {{"reason", name}, {"text", text}};
+    r.update(numbers);
+    reasons.push_back(std::move(r));
+    text.clear();
   };
-  char buf[400];
   if (why.unstable) {
-    std::snprintf(buf, sizeof buf, "the best place moved within the last %zu scans", c.stable_scans);
-    reason("unstable", buf);
+    io::append_format(text, "the best place moved within the last %zu scans", c.stable_scans);
+    reason("unstable");
   }
   if (why.weak_support) {
-    std::snprintf(buf, sizeof buf,
-                  "the map explains little of the local map here: mean score %.2f on %u points (the support test "
-                  "wants %.2f; a place the map barely covers, or one that has changed)",
-                  e.mean_score, e.scored, c.min_mean_score);
-    reason("weak_support", buf)->update({{"mean_score", e.mean_score}, {"scored", e.scored}});
+    io::append_format(text,
+                      "the map explains little of the local map here: mean score %.2f on %u points (the support "
+                      "test wants %.2f; a place the map barely covers, or one that has changed)",
+                      e.mean_score, e.scored, c.min_mean_score);
+    reason("weak_support", {{"mean_score", e.mean_score}, {"scored", e.scored}});
   }
   if (why.few_points) {
-    std::snprintf(buf, sizeof buf,
-                  "the best hypothesis is checked on %u points so far (the support test wants %u: a few more scans)",
-                  e.scored, c.min_scored);
-    reason("few_points", buf)->update({{"scored", e.scored}});
+    io::append_format(text,
+                      "the best hypothesis is checked on %u points so far (the support test wants %u: a few more "
+                      "scans)",
+                      e.scored, c.min_scored);
+    reason("few_points", {{"scored", e.scored}});
   }
   if (why.support_too_short) {
-    std::snprintf(buf, sizeof buf,
-                  "the place has been supported only on the last few scans (after a long stretch without support "
-                  "the test wants %zu scans in a row)",
-                  c.rise_supported_scans);
-    reason("support_too_short", buf);
+    io::append_format(text,
+                      "the place has been supported only on the last few scans (after a long stretch without "
+                      "support the test wants %zu scans in a row)",
+                      c.rise_supported_scans);
+    reason("support_too_short");
   }
   if (why.look_alike && e.has_rival) {
-    const std::string where =
-        e.rival_submap == e.submap
-            ? [&] {
-                char at[160];
-                std::snprintf(at, sizeof at, "in the same submap %.1f m away, turned %.0f deg",
-                              std::hypot(e.rival_pose.x - e.pose.x, e.rival_pose.y - e.pose.y),
-                              degrees(angle_distance(e.rival_pose.theta, e.pose.theta)));
-                return std::string(at);
-              }()
-            : "in " + map.submap_name(e.rival_submap);
-    std::snprintf(buf, sizeof buf,
-                  "a look-alike fits almost as well: %s at x %.2f m, y %.2f m, heading %.1f deg (%s) scores %.2f, "
-                  "the reported place %.2f (the test wants a lead of %.2f)",
-                  map.submap_name(e.rival_submap).c_str(), e.rival_pose.x, e.rival_pose.y, degrees(e.rival_pose.theta),
-                  where.c_str(), e.rival_mean_score, e.mean_score, c.min_margin);
-    reason("look_alike", buf)
-        ->update({{"rival_submap", map.submap_name(e.rival_submap)},
-                  {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
-                  {"rival_mean_score", e.rival_mean_score},
-                  {"lead", e.rise_margin}});
+    std::string where;
+    if (e.rival_submap == e.submap)
+      io::append_format(where, "in the same submap %.1f m away, turned %.0f deg",
+                        std::hypot(e.rival_pose.x - e.pose.x, e.rival_pose.y - e.pose.y),
+                        degrees(angle_distance(e.rival_pose.theta, e.pose.theta)));
+    else
+      where = "in " + map.submap_name(e.rival_submap);
+    io::append_format(text,
+                      "a look-alike fits almost as well: %s at x %.2f m, y %.2f m, heading %.1f deg (%s) scores "
+                      "%.2f, the reported place %.2f (the test wants a lead of %.2f)",
+                      map.submap_name(e.rival_submap).c_str(), e.rival_pose.x, e.rival_pose.y,
+                      degrees(e.rival_pose.theta), where.c_str(), e.rival_mean_score, e.mean_score, c.min_margin);
+    reason("look_alike", {{"rival_submap", map.submap_name(e.rival_submap)},
+                          {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
+                          {"rival_mean_score", e.rival_mean_score},
+                          {"lead", e.rise_margin}});
   } else if (why.look_alike) {
-    std::snprintf(buf, sizeof buf,
-                  "the reported place scores %.2f, not far enough above nothing to stand out (the test wants a "
-                  "lead of %.2f)",
-                  e.mean_score, c.min_margin);
-    reason("look_alike", buf)->update({{"lead", e.rise_margin}});
+    io::append_format(text,
+                      "the reported place scores %.2f, not far enough above nothing to stand out (the test wants a "
+                      "lead of %.2f)",
+                      e.mean_score, c.min_margin);
+    reason("look_alike", {{"lead", e.rise_margin}});
   }
   if (why.newest_misfit) {
-    std::snprintf(buf, sizeof buf,
-                  "the newest scans do not fit the map there: mean score %.2f on the newest points (the test wants "
-                  "%.2f; the local map may have broken in a fast turn, or the robot sees what the map lacks)",
-                  e.newest_fit, c.rise_min_newest_fit);
-    reason("newest_misfit", buf)->update({{"newest_fit", e.newest_fit}});
+    io::append_format(text,
+                      "the newest scans do not fit the map there: mean score %.2f on the newest points (the test "
+                      "wants %.2f; the local map may have broken in a fast turn, or the robot sees what the map "
+                      "lacks)",
+                      e.newest_fit, c.rise_min_newest_fit);
+    reason("newest_misfit", {{"newest_fit", e.newest_fit}});
   }
   if (why.young_hypothesis) {
-    std::snprintf(buf, sizeof buf,
-                  "a new hypothesis at a place kept %u scans is checked on %u points so far (it rises once checked "
-                  "on %.1f per kept scan, up to %u)",
-                  e.kept_scans, e.scored, c.rise_scored_per_kept_scan, c.rise_max_scored);
-    reason("young_hypothesis", buf)->update({{"scored", e.scored}, {"kept_scans", e.kept_scans}});
+    io::append_format(text,
+                      "a new hypothesis at a place kept %u scans is checked on %u points so far (it rises once "
+                      "checked on %.1f per kept scan, up to %u)",
+                      e.kept_scans, e.scored, c.rise_scored_per_kept_scan, c.rise_max_scored);
+    reason("young_hypothesis", {{"scored", e.scored}, {"kept_scans", e.kept_scans}});
   }
   if (why.contradicted) {
     // The hold's penalty is the newest points' mean max(-score, 0).
     const double penalty = 0.5 * (e.newest_evidence - e.newest_fit);
-    std::snprintf(buf, sizeof buf,
-                  "the flag was up and dropped: the map contradicts the newest scans there (penalty %.2f on the "
-                  "newest points; the hold allows %.2f on one scan, %.2f on average)",
-                  penalty, c.hold_max_contradiction, c.hold_max_mean_contradiction);
-    reason("contradicted", buf)->update({{"penalty", penalty}});
+    io::append_format(text,
+                      "the flag was up and dropped: the map contradicts the newest scans there (penalty %.2f on the "
+                      "newest points; the hold allows %.2f on one scan, %.2f on average)",
+                      penalty, c.hold_max_contradiction, c.hold_max_mean_contradiction);
+    reason("contradicted", {{"penalty", penalty}});
   }
   return reasons;
 }

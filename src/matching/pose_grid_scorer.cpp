@@ -195,7 +195,7 @@ void PoseGridScorer::score(const Points& x, LocalPoint::Kind kind, const Hypothe
       if (j + kAhead < n) grid.prefetch(offset_[j + kAhead]);
       scores[j] = ray_value_[grid.at(offset_[j]) & 15];
     }
-    lookups_ += n;
+    stats_.lookups += n;
     return;
   }
   if (score_surface(x, v, scores)) return;  // it read the free-space grid too
@@ -206,7 +206,7 @@ void PoseGridScorer::score(const Points& x, LocalPoint::Kind kind, const Hypothe
     scores[j] = surface_value_[grid.at(offset_[j]) & 15];
     ++misses;
   }
-  lookups_ += misses;
+  stats_.lookups += misses;
 }
 
 void PoseGridScorer::score_surface_hinted(const HypothesisBatch& v, float* scores) {
@@ -255,7 +255,7 @@ void PoseGridScorer::score_surface_hinted(const HypothesisBatch& v, float* score
     scores[j] = miss ? surface_value_[flags[j] & 15] : s;
     misses += miss;
   }
-  lookups_ += n + misses;
+  stats_.lookups += n + misses;
 }
 
 template <bool WithTheta, class Points>
@@ -356,7 +356,7 @@ bool PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
           scores[j] = miss ? surface_value_[free.at(offset[j]) & 15] : s;
           misses += miss;
         }
-        lookups_ += n + misses;
+        stats_.lookups += n + misses;
         return true;
       }
       if (!theta_window && xy_tol == 0) {
@@ -365,7 +365,7 @@ bool PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
           if (j + kAhead < n) table.prefetch(home[j + kAhead]);
           scores[j] = lut[table.lookup_run(xy[j], home[j], it[j], 1) & 3];
         }
-        lookups_ += n;
+        stats_.lookups += n;
         return false;
       }
       if (theta_window && xy_tol == 0) {
@@ -386,7 +386,7 @@ bool PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
           }
           scores[j] = lut[f & 3];
         }
-        lookups_ += n;
+        stats_.lookups += n;
         return false;
       }
       for (std::size_t j = 0; j < n; ++j) {
@@ -402,7 +402,7 @@ bool PoseGridScorer::score_surface(const Points& x, const HypothesisBatch& v, fl
         }
         flags[j] = first_pass ? f : static_cast<CellFlags>(flags[j] | f);
       }
-      lookups_ += n;
+      stats_.lookups += n;
     }
   // 3. Flags to scores.
   for (std::size_t j = 0; j < n; ++j) scores[j] = lut[flags[j] & 3];

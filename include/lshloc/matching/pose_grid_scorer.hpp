@@ -43,6 +43,10 @@ struct PoseGridScorerConfig {
   void validate() const;
 };
 
+struct PoseGridScorerStats {
+  std::uint64_t lookups = 0;  ///< grid probes: a cell of one grid looked up for one (point, hypothesis) pair
+};
+
 /// A Scorer for IncrementalRansac (see there). Each call transforms one local
 /// point by every hypothesis of the batch (floats, precomputed cos/sin, four
 /// at a time), packs and hashes all cell keys, then looks them up with
@@ -78,7 +82,7 @@ class PoseGridScorer {
   /// operator() does (float transform): for tests and diagnostics.
   PoseCell cell_of(const LocalPoint& x, const HypothesisBatch& v, std::size_t j) const;
 
-  std::uint64_t lookups() const { return lookups_; }
+  PoseGridScorerStats stats() const { return stats_; }
 
  private:
   struct OnePoint;   ///< the point of every hypothesis: the same
@@ -119,7 +123,7 @@ class PoseGridScorer {
     std::vector<std::uint32_t> index, submap;
     std::vector<float> tx, ty, cos, sin, theta, px, py, pt, scores;
   } gathered_;
-  std::uint64_t lookups_ = 0;
+  PoseGridScorerStats stats_;
 };
 
 }  // namespace lshloc
