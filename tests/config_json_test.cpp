@@ -91,8 +91,8 @@ TEST(ConfigJson, APatchChangesOnlyWhatItNames) {
   EXPECT_EQ(c.localizer.scan_matcher.max_range, 20.0);
   EXPECT_EQ(c.localizer.ransac.order_rule, DataPointOrderRule::kFreshFirst);
   // The localizer's own matcher setting (not ScanMatcherConfig's default) stays.
-  EXPECT_EQ(c.localizer.scan_matcher.scan_voxel, defaults.localizer.scan_matcher.scan_voxel);
-  EXPECT_NE(c.localizer.scan_matcher.scan_voxel, ScanMatcherConfig{}.scan_voxel);
+  EXPECT_EQ(c.localizer.scan_matcher.scan_point_spacing, defaults.localizer.scan_matcher.scan_point_spacing);
+  EXPECT_NE(c.localizer.scan_matcher.scan_point_spacing, ScanMatcherConfig{}.scan_point_spacing);
   EXPECT_EQ(c.localizer.ransac.recent_window, defaults.localizer.ransac.recent_window);
   nlohmann::json expected = defaults;
   expected["localizer"]["scan_matcher"]["max_range"] = 20.0;
@@ -108,6 +108,9 @@ TEST(ConfigJson, FormerNamesOfSettingsStillApply) {
                          c, "old.json");
   EXPECT_EQ(c.localizer.ransac.max_data_points, 16000u);
   EXPECT_EQ(c.localizer.ransac.new_data_points_per_scan, 25u);
+  io::apply_config_patch(nlohmann::json::parse(R"({"localizer": {"scan_matcher": {"scan_voxel": 0.07}}})"), c,
+                         "old.json");
+  EXPECT_EQ(c.localizer.scan_matcher.scan_point_spacing, 0.07);
   const std::string both =
       error_of({{"localizer", {{"ransac", {{"max_features", 16000}, {"max_data_points", 20000}}}}}});
   EXPECT_NE(both.find("cfg.json: localizer.ransac.max_features and max_data_points name one setting"),

@@ -76,7 +76,7 @@ LSHLOC_JSON_FIELDS(IncrementalRansacConfig, block_size, new_data_points_per_scan
 LSHLOC_JSON_FIELDS(ScanMatcherConfig::Experimental, odometry_prior, point_sigma, odometry_sigma_translation,
                    odometry_sigma_per_meter, odometry_sigma_rotation, odometry_sigma_rotation_per_rad,
                    odometry_sigma_rotation_per_meter)
-LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_voxel, window_keyframes,
+LSHLOC_JSON_FIELDS(ScanMatcherConfig, laser_offset, min_range, max_range, scan_point_spacing, window_keyframes,
                    keyframe_distance, keyframe_angle, map_voxel, normal_radius, normal_beam_gaps, normal_max_neighbours,
                    normal_min_points, max_line_flatness, coarse_correspondence, fine_correspondence, coarse_iterations,
                    max_iterations, robust_scale, converged_translation, converged_rotation, rotation_length,
@@ -165,8 +165,10 @@ void check_config_patch(const nlohmann::json& patch, const nlohmann::json& curre
 
 nlohmann::json with_current_names(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
                                   const std::string& path) {
-  static constexpr std::array<std::pair<const char*, const char*>, 2> kFormerNames{
-      {{"new_features_per_scan", "new_data_points_per_scan"}, {"max_features", "max_data_points"}}};
+  static constexpr std::array<std::pair<const char*, const char*>, 3> kFormerNames{
+      {{"new_features_per_scan", "new_data_points_per_scan"},
+       {"max_features", "max_data_points"},
+       {"scan_voxel", "scan_point_spacing"}}};
   if (!patch.is_object() || !current.is_object()) return patch;
   nlohmann::json out = nlohmann::json::object();
   for (const auto& [key, value] : patch.items()) {

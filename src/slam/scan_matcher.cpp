@@ -21,7 +21,7 @@ void ScanMatcherConfig::validate() const {
   require(min_range >= 0.0 && std::isfinite(min_range), "ScanMatcherConfig.min_range", ">= 0 [m]", min_range);
   require(max_range > min_range && std::isfinite(max_range), "ScanMatcherConfig.max_range", "> min_range [m]",
           max_range);
-  require(scan_voxel >= 0.0, "ScanMatcherConfig.scan_voxel", ">= 0 [m]", scan_voxel);
+  require(scan_point_spacing >= 0.0, "ScanMatcherConfig.scan_point_spacing", ">= 0 [m]", scan_point_spacing);
   require(window_keyframes >= 1, "ScanMatcherConfig.window_keyframes", ">= 1", window_keyframes);
   require(keyframe_distance >= 0.0, "ScanMatcherConfig.keyframe_distance", ">= 0 [m]", keyframe_distance);
   require(keyframe_angle >= 0.0, "ScanMatcherConfig.keyframe_angle", ">= 0 [rad]", keyframe_angle);
@@ -107,7 +107,7 @@ std::vector<MapPoint> ScanMatcher::line_points(const std::vector<Point2>& endpoi
 
 void ScanMatcher::thin_source(const std::vector<Point2>& endpoints) {
   source_ = endpoints;
-  thin_spaced(source_, config_.scan_voxel, [](const Point2& p) -> const Point2& { return p; });
+  thin_spaced(source_, config_.scan_point_spacing, [](const Point2& p) -> const Point2& { return p; });
 }
 
 void ScanMatcher::add_keyframe(double timestamp, const Pose2& laser_pose, const std::vector<Point2>& endpoints,

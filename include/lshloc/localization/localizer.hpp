@@ -41,7 +41,7 @@ enum class HypothesisSource : std::uint8_t {
 /// and live-map.md).
 inline ScanMatcherConfig local_map_matcher() {
   ScanMatcherConfig c;
-  c.scan_voxel = 0.05;
+  c.scan_point_spacing = 0.05;
   c.normal_min_points = 3;
   c.turn_retries = true;
   c.per_scan_velocity_on_odd_stamps = true;

@@ -5,6 +5,7 @@
 // (kNormal). iRANSAC reads it about once per score, so it is laid out for
 // lookups: dense 16 x 16-cell tiles, one byte a cell, found through a small
 // per-submap directory of tiles. Cell indices [cells of cell_size m].
+// Thread safety: concurrent const reads; marks exclusive (FreeSpaceGrid).
 #include <cstddef>
 #include <cstdint>
 #include <vector>

@@ -1,11 +1,11 @@
 #pragma once
 // Incremental preemptive RANSAC (iRANSAC; paper §III-B/C and §IV-B,
-// docs/design.md section 2). The data-point set U (the paper's features: oriented
-// points of the local map) and the hypothesis set V grow while the robot
-// moves; each iteration scores one data-point against
-// every active hypothesis and the preemption function halves the active set
-// every B-th iteration, so the work per scan stays constant however long the
-// task runs.
+// docs/design.md section 2). The data-point set U (the paper's features:
+// oriented points of the local map) and the hypothesis set V grow while the
+// robot moves; each iteration scores one data-point against every active
+// hypothesis and the preemption function halves the active set every B-th
+// iteration, so the work per scan stays constant however long the task runs.
+// Thread safety: none; one IncrementalRansac per localization task.
 #include <algorithm>
 #include <cmath>
 #include <cstddef>

@@ -4,6 +4,7 @@
 // ONE 1-D open-addressing table, keyed by a universal hash of
 // (submap, ix, iy, itheta). Memory grows with the cells used, not with the
 // bounding box of the map, and the table doubles (rehash) when it gets full.
+// Thread safety: concurrent const reads; mark() exclusive (PoseGridHashMap).
 #include <algorithm>
 #include <cmath>
 #include <cstddef>

@@ -12,8 +12,9 @@
 // All randomness comes from the config seeds (no global state). Results are
 // reproducible for a seed with a given C++ standard library: the std::
 // distributions used are implementation-defined, so another library may draw
-// other (equally valid) buildings. Everything here is const on its inputs:
-// several recordings of one building may be simulated in parallel.
+// other (equally valid) buildings.
+// Thread safety: everything here is const on its inputs, so several
+// recordings of one building may be simulated in parallel.
 //
 // Lengths [m], angles [rad], times [s]; SimulationStats' seconds are wall clock.
 #include <cstdint>

@@ -6,6 +6,7 @@
 // adds a loop-closure edge when the fit is good and unique. The graph is
 // re-optimized as closures arrive, so drift is bounded by how often the
 // robot comes back, not by how far it drove.
+// Thread safety: none; one PoseGraphSlam per robot.
 #include <cstddef>
 #include <cstdint>
 #include <vector>

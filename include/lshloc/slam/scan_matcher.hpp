@@ -26,7 +26,7 @@ struct ScanMatcherConfig {
   double max_range = 25.0;  ///< [m] longer readings (incl. the ~81.9 m no-return) are ignored
   /// [m] scan points used for matching are kept at least this far apart
   /// (the localizer's local map uses 0.05, LocalizerConfig::scan_matcher)
-  double scan_voxel = 0.08;
+  double scan_point_spacing = 0.08;
 
   // --- local map (rolling window of keyframes) ---
   std::size_t window_keyframes = 60;      ///< keyframes kept in the local map (bounds cost per scan)
@@ -202,7 +202,7 @@ class ScanMatcher {
 
   /// Line points (with normals) of a scan, in the laser frame, voxel-thinned.
   std::vector<MapPoint> line_points(const std::vector<Point2>& endpoints, double angle_increment) const;
-  /// Thins `endpoints` to points scan_voxel apart (in beam order) into `source_`.
+  /// Thins `endpoints` to points scan_point_spacing apart (in beam order) into `source_`.
   void thin_source(const std::vector<Point2>& endpoints);
   void add_keyframe(double timestamp, const Pose2& laser_pose, const std::vector<Point2>& endpoints,
                     double angle_increment);
