@@ -20,6 +20,7 @@
 #include <shared_mutex>
 #include <string>
 #include <tuple>
+#include <variant>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
@@ -73,6 +74,146 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
                 " beams: expected radians (a scan spans at most 2 pi)");
   if (!(max_range > 0.0)) throw Error("LaserScan: expected max_range > 0 [m], got " + std::to_string(max_range));
   return s;
+}
+
+/// A grid of nav_msgs cells, checked: what the constructor and __setstate__ make.
+OccupancyGrid make_grid(const py::array& cells_in, double resolution, const PoseTuple& origin) {
+  // nav_msgs data: int8, -1 unknown, 0..100 (0 free, 100 occupied); a uint8 view reads -1 as 255.
+  const char kind = cells_in.dtype().kind();
+  if (kind != 'i' && kind != 'u')
+    throw Error(
+        "OccupancyGrid: cells must be integers as nav_msgs/OccupancyGrid holds them (-1 unknown, "
+        "0 free, 100 occupied), got dtype kind '" +
+        std::string(1, kind) + "'");
+  const bool bytes = kind == 'u' && cells_in.itemsize() == 1;
+  const auto cells = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(cells_in);
+  if (!cells || cells.ndim() != 2)
+    throw Error("OccupancyGrid: cells must be a 2-D array (rows, columns), got " + std::to_string(cells_in.ndim()) +
+                "-D");
+  if (cells.size() == 0) throw Error("OccupancyGrid: cells must not be empty");
+  if (!(resolution > 0.0) || !std::isfinite(resolution))
+    throw Error("OccupancyGrid: resolution must be a finite > 0 m");
+  OccupancyGrid g;
+  g.resolution = resolution;
+  const Pose2 o = finite_pose(origin, "OccupancyGrid origin");
+  g.origin = {o.x, o.y};
+  g.origin_yaw = o.theta;
+  g.height = static_cast<std::size_t>(cells.shape(0)), g.width = static_cast<std::size_t>(cells.shape(1));
+  g.cells.resize(static_cast<std::size_t>(cells.size()));
+  const std::int64_t* data = cells.data();
+  for (std::size_t i = 0; i < g.cells.size(); ++i) {
+    const std::int64_t v = bytes && data[i] == 255 ? -1 : data[i];
+    if (v < -1 || v > 100)
+      throw Error("OccupancyGrid: cell " + std::to_string(i) + " (row " + std::to_string(i / g.width) + ", column " +
+                  std::to_string(i % g.width) + ") is " + std::to_string(data[i]) +
+                  "; expected -1 (unknown) or 0..100 (nav_msgs occupancy)");
+    g.cells[i] = v == 0 ? occupancy::kFree : v == 100 ? occupancy::kOccupied : occupancy::kUnknown;
+  }
+  return g;
+}
+
+/// `a` with numpy's writeable flag down: the properties return copies, so a write into one would be lost
+/// without a word; a read-only copy raises ValueError instead.
+template <class A>
+A read_only(A a) {
+  a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+
+py::array_t<float> ranges_array(const LaserScan& s) {
+  return read_only(py::array_t<float>(s.ranges.size(), s.ranges.data()));
+}
+
+py::array_t<std::int8_t> grid_cells(const OccupancyGrid& g) {
+  return read_only(py::array_t<std::int8_t>({g.height, g.width}, g.cells.data()));
+}
+
+/// The tuple `state` that a __setstate__ of `cls` was given, checked: `size` items, version 1 first
+/// (`layout` names them in the errors).
+py::tuple checked_state(const py::handle& state, std::size_t size, const std::string& cls, const std::string& layout) {
+  const std::string expected = cls + ".__setstate__: expected a state tuple " + layout;
+  if (!py::isinstance<py::tuple>(state)) throw Error(expected + ", got " + std::string(Py_TYPE(state.ptr())->tp_name));
+  const auto t = py::reinterpret_borrow<py::tuple>(state);
+  if (t.size() == 0 || !py::isinstance<py::int_>(t[0])) throw Error(expected + ": the version, an int, first");
+  const py::object version = t[0];
+  if (!version.equal(py::int_(1)))
+    throw Error(cls + ".__setstate__: unknown state version " + py::repr(version).cast<std::string>() +
+                " (pickled by another lshloc version?); expected a state tuple " + layout);
+  if (t.size() != size)
+    throw Error(expected + ", got " + std::to_string(t.size()) + " items instead of " + std::to_string(size));
+  return t;
+}
+
+/// Item `i` (`name`) of a checked state tuple as a T.
+template <class T>
+T state_item(const py::tuple& t, std::size_t i, const std::string& cls, const char* name, const std::string& layout) {
+  try {
+    return t[i].cast<T>();
+  } catch (const py::cast_error&) {
+    throw Error(cls + ".__setstate__: item " + std::to_string(i) + " (" + name + ") is " +
+                py::repr(t[i]).cast<std::string>() + ", which does not fit a state tuple " + layout);
+  }
+}
+
+// Pickled LaserScan and OccupancyGrid: a versioned tuple of every field, read back through the
+// constructors' checks (a field added later gets a new version; old states stay readable).
+constexpr const char* kScanState =
+    "(1, ranges, angle_min, angle_increment, max_range, timestamp, pose, odometry, source_line)";
+constexpr const char* kGridState = "(1, cells, resolution, origin, width, height)";
+
+py::object scan_state(const LaserScan& s) {
+  return py::make_tuple(1, ranges_array(s), s.angle_min, s.angle_increment, s.max_range, s.timestamp, to_tuple(s.pose),
+                        to_tuple(s.odometry), s.source_line);
+}
+
+LaserScan scan_from_state(const py::object& state) {
+  const std::string cls = "LaserScan";
+  const py::tuple t = checked_state(state, 9, cls, kScanState);
+  using Ranges = py::array_t<float, py::array::c_style | py::array::forcecast>;
+  LaserScan s = make_scan(
+      state_item<Ranges>(t, 1, cls, "ranges", kScanState), state_item<double>(t, 2, cls, "angle_min", kScanState),
+      state_item<double>(t, 3, cls, "angle_increment", kScanState),
+      state_item<double>(t, 4, cls, "max_range", kScanState), state_item<double>(t, 5, cls, "timestamp", kScanState),
+      state_item<PoseTuple>(t, 6, cls, "pose", kScanState), state_item<PoseTuple>(t, 7, cls, "odometry", kScanState));
+  s.source_line = state_item<std::size_t>(t, 8, cls, "source_line", kScanState);
+  return s;
+}
+
+py::object grid_state(const OccupancyGrid& g) {
+  return py::make_tuple(1, grid_cells(g), g.resolution, PoseTuple{g.origin.x(), g.origin.y(), g.origin_yaw}, g.width,
+                        g.height);
+}
+
+OccupancyGrid grid_from_state(const py::object& state) {
+  const std::string cls = "OccupancyGrid";
+  const py::tuple t = checked_state(state, 6, cls, kGridState);
+  OccupancyGrid g = make_grid(state_item<py::array>(t, 1, cls, "cells", kGridState),
+                              state_item<double>(t, 2, cls, "resolution", kGridState),
+                              state_item<PoseTuple>(t, 3, cls, "origin", kGridState));
+  const auto width = state_item<std::size_t>(t, 4, cls, "width", kGridState);
+  const auto height = state_item<std::size_t>(t, 5, cls, "height", kGridState);
+  if (width != g.width || height != g.height)
+    throw Error("OccupancyGrid.__setstate__: width " + std::to_string(width) + " and height " + std::to_string(height) +
+                " disagree with the cells' " + std::to_string(g.height) + " rows of " + std::to_string(g.width));
+  return g;
+}
+
+/// A config_json argument: JSON text, or a dict of the same settings.
+using ConfigJson = std::variant<std::string, py::dict>;
+
+/// The JSON text of a config_json argument; a dict is written by Python's json module (no NaN: JSON has none).
+std::string config_text(const ConfigJson& config) {
+  if (const auto* text = std::get_if<std::string>(&config)) return *text;
+  try {
+    return py::module_::import("json")
+        .attr("dumps")(std::get<py::dict>(config), py::arg("allow_nan") = false)
+        .cast<std::string>();
+  } catch (const py::error_already_set& e) {
+    if (!e.matches(PyExc_TypeError) && !e.matches(PyExc_ValueError)) throw;
+    throw Error(std::string("config_json: expected a dict of JSON values (str keys; numbers, bools, str, None, lists "
+                            "and dicts); json.dumps says: ") +
+                py::str(e.value()).cast<std::string>());
+  }
 }
 
 /// Takes a map lock without holding the GIL (where this thread holds it): a thread waiting for the map
@@ -149,7 +290,17 @@ LocalizerConfig localizer_config(const GlobalMap& map, const std::string& config
 }  // namespace
 
 PYBIND11_MODULE(lshloc, m) {
-  m.doc() = "lshloc: global localization of 2D-laser robots in large, growing maps (LSH-RANSAC)";
+  m.doc() =
+      "lshloc: global localization of 2D-laser robots in large, growing maps (LSH-RANSAC)\n\n"
+      "Poses are (x, y, theta) tuples [m, m, rad]. The `pose` of a scan or an estimate is the laser's; an "
+      "estimate's `robot_pose` is the robot's (the laser mount, laser_offset, taken off). A NaN (or negative) range "
+      "is an invalid beam, a range >= max_range no return.\n"
+      "Threads: the heavy calls (adding scans, localizing, reading and writing logs, maps and grids) release the "
+      "GIL. A GlobalMap may be used from several threads: its writes (add_submap, add_scan, add_grid_submap, "
+      "set_query_settings) take its lock exclusively, its reads (Localizer.add_scan, save, stats, ...) shared. A "
+      "Localizer serializes its own calls.\n"
+      "Bad input raises lshloc.Error (a ValueError) saying what was expected; a file that cannot be opened, read or "
+      "written, lshloc.FileError (also an OSError).";
   m.attr("__version__") = LSHLOC_VERSION;
   const auto error = py::register_exception<Error>(m, "Error", PyExc_ValueError);
   // A file that cannot be opened or read: both lshloc.Error and OSError.
@@ -158,16 +309,26 @@ PYBIND11_MODULE(lshloc, m) {
   py::class_<LaserScan>(m, "LaserScan", "One planar laser scan: ranges [m] at angle_min + i * angle_increment [rad]")
       .def(py::init(&make_scan), py::arg("ranges"), py::arg("angle_min"), py::arg("angle_increment"),
            py::arg("max_range") = 81.0, py::arg("timestamp") = 0.0, py::arg("pose") = PoseTuple{0, 0, 0},
-           py::arg("odometry") = PoseTuple{0, 0, 0})
-      .def_property_readonly("ranges",
-                             [](const LaserScan& s) { return py::array_t<float>(s.ranges.size(), s.ranges.data()); })
-      .def_property_readonly("angles",
-                             [](const LaserScan& s) {
-                               py::array_t<double> a(s.ranges.size());
-                               auto v = a.mutable_unchecked<1>();
-                               for (std::size_t i = 0; i < s.ranges.size(); ++i) v(i) = s.bearing(i);
-                               return a;
-                             })
+           py::arg("odometry") = PoseTuple{0, 0, 0},
+           "ranges: 1-D array [m], kept as float32 (NaN or negative: invalid beam; >= max_range: no return); "
+           "angle_min: [rad] beam 0's bearing in the laser frame (x forward, y left); angle_increment: [rad] between "
+           "beams; max_range: [m]; timestamp: [s]; pose: the laser's pose (x, y, theta) the log gives (the "
+           "Localizer ignores it; occupancy_grid_from_scans draws the scan there, mappers pass it to "
+           "GlobalMap.add_scan); odometry: the robot's odometry pose (x, y, theta) at the scan (the "
+           "Localizer uses only its change from scan to scan)")
+      .def_property_readonly(
+          "ranges", &ranges_array,
+          "[m] float32, a read-only copy (NaN or negative: invalid beam; >= max_range: no return); for other "
+          "ranges build a new LaserScan")
+      .def_property_readonly(
+          "angles",
+          [](const LaserScan& s) {
+            py::array_t<double> a(s.ranges.size());
+            auto v = a.mutable_unchecked<1>();
+            for (std::size_t i = 0; i < s.ranges.size(); ++i) v(i) = s.bearing(i);
+            return read_only(a);
+          },
+          "[rad] each beam's bearing in the laser frame, a read-only copy (angle_min + i * angle_increment)")
       .def_property_readonly(
           "angle_min", [](const LaserScan& s) { return s.angle_min; }, "[rad] the first beam's angle")
       .def_property_readonly(
@@ -195,6 +356,7 @@ PYBIND11_MODULE(lshloc, m) {
           [](LaserScan& s, const PoseTuple& p) { s.odometry = finite_pose(p, "LaserScan.odometry"); },
           "the robot's odometry pose (x, y, theta) at the scan")
       .def("__len__", [](const LaserScan& s) { return s.ranges.size(); })
+      .def(py::pickle(&scan_state, &scan_from_state))
       .def("__repr__", [](const LaserScan& s) {
         const double last =
             s.angle_min + s.angle_increment * static_cast<double>(s.ranges.empty() ? 0 : s.ranges.size() - 1);
@@ -206,12 +368,17 @@ PYBIND11_MODULE(lshloc, m) {
       });
 
   py::class_<io::CarmenLog>(m, "CarmenLog", "A CARMEN log in memory")
-      .def_readonly("path", &io::CarmenLog::path)
+      .def_readonly("path", &io::CarmenLog::path, "the file read, as given")
       .def_readonly("scans", &io::CarmenLog::scans,
                     "the laser scans, a new list on each access (items refer into the log): keep "
                     "`scans = log.scans` rather than indexing log.scans in a loop")
-      .def_property_readonly("laser_offset", [](const io::CarmenLog& l) { return to_tuple(l.front_laser_offset()); })
-      .def_property_readonly("gmapping_corrected", &io::CarmenLog::gmapping_corrected)
+      .def_property_readonly(
+          "laser_offset", [](const io::CarmenLog& l) { return to_tuple(l.front_laser_offset()); },
+          "the laser's mount on the robot (x, y, theta), from the ROBOTLASER1 lines or PARAM "
+          "robot_frontlaser_* (0 when absent): pass it to Localizer(laser_offset=...) for this robot")
+      .def_property_readonly("gmapping_corrected", &io::CarmenLog::gmapping_corrected,
+                             "whether GMapping corrected the log (it has NEFF messages): its scan poses are then map "
+                             "poses, not odometry")
       .def_readonly("warnings", &io::CarmenLog::warnings,
                     "what the reader noticed (time stamps backwards or repeated, bytes after the gzip stream), "
                     "each naming the file and line")
@@ -243,53 +410,22 @@ PYBIND11_MODULE(lshloc, m) {
   py::class_<OccupancyGrid>(m, "OccupancyGrid",
                             "An occupancy grid as nav_msgs has it: cells[row, col] is -1 (unknown), 0 (free) or 100 "
                             "(occupied), row 0 at the origin's y")
-      .def(py::init([](const py::array& cells_in, double resolution, const PoseTuple& origin) {
-             // nav_msgs data: int8, -1 unknown, 0..100 (0 free, 100 occupied); a uint8 view reads -1 as 255.
-             const char kind = cells_in.dtype().kind();
-             if (kind != 'i' && kind != 'u')
-               throw Error(
-                   "OccupancyGrid: cells must be integers as nav_msgs/OccupancyGrid holds them (-1 unknown, "
-                   "0 free, 100 occupied), got dtype kind '" +
-                   std::string(1, kind) + "'");
-             const bool bytes = kind == 'u' && cells_in.itemsize() == 1;
-             const auto cells = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(cells_in);
-             if (!cells || cells.ndim() != 2)
-               throw Error("OccupancyGrid: cells must be a 2-D array (rows, columns), got " +
-                           std::to_string(cells_in.ndim()) + "-D");
-             if (cells.size() == 0) throw Error("OccupancyGrid: cells must not be empty");
-             if (!(resolution > 0.0) || !std::isfinite(resolution))
-               throw Error("OccupancyGrid: resolution must be a finite > 0 m");
-             OccupancyGrid g;
-             g.resolution = resolution;
-             const Pose2 o = finite_pose(origin, "OccupancyGrid origin");
-             g.origin = {o.x, o.y};
-             g.origin_yaw = o.theta;
-             g.height = static_cast<std::size_t>(cells.shape(0)), g.width = static_cast<std::size_t>(cells.shape(1));
-             g.cells.resize(static_cast<std::size_t>(cells.size()));
-             const std::int64_t* data = cells.data();
-             for (std::size_t i = 0; i < g.cells.size(); ++i) {
-               const std::int64_t v = bytes && data[i] == 255 ? -1 : data[i];
-               if (v < -1 || v > 100)
-                 throw Error("OccupancyGrid: cell " + std::to_string(i) + " (row " + std::to_string(i / g.width) +
-                             ", column " + std::to_string(i % g.width) + ") is " + std::to_string(data[i]) +
-                             "; expected -1 (unknown) or 0..100 (nav_msgs occupancy)");
-               g.cells[i] = v == 0 ? occupancy::kFree : v == 100 ? occupancy::kOccupied : occupancy::kUnknown;
-             }
-             return g;
-           }),
-           py::arg("cells"), py::arg("resolution"), py::arg("origin") = PoseTuple{0, 0, 0},
+      .def(py::init(&make_grid), py::arg("cells"), py::arg("resolution"), py::arg("origin") = PoseTuple{0, 0, 0},
            "cells: 2-D integer array as nav_msgs/OccupancyGrid data, row 0 at the origin's y: -1 unknown, 0 free, "
            "100 occupied; 1..99 read as unknown (as AMCL reads them); uint8 255 is -1. resolution [m]; origin (x, y, "
            "yaw) of cell (0, 0)'s corner")
-      .def_readonly("resolution", &OccupancyGrid::resolution)
-      .def_property_readonly("origin",
-                             [](const OccupancyGrid& g) {
-                               return PoseTuple{g.origin.x(), g.origin.y(), g.origin_yaw};
-                             })
-      .def_property_readonly("cells",
-                             [](const OccupancyGrid& g) {
-                               return py::array_t<std::int8_t>({g.height, g.width}, g.cells.data());
-                             })
+      .def_readonly("resolution", &OccupancyGrid::resolution, "[m] a cell's edge")
+      .def_property_readonly(
+          "origin",
+          [](const OccupancyGrid& g) {
+            return PoseTuple{g.origin.x(), g.origin.y(), g.origin_yaw};
+          },
+          "(x, y, yaw) [m, m, rad]: cell (0, 0)'s lower left corner and the grid's rotation about it, as map_server's "
+          "origin")
+      .def_property_readonly("cells", &grid_cells,
+                             "int8 (rows, columns), row 0 at the origin's y: -1 unknown, 0 free, 100 occupied; a "
+                             "read-only copy (for other cells build a new OccupancyGrid)")
+      .def(py::pickle(&grid_state, &grid_from_state))
       .def("__repr__", [](const OccupancyGrid& g) {
         std::string text;
         io::append_format(text, "<lshloc.OccupancyGrid: %zu x %zu cells of %g m, origin (%g, %g, %g)>", g.width,
@@ -318,20 +454,23 @@ PYBIND11_MODULE(lshloc, m) {
   py::class_<PyGlobalMap>(m, "GlobalMap",
                           "The global map mapper robots feed, one scan at a time; usable from several threads (writes "
                           "exclusive, reads shared)")
-      .def(py::init([](const std::string& config_json) {
+      .def(py::init([](const ConfigJson& config_json) {
              GlobalMapConfig c;
-             if (!config_json.empty()) io::apply_config_patch(parse_config_json(config_json), c, "config_json");
+             const std::string text = config_text(config_json);
+             if (!text.empty()) io::apply_config_patch(parse_config_json(text), c, "config_json");
              return PyGlobalMap{std::make_shared<GlobalMap>(c)};
            }),
            py::arg("config_json") = "",
-           "config_json: a JSON object of GlobalMapConfig fields to change (the `map` part of `lshloc map build "
-           "--print-config`), e.g. '{\"database\": {\"L\": 16}}'")
+           "config_json: a JSON object (text or dict) of GlobalMapConfig fields to change (the `map` part of `lshloc "
+           "map build --print-config`), e.g. {\"database\": {\"L\": 16}}")
       .def(
           "set_query_settings",
-          [](PyGlobalMap& g, const std::string& config_json) {
+          [](PyGlobalMap& g, const ConfigJson& config_json) {
+            const nlohmann::json patch = parse_config_json(config_text(config_json));  // (a dict needs the GIL)
+            const py::gil_scoped_release release;
             g.write([&](GlobalMap& map) {
               LshConfig asked = map.config().database;
-              io::apply_config_patch(parse_config_json(config_json), asked, "config_json");
+              io::apply_config_patch(patch, asked, "config_json");
               if (nlohmann::json(with_query_settings(map.config().database, asked)) != nlohmann::json(asked))
                 throw Error(
                     "config_json: a built map's database takes only max_candidates, rarest_buckets_first and "
@@ -339,9 +478,9 @@ PYBIND11_MODULE(lshloc, m) {
               map.set_query_settings(asked);
             });
           },
-          py::arg("config_json"), py::call_guard<py::gil_scoped_release>(),
+          py::arg("config_json"),
           "Queries from now on read the map's database with these query-time settings, no rebuild: a JSON "
-          "object of LshConfig fields (the map's `database` part), e.g. '{\"max_candidates\": 1000}'; "
+          "object (text or dict) of LshConfig fields (the map's `database` part), e.g. {\"max_candidates\": 1000}; "
           "localizers made before take them from their next scan")
       .def(
           "add_submap",
@@ -381,12 +520,25 @@ PYBIND11_MODULE(lshloc, m) {
           py::arg("headings") = GridSubmapConfig{}.headings, py::arg("beams") = GridSubmapConfig{}.beams,
           py::arg("field_of_view") = GridSubmapConfig{}.field_of_view,
           py::arg("max_range") = GridSubmapConfig{}.max_range,
-          "Adds a submap built from an occupancy grid (virtual scans of the given laser from free positions); "
-          "returns (submap id, stats). A grid or setting that cannot make a submap raises lshloc.Error before the "
-          "map changes")
+          "Adds a submap built from an occupancy grid: virtual scans from free positions pose_spacing [m] apart, "
+          "`headings` per position, each of `beams` beams over field_of_view [rad] reaching max_range [m]; returns "
+          "(submap id, stats). A grid or setting that cannot make a submap raises lshloc.Error before the map "
+          "changes")
       .def_property_readonly(
           "submap_count",
-          [](const PyGlobalMap& g) { return g.read([](const GlobalMap& map) { return map.submap_count(); }); })
+          [](const PyGlobalMap& g) { return g.read([](const GlobalMap& map) { return map.submap_count(); }); },
+          "the number of submaps (ids 0 to submap_count - 1)")
+      .def_property_readonly(
+          "submap_names",
+          [](const PyGlobalMap& g) {
+            return g.read([](const GlobalMap& map) {
+              std::vector<std::string> names;
+              names.reserve(map.submap_count());
+              for (std::uint32_t id = 0; id < map.submap_count(); ++id) names.push_back(map.submap_name(id));
+              return names;
+            });
+          },
+          "the submaps' names in id order (a new list on each access)")
       .def(
           "submap_name",
           [](const PyGlobalMap& g, std::uint32_t submap) {
@@ -439,18 +591,19 @@ PYBIND11_MODULE(lshloc, m) {
       "Loads a saved map (snapshot and journal); a torn last journal record is dropped with a UserWarning");
 
   py::class_<PyLocalizer>(m, "Localizer", "Localizes one target robot in a GlobalMap from no initial guess")
-      .def(py::init([](const PyGlobalMap& map, const std::string& config_json, const PoseTuple& laser_offset) {
+      .def(py::init([](const PyGlobalMap& map, const ConfigJson& config_json, const PoseTuple& laser_offset) {
              PyLocalizer l;
              const Pose2 offset = finite_pose(laser_offset, "laser_offset");
-             l.localizer = map.read([&](const GlobalMap& g) {
-               return std::make_unique<Localizer>(g, localizer_config(g, config_json, offset));
-             });
+             const std::string text = config_text(config_json);
+             l.localizer = map.read(
+                 [&](const GlobalMap& g) { return std::make_unique<Localizer>(g, localizer_config(g, text, offset)); });
              l.map = map;
              return l;
            }),
            py::arg("map"), py::arg("config_json") = "", py::arg("laser_offset") = PoseTuple{0, 0, 0},
-           "map: the GlobalMap (kept alive by the localizer); config_json: a JSON object of LocalizerConfig fields to "
-           "change (the `localizer` part of `lshloc localize --print-config`; the feature settings are the map's); "
+           "map: the GlobalMap (kept alive by the localizer); config_json: a JSON object (text or dict) of "
+           "LocalizerConfig fields to change (the `localizer` part of `lshloc localize --print-config`; the feature "
+           "settings are the map's); "
            "laser_offset: the target's laser pose (x, y, theta) on the robot, which its odometry moves")
       .def(
           "add_scan",

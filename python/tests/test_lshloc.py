@@ -1,11 +1,16 @@
 """The Python bindings against known answers: simulated buildings with
 ground truth, a bit-identical save and load, and a real scenario that must
 give the CLI's estimates scan by scan."""
+import copy
+import copyreg
 import csv
 import json
 import math
 import os
 import pathlib
+import pickle
+import shutil
+import struct
 import subprocess
 import threading
 import warnings
@@ -15,8 +20,28 @@ import pytest
 
 import lshloc
 
-CLI = os.environ.get("LSHLOC_CLI", "lshloc")
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 DATA = pathlib.Path(os.environ.get("LSHLOC_DATA", pathlib.Path(__file__).resolve().parents[3] / "shared" / "data"))
+
+
+def find_cli(environ=os.environ, root=ROOT):
+    """The lshloc command: LSHLOC_CLI when set, else `lshloc` on PATH, else <repo>/build/bin/lshloc when
+    built; None when there is none (pytest run by hand, without ctest)."""
+    if environ.get("LSHLOC_CLI"):
+        return environ["LSHLOC_CLI"]
+    built = root / "build" / "bin" / "lshloc"
+    return shutil.which("lshloc", path=environ.get("PATH", os.defpath)) or (str(built) if built.is_file() else None)
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """The lshloc command; the tests that run it skip when there is none."""
+    found = find_cli()
+    if found is None:
+        pytest.skip("no lshloc command: set LSHLOC_CLI, put lshloc on PATH or build <repo>/build/bin/lshloc")
+    if shutil.which(found) is None:  # named by LSHLOC_CLI, so a mistake to report, not a reason to skip
+        pytest.fail(f"LSHLOC_CLI={found}: no such executable")
+    return found
 
 
 def feed(gmap, submaps):
@@ -29,9 +54,9 @@ def feed(gmap, submaps):
 
 
 @pytest.fixture(scope="module")
-def world(tmp_path_factory):
+def world(tmp_path_factory, cli):
     d = tmp_path_factory.mktemp("sim")
-    subprocess.run([CLI, "simulate", "--out", str(d), "--buildings", "2", "--seed", "3", "--scans", "1200"],
+    subprocess.run([cli, "simulate", "--out", str(d), "--buildings", "2", "--seed", "3", "--scans", "1200"],
                    check=True, capture_output=True)
     return d
 
@@ -147,7 +172,7 @@ def test_a_loaded_map_takes_query_settings_as_a_map_built_with_them(world, tmp_p
     plain.save(str(tmp_path / "plain.map"))
     loaded = lshloc.load_map(str(tmp_path / "plain.map"))
     before = lshloc.Localizer(loaded)  # made before the change: takes it from its next scan
-    loaded.set_query_settings('{"max_candidates": 1500}')
+    loaded.set_query_settings({"max_candidates": 1500})  # a dict: as its JSON text, which `built` was given
     after, reference, untouched = lshloc.Localizer(loaded), lshloc.Localizer(built), lshloc.Localizer(plain)
     differs = False
     for scan in target.scans[100:160]:
@@ -284,11 +309,11 @@ def test_a_missing_file_is_an_oserror_and_an_lshloc_error(tmp_path):
     assert not isinstance(bad.value, OSError)
 
 
-def test_a_torn_journal_record_is_a_warning(world, tmp_path):
+def test_a_torn_journal_record_is_a_warning(world, tmp_path, cli):
     a = str(world / "sim-3-000" / "sim-3-000-corrected.log.gz")
     path = tmp_path / "m.map"
-    subprocess.run([CLI, "map", "build", a, "--out", str(path)], check=True, capture_output=True)
-    subprocess.run([CLI, "map", "append", str(path), a, "--submap", "more", "--count", "5"], check=True,
+    subprocess.run([cli, "map", "build", a, "--out", str(path)], check=True, capture_output=True)
+    subprocess.run([cli, "map", "append", str(path), a, "--submap", "more", "--count", "5"], check=True,
                    capture_output=True)
     with open(path, "r+b") as f:
         f.truncate(path.stat().st_size - 7)  # the last record loses its end, as a crash mid-write leaves it
@@ -300,11 +325,11 @@ def test_a_torn_journal_record_is_a_warning(world, tmp_path):
 
 
 @pytest.mark.skipif(not (DATA / "intel").is_dir(), reason="shared data directory not found (set LSHLOC_DATA)")
-def test_a_real_scenario_gives_the_cli_estimates(tmp_path):
+def test_a_real_scenario_gives_the_cli_estimates(tmp_path, cli):
     maps = [DATA / "intel" / "intel.gfs.log.gz", DATA / "aces" / "aces-corrected.log.gz"]
     target_path = DATA / "intel" / "intel.recon-from-bag.log.gz"
     out = tmp_path / "t.tum"
-    args = [CLI, "localize", "--target", str(target_path), "--start", "5000", "--length", "200", "--out", str(out)]
+    args = [cli, "localize", "--target", str(target_path), "--start", "5000", "--length", "200", "--out", str(out)]
     for m in maps:
         args += ["--map", str(m)]
     subprocess.run(args, check=True, capture_output=True)
@@ -336,3 +361,170 @@ def test_a_real_scenario_gives_the_cli_estimates(tmp_path):
                 x, y, _ = e["robot_pose"]
                 assert tum[round(scan.timestamp, 6)][:2] == pytest.approx((x, y), abs=2e-6)
     assert e["localized"] and e["submap_name"] == "intel.gfs.log.gz"
+
+
+def exact(value):
+    """`value` with each float as its IEEE bytes (-0.0 and NaN payloads told apart), arrays as dtype,
+    shape and bytes: equal exactly when bit for bit equal."""
+    if isinstance(value, (tuple, list)):
+        return tuple(exact(v) for v in value)
+    if isinstance(value, np.ndarray):
+        return value.dtype.str, value.shape, value.tobytes()
+    if isinstance(value, float):
+        return struct.pack("<d", value)
+    return value
+
+
+def scan_fields(scan):
+    # The state holds source_line, which has no property.
+    return exact((scan.ranges, scan.angles, scan.angle_min, scan.angle_increment, scan.max_range, scan.timestamp,
+                  scan.pose, scan.odometry, len(scan), scan.__getstate__()))
+
+
+def grid_fields(grid):
+    return exact((grid.cells, grid.resolution, grid.origin, grid.__getstate__()))
+
+
+def test_scans_and_grids_pickle_and_copy_bit_for_bit(tmp_path):
+    log = tmp_path / "two.log"
+    log.write_text("FLASER 4 1.5 -1 81.0 2.25 1.0 2.0 0.5 0.9 1.9 0.4 5.0 host 5.0\n"
+                   "FLASER 4 1.0 1.0 1.0 1.0 0 0 0 0 0 0 6.0 host 6.0\n")
+    read = lshloc.read_carmen_log(str(log))[1]
+    assert read.__getstate__()[8] == 2  # its line in the log
+    payload_nan = np.uint32(0x7FC00123).view(np.float32)
+    made = lshloc.LaserScan(np.array([0.5, payload_nan, np.inf, -0.0, 80.0], dtype=np.float32), angle_min=1.25,
+                            angle_increment=-0.1, max_range=30.0, timestamp=1234567890.123456,
+                            pose=(1e-300, -0.0, math.pi), odometry=(3.0, -4.0, -math.pi / 3))
+    assert made.__getstate__()[0] == 1 and len(made.__getstate__()) == 9
+    for scan in (read, made):
+        for twin in (pickle.loads(pickle.dumps(scan)), copy.copy(scan), copy.deepcopy(scan)):
+            assert type(twin) is lshloc.LaserScan and twin is not scan
+            assert scan_fields(twin) == scan_fields(scan)
+            assert np.array_equal(twin.ranges, scan.ranges, equal_nan=True)
+    twin = pickle.loads(pickle.dumps(made, protocol=pickle.HIGHEST_PROTOCOL))
+    assert twin.ranges[2] == np.inf and twin.ranges.view(np.uint32)[1] == 0x7FC00123
+    assert math.copysign(1.0, twin.pose[1]) == -1.0
+    twin.timestamp = 7.0  # a copy, not a view of the original
+    assert made.timestamp == 1234567890.123456
+
+    cells = np.array([[0, 100, -1], [-1, 0, 100]], dtype=np.int8)
+    grid = lshloc.OccupancyGrid(cells, 0.05, (-1.5, 2.25, 0.3))
+    state = grid.__getstate__()
+    assert state[0] == 1 and np.array_equal(state[1], cells) and state[2:] == (0.05, (-1.5, 2.25, 0.3), 3, 2)
+    for twin in (pickle.loads(pickle.dumps(grid)), copy.copy(grid), copy.deepcopy(grid)):
+        assert type(twin) is lshloc.OccupancyGrid and twin is not grid
+        assert grid_fields(twin) == grid_fields(grid)
+
+
+def test_a_bad_pickle_state_is_refused_saying_what_was_expected():
+    scan = lshloc.LaserScan(np.ones(3, np.float32), 0.0, 0.1)
+    state = scan.__getstate__()
+
+    class Future:
+        """Pickles as a LaserScan of a state version this lshloc does not know."""
+
+        def __reduce__(self):
+            return copyreg.__newobj__, (lshloc.LaserScan,), (2,) + state[1:]
+
+    with pytest.raises(lshloc.Error, match=r"unknown state version 2 .*expected a state tuple \(1, ranges, "):
+        pickle.loads(pickle.dumps(Future(), protocol=1))  # (2 and up insist that Future is a LaserScan)
+
+    def restore(cls, bad):
+        cls.__new__(cls).__setstate__(bad)
+
+    with pytest.raises(lshloc.Error, match="got 8 items instead of 9"):
+        restore(lshloc.LaserScan, state[:-1])
+    with pytest.raises(lshloc.Error, match=r"expected a state tuple \(1, ranges, .*\), got list"):
+        restore(lshloc.LaserScan, list(state))
+    with pytest.raises(lshloc.Error, match="the version, an int, first"):
+        restore(lshloc.LaserScan, ("1",) + state[1:])
+    with pytest.raises(lshloc.Error, match=r"item 5 \(timestamp\) is 'noon'"):
+        restore(lshloc.LaserScan, state[:5] + ("noon",) + state[6:])
+    with pytest.raises(lshloc.Error, match="finite timestamp"):  # the constructor's checks hold too
+        restore(lshloc.LaserScan, state[:5] + (math.nan,) + state[6:])
+    grid_state = lshloc.OccupancyGrid(np.zeros((2, 3), np.int8), 0.05).__getstate__()
+    with pytest.raises(lshloc.Error, match=r"unknown state version 0 .*\(1, cells, resolution, origin, width, "):
+        restore(lshloc.OccupancyGrid, (0,) + grid_state[1:])
+    with pytest.raises(lshloc.Error, match="width 2 and height 3 disagree with the cells' 2 rows of 3"):
+        restore(lshloc.OccupancyGrid, grid_state[:4] + (2, 3))
+
+
+def test_arrays_are_read_only_copies():
+    ranges = np.array([1.0, 2.5, np.nan, 4.0], dtype=np.float32)
+    scan = lshloc.LaserScan(ranges, angle_min=-0.5, angle_increment=0.25)
+    for array in (scan.ranges, scan.angles):
+        assert not array.flags.writeable
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 7
+    assert np.array_equal(scan.ranges, ranges, equal_nan=True) and scan.angles.tolist() == [-0.5, -0.25, 0.0, 0.25]
+    ranges[1] = 9.0  # the scan holds its own copy
+    assert scan.ranges[1] == 2.5
+    changed = scan.ranges.copy()  # other ranges: a new scan from a writable copy
+    changed[0] = 7.0
+    assert lshloc.LaserScan(changed, scan.angle_min, scan.angle_increment).ranges[0] == 7.0 and scan.ranges[0] == 1.0
+    cells = np.array([[0, 100], [-1, 0]], dtype=np.int8)
+    grid = lshloc.OccupancyGrid(cells, 0.05)
+    with pytest.raises(ValueError, match="read-only"):
+        grid.cells[0, 0] = 100
+    assert np.array_equal(grid.cells, cells)
+
+
+def test_config_json_may_be_a_dict():
+    map_settings = {"context_spacing": 0.5, "features": {"max_keypoints": 12}}
+    settings = {"candidates_per_feature": 40, "ransac": {"seed": 7}}
+    by_dict = lshloc.Localizer(lshloc.GlobalMap(map_settings), settings, laser_offset=(0.1, 0.0, 0.0))
+    by_text = lshloc.Localizer(lshloc.GlobalMap(json.dumps(map_settings)), json.dumps(settings),
+                               laser_offset=(0.1, 0.0, 0.0))
+    assert by_dict.config_json() == by_text.config_json()
+    runs = json.loads(by_dict.config_json())
+    assert runs["context_spacing"] == 0.5 and runs["features"]["max_keypoints"] == 12  # the map's
+    assert runs["candidates_per_feature"] == 40 and runs["ransac"]["seed"] == 7  # the localizer's
+    with pytest.raises(lshloc.Error, match=r"config_json: database\.Lx: unknown setting"):
+        lshloc.GlobalMap({"database": {"Lx": 16}})
+    with pytest.raises(lshloc.Error, match=r"config_json: ransac\.sed: unknown setting"):
+        lshloc.Localizer(lshloc.GlobalMap(), {"ransac": {"sed": 7}})
+    with pytest.raises(lshloc.Error, match="takes only max_candidates"):
+        lshloc.GlobalMap().set_query_settings({"K": 11})
+    with pytest.raises(lshloc.Error, match="json.dumps says: Out of range float"):  # JSON has no NaN
+        lshloc.GlobalMap({"context_spacing": math.nan})
+    with pytest.raises(TypeError):
+        lshloc.GlobalMap(["context_spacing", 0.5])
+
+
+def test_a_map_lists_its_submap_names_in_id_order(tmp_path):
+    gmap = lshloc.GlobalMap()
+    assert gmap.submap_names == []
+    assert [gmap.add_submap("west wing"), gmap.add_submap("annex")] == [0, 1]
+    assert gmap.submap_names == ["west wing", "annex"] == [gmap.submap_name(i) for i in range(gmap.submap_count)]
+    gmap.submap_names.append("x")  # a new list on each access
+    assert gmap.submap_names == ["west wing", "annex"]
+    with pytest.raises(AttributeError):
+        gmap.submap_names = ["a", "b"]
+    gmap.save(tmp_path / "m.map")
+    assert lshloc.load_map(tmp_path / "m.map").submap_names == ["west wing", "annex"]
+
+
+def test_the_cli_is_found_without_lshloc_cli(tmp_path):
+    """LSHLOC_CLI, else lshloc on PATH, else the repository's build; None (the tests that need it skip) without."""
+    root, bin_dir = tmp_path / "repo", tmp_path / "bin"
+    assert find_cli({"PATH": ""}, root) is None
+    built = root / "build" / "bin" / "lshloc"
+    built.parent.mkdir(parents=True)
+    built.write_text("#!/bin/sh\n")
+    built.chmod(0o755)
+    assert find_cli({"PATH": ""}, root) == str(built)
+    bin_dir.mkdir()
+    shutil.copy(built, bin_dir / "lshloc")
+    assert find_cli({"PATH": str(bin_dir)}, root) == str(bin_dir / "lshloc")
+    assert find_cli({"PATH": str(bin_dir), "LSHLOC_CLI": "/opt/x/lshloc"}, root) == "/opt/x/lshloc"
+
+
+def test_help_states_the_conventions():
+    for phrase in ("(x, y, theta) tuples [m, m, rad]", "`robot_pose` is the robot's", "NaN", ">= max_range",
+                   "release the GIL", "exclusively", "A Localizer serializes its own calls"):
+        assert phrase in lshloc.__doc__, phrase
+    assert "odometry" in lshloc.LaserScan.__init__.__doc__
+    for array in (lshloc.LaserScan.ranges, lshloc.LaserScan.angles, lshloc.OccupancyGrid.cells):
+        assert "read-only copy" in array.__doc__
+    assert "Localizer" in lshloc.CarmenLog.laser_offset.__doc__
+    assert "[rad]" in lshloc.GlobalMap.add_grid_submap.__doc__
