@@ -39,17 +39,12 @@ std::vector<std::uint32_t> open_replay(const Scenario& scenario, std::size_t map
 }  // namespace
 
 void LiveReplayConfig::validate() const {
-  const auto require = [](bool ok, const char* field, const char* expected, double value) {
-    if (!ok) {
-      throw Error(std::string("LiveReplayConfig.") + field + ": expected " + expected + ", got " +
-                  std::to_string(value));
-    }
-  };
-  require(std::isfinite(mapper_speed) && mapper_speed > 0.0 && mapper_speed <= 1e6, "mapper_speed",
+  require(std::isfinite(mapper_speed) && mapper_speed > 0.0 && mapper_speed <= 1e6, "LiveReplayConfig.mapper_speed",
           "a number in (0, 1e6]", mapper_speed);
-  require(std::isfinite(max_gap_s) && max_gap_s >= 0.0, "max_gap_s", "a finite number >= 0", max_gap_s);
-  require(std::isfinite(mapped_radius_m) && mapped_radius_m > 0.0, "mapped_radius_m", "a finite number > 0",
-          mapped_radius_m);
+  require(std::isfinite(max_gap_s) && max_gap_s >= 0.0, "LiveReplayConfig.max_gap_s", "a finite number >= 0",
+          max_gap_s);
+  require(std::isfinite(mapped_radius_m) && mapped_radius_m > 0.0, "LiveReplayConfig.mapped_radius_m",
+          "a finite number > 0", mapped_radius_m);
 }
 
 std::vector<MapperEvent> mapper_schedule(const std::vector<Submap>& submaps, const LiveReplayConfig& config) {

@@ -88,7 +88,22 @@ void for_each_query_distances(const Eigen::Ref<const RowMatrix>& map, std::size_
 
 }  // namespace
 
+void PlaceRecallConfig::validate() const {
+  require(k >= 1, "PlaceRecallConfig.k", ">= 1 location per query", k);
+  require(match_distance > 0.0 && std::isfinite(match_distance), "PlaceRecallConfig.match_distance", "finite and > 0 m",
+          match_distance);
+  require(match_angle_deg >= 0.0 && std::isfinite(match_angle_deg), "PlaceRecallConfig.match_angle_deg",
+          "finite and >= 0 deg", match_angle_deg);
+  require(thin_cell >= 0.0 && std::isfinite(thin_cell), "PlaceRecallConfig.thin_cell", "finite and >= 0 m (0: all)",
+          thin_cell);
+  require(thin_angle > 0.0 && std::isfinite(thin_angle), "PlaceRecallConfig.thin_angle", "finite and > 0 rad",
+          thin_angle);
+  extractor.validate();
+  lsh.validate();
+}
+
 PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRecallConfig& config) {
+  config.validate();
   FeatureExtractor extractor(config.extractor);
 
   // Map side: features, locations, and (for the exact baseline) descriptors.
@@ -241,7 +256,7 @@ PlaceRecallResult evaluate_place_recall(const Scenario& scenario, const PlaceRec
 
 PlaceRecallProbe::PlaceRecallProbe(std::vector<RecallQuery> queries, const PlaceRecallConfig& config)
     : queries_(std::move(queries)), config_(config), covered_(queries_.size(), 0), nearest_(queries_.size()) {
-  require(config_.k >= 1, "PlaceRecallConfig.k", ">= 1 location per query", config_.k);
+  config_.validate();
 }
 
 bool PlaceRecallProbe::hit(const RecallQuery& q, const MapLocation& l) const {

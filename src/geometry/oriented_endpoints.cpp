@@ -1,12 +1,23 @@
 #include "lshloc/geometry/oriented_endpoints.hpp"
 #include "lshloc/geometry/line_fit.hpp"
+#include "lshloc/common/error.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace lshloc {
 
+void OrientedEndpointConfig::validate() const {
+  require(normal_radius > 0.0 && std::isfinite(normal_radius), "OrientedEndpointConfig.normal_radius",
+          "finite and > 0 m", normal_radius);
+  require(min_points >= 1, "OrientedEndpointConfig.min_points", ">= 1 endpoint", min_points);
+  require(max_neighbour_gap >= 0.0 && std::isfinite(max_neighbour_gap), "OrientedEndpointConfig.max_neighbour_gap",
+          "finite and >= 0 m", max_neighbour_gap);
+  require(max_range > 0.0, "OrientedEndpointConfig.max_range", "> 0 m", max_range);
+}
+
 std::vector<Pose2> oriented_endpoints(const LaserScan& scan, const OrientedEndpointConfig& config) {
+  config.validate();
   const std::size_t n = scan.size();
   std::vector<Point2> p(n);
   std::vector<char> ok(n, 0);

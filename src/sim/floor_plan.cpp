@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <limits>
 #include <map>
 #include <numbers>
 #include <queue>
 #include <random>
 #include <string>
+#include <utility>
 
 #include "lshloc/common/error.hpp"
 
@@ -671,33 +673,40 @@ class PlanBuilder {
   FloorPlan plan_;
 };
 
-void validate(const FloorPlanConfig& c) {
-  const auto require = [](bool ok, const std::string& what) {
-    if (!ok) throw Error("floor plan config: " + what);
-  };
-  require(c.layout_cell > 0.0 && c.layout_cell <= 0.5, "layout_cell must be in (0, 0.5] m");
-  require(c.room_min >= 1.5 && c.room_max >= 2.0 * c.room_min,
-          "room_min must be >= 1.5 m and room_max >= 2 * room_min (rooms are split in two)");
-  require(
-      c.min_size >= 2.0 * c.room_min + c.corridor_max_width + 2.0 && c.max_size >= c.min_size && c.max_size <= 500.0,
-      "need 2 * room_min + corridor_max_width + 2 <= min_size <= max_size <= 500 m");
-  require(c.corridor_min_width >= 1.2 && c.corridor_max_width >= c.corridor_min_width,
-          "need 1.2 m <= corridor_min_width <= corridor_max_width");
-  require(c.corridor_split_min >= 2.0 * c.room_min + c.corridor_max_width,
-          "corridor_split_min must leave room for rooms on both sides of a corridor");
-  require(c.door_min_width >= 0.7 && c.door_max_width >= c.door_min_width,
-          "need 0.7 m <= door_min_width <= door_max_width");
-  require(c.max_halls >= 0, "max_halls must not be negative");
-  require(c.pillar_spacing_min >= 1.5 && c.pillar_spacing_max >= c.pillar_spacing_min,
-          "need 1.5 m <= pillar_spacing_min <= pillar_spacing_max");
-  require(c.clutter_per_room >= 0.0 && c.corridor_clutter_per_m >= 0.0 && c.niches_per_m >= 0.0,
-          "clutter and niche rates must not be negative");
-}
-
 }  // namespace
 
+void FloorPlanConfig::validate() const {
+  require(layout_cell > 0.0 && layout_cell <= 0.5, "FloorPlanConfig.layout_cell", "in (0, 0.5] m", layout_cell);
+  require(room_min >= 1.5, "FloorPlanConfig.room_min", ">= 1.5 m", room_min);
+  require(room_max >= 2.0 * room_min, "FloorPlanConfig.room_max", ">= 2 room_min (rooms are split in two)", room_max);
+  require(corridor_min_width >= 1.2, "FloorPlanConfig.corridor_min_width", ">= 1.2 m", corridor_min_width);
+  require(corridor_max_width >= corridor_min_width, "FloorPlanConfig.corridor_max_width", ">= corridor_min_width",
+          corridor_max_width);
+  require(min_size >= 2.0 * room_min + corridor_max_width + 2.0, "FloorPlanConfig.min_size",
+          ">= 2 room_min + corridor_max_width + 2 m", min_size);
+  require(max_size >= min_size && max_size <= 500.0, "FloorPlanConfig.max_size", "in [min_size, 500] m", max_size);
+  require(corridor_split_min >= 2.0 * room_min + corridor_max_width, "FloorPlanConfig.corridor_split_min",
+          ">= 2 room_min + corridor_max_width (rooms on both sides of a corridor)", corridor_split_min);
+  require(door_min_width >= 0.7, "FloorPlanConfig.door_min_width", ">= 0.7 m", door_min_width);
+  require(door_max_width >= door_min_width, "FloorPlanConfig.door_max_width", ">= door_min_width", door_max_width);
+  require(max_halls >= 0, "FloorPlanConfig.max_halls", ">= 0", max_halls);
+  require(pillar_spacing_min >= 1.5, "FloorPlanConfig.pillar_spacing_min", ">= 1.5 m", pillar_spacing_min);
+  require(pillar_spacing_max >= pillar_spacing_min && std::isfinite(pillar_spacing_max),
+          "FloorPlanConfig.pillar_spacing_max", "finite and >= pillar_spacing_min", pillar_spacing_max);
+  require(clutter_per_room >= 0.0 && std::isfinite(clutter_per_room), "FloorPlanConfig.clutter_per_room",
+          "finite and >= 0", clutter_per_room);
+  require(corridor_clutter_per_m >= 0.0 && std::isfinite(corridor_clutter_per_m),
+          "FloorPlanConfig.corridor_clutter_per_m", "finite and >= 0", corridor_clutter_per_m);
+  require(niches_per_m >= 0.0 && std::isfinite(niches_per_m), "FloorPlanConfig.niches_per_m", "finite and >= 0",
+          niches_per_m);
+  for (const auto& [p, field] : {std::pair{l_shape_probability, "FloorPlanConfig.l_shape_probability"},
+                                 std::pair{hall_probability, "FloorPlanConfig.hall_probability"},
+                                 std::pair{extra_door_probability, "FloorPlanConfig.extra_door_probability"}})
+    require(p >= 0.0 && p <= 1.0, field, "a probability in [0, 1]", p);
+}
+
 FloorPlan generate_floor_plan(const FloorPlanConfig& config) {
-  validate(config);
+  config.validate();
   return PlanBuilder(config).build();
 }
 

@@ -26,8 +26,12 @@ bool segment_touches_box(const Point2& a, const Point2& b, double x0, double y0,
 
 }  // namespace
 
+void RayCasterConfig::validate() const {
+  require(cell > 0.0 && std::isfinite(cell), "RayCasterConfig.cell", "finite and > 0 m", cell);
+}
+
 RayCaster::RayCaster(std::span<const Segment> segments, const RayCasterConfig& config) : cell_(config.cell) {
-  if (!(cell_ > 0.0) || !std::isfinite(cell_)) throw Error("ray caster: cell must be a positive number of metres");
+  config.validate();
   double x1 = 0.0, y1 = 0.0;
   x0_ = y0_ = 0.0;
   bool first = true;

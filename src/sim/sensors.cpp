@@ -7,15 +7,18 @@
 
 namespace lshloc::sim {
 
+void LaserConfig::validate() const {
+  require(beams >= 2 && beams <= 100000, "LaserConfig.beams", "in [2, 100000]", beams);
+  require(fov > 0.0 && fov <= 2.0 * std::numbers::pi, "LaserConfig.fov", "in (0, 2 pi] rad", fov);
+  require(max_range > 0.0 && std::isfinite(max_range), "LaserConfig.max_range", "finite and > 0 m", max_range);
+  require(range_noise >= 0.0 && std::isfinite(range_noise), "LaserConfig.range_noise", "finite and >= 0 m",
+          range_noise);
+  require(dropout_probability >= 0.0 && dropout_probability <= 1.0, "LaserConfig.dropout_probability",
+          "a probability in [0, 1]", dropout_probability);
+}
+
 void set_beam_layout(const LaserConfig& config, LaserScan& scan) {
-  if (config.beams < 2 || config.beams > 100000) throw Error("laser config: beams must be in [2, 100000]");
-  if (!(config.fov > 0.0) || config.fov > 2.0 * std::numbers::pi)
-    throw Error("laser config: fov must be in (0, 2 pi] rad");
-  if (!(config.max_range > 0.0) || !std::isfinite(config.max_range))
-    throw Error("laser config: max_range must be positive [m]");
-  if (config.range_noise < 0.0 || config.dropout_probability < 0.0 || config.dropout_probability > 1.0) {
-    throw Error("laser config: range_noise must be >= 0 and dropout_probability in [0, 1]");
-  }
+  config.validate();
   scan.ranges.assign(config.beams, static_cast<float>(config.max_range));
   scan.max_range = config.max_range;
   if (std::abs(config.fov - std::numbers::pi) < 1e-12) {

@@ -161,23 +161,25 @@ class Route {
   std::vector<double> arc_;
 };
 
-void validate(const TrajectoryConfig& c) {
-  const auto require = [](bool ok, const std::string& what) {
-    if (!ok) throw Error("trajectory config: " + what);
-  };
-  require(c.speed > 0.0 && c.speed <= 5.0, "speed must be in (0, 5] m/s");
-  require(c.turn_rate > 0.0, "turn_rate must be positive [rad/s]");
-  require(c.period > 0.0, "period must be positive [s]");
-  require(c.robot_radius > 0.1 && c.preferred_clearance >= c.robot_radius,
-          "need robot_radius > 0.1 m and preferred_clearance >= robot_radius");
-  require(c.lookahead > 0.0 && c.stop_to_turn > 0.0 && c.goal_choices >= 1,
-          "lookahead and stop_to_turn must be positive, goal_choices >= 1");
-}
-
 }  // namespace
 
+void TrajectoryConfig::validate() const {
+  require(speed > 0.0 && speed <= 5.0, "TrajectoryConfig.speed", "in (0, 5] m/s", speed);
+  require(turn_rate > 0.0 && std::isfinite(turn_rate), "TrajectoryConfig.turn_rate", "finite and > 0 [rad/s]",
+          turn_rate);
+  require(period > 0.0 && std::isfinite(period), "TrajectoryConfig.period", "finite and > 0 [s]", period);
+  require(robot_radius > 0.1 && std::isfinite(robot_radius), "TrajectoryConfig.robot_radius", "finite and > 0.1 m",
+          robot_radius);
+  require(preferred_clearance >= robot_radius && std::isfinite(preferred_clearance),
+          "TrajectoryConfig.preferred_clearance", "finite and >= robot_radius", preferred_clearance);
+  require(lookahead > 0.0 && std::isfinite(lookahead), "TrajectoryConfig.lookahead", "finite and > 0 m", lookahead);
+  require(stop_to_turn > 0.0 && std::isfinite(stop_to_turn), "TrajectoryConfig.stop_to_turn", "finite and > 0 rad",
+          stop_to_turn);
+  require(goal_choices >= 1, "TrajectoryConfig.goal_choices", ">= 1", goal_choices);
+}
+
 Trajectory drive_tour(const FloorPlan& plan, const TrajectoryConfig& config, std::size_t count, std::uint64_t seed) {
-  validate(config);
+  config.validate();
   std::vector<Point2> goals;
   for (const auto& w : plan.waypoints)
     if (plan.clearance.at(w) >= config.robot_radius) goals.push_back(w);

@@ -3,12 +3,19 @@
 #include <algorithm>
 
 #include "lshloc/geometry/time_join.hpp"
+#include "lshloc/common/error.hpp"
 
 namespace lshloc {
+
+void RelationsMetricConfig::validate() const {
+  require(time_tolerance >= 0.0 && std::isfinite(time_tolerance), "RelationsMetricConfig.time_tolerance",
+          "finite and >= 0 s", time_tolerance);
+}
 
 std::vector<std::optional<RelationError>> relation_errors(std::span<const StampedPose> trajectory,
                                                           std::span<const Relation> relations,
                                                           const RelationsMetricConfig& config) {
+  config.validate();
   std::vector<double> stamps(trajectory.size()), t1(relations.size()), t2(relations.size());
   for (std::size_t i = 0; i < trajectory.size(); ++i) stamps[i] = trajectory[i].timestamp;
   for (std::size_t i = 0; i < relations.size(); ++i) t1[i] = relations[i].t1, t2[i] = relations[i].t2;

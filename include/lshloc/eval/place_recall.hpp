@@ -31,6 +31,9 @@ struct PlaceRecallConfig {
   FeatureExtractorConfig extractor;
   DescriptorContextConfig context;
   LshConfig lsh;
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
 };
 
 /// What the evaluation measured. Recalls are over covered queries.

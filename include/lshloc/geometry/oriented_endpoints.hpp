@@ -17,6 +17,9 @@ struct OrientedEndpointConfig {
   int min_points = 5;              ///< endpoints (with itself) a normal needs
   double max_neighbour_gap = 0.1;  ///< [m] beyond this (plus two beam arcs) consecutive beams are two surfaces
   double max_range = 1e9;          ///< [m] endpoints at or beyond are left out
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
 };
 
 /// Valid endpoints of `scan` in the laser frame, each as a Pose2 whose theta

@@ -87,6 +87,9 @@ struct FloorPlanConfig {
   double corridor_clutter_per_m = 0.06;  ///< mean cabinets per metre of corridor
   double niches_per_m = 0.04;            ///< mean niches (bays into a room) per metre of corridor
   double layout_cell = 0.1;              ///< [m] resolution of the layout raster and of the clearance grid
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
 };
 
 /// A generated floor plan. The building lies in [0, width] x [0, height]; all

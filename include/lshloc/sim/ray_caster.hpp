@@ -14,6 +14,9 @@ namespace lshloc::sim {
 
 struct RayCasterConfig {
   double cell = 1.0;  ///< [m] bucket side; about a room's wall spacing / 4 works well
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
 };
 
 /// Casts rays against a fixed set of segments. Immutable after construction:

@@ -22,13 +22,15 @@ struct LaserConfig {
   double max_range = 30.0;             ///< [m] nothing within it: the beam reads max_range (no return)
   double range_noise = 0.01;           ///< [m] standard deviation of the Gaussian range error
   double dropout_probability = 0.005;  ///< chance that a beam returns nothing (reads max_range)
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
 };
 
 /// Sets the scan's beam layout and max range for `config`, and sizes its
 /// ranges. At fov = pi the layout is the FLASER one (set_flaser_geometry),
 /// otherwise beams span [-fov/2, +fov/2] with both ends included.
-/// Throws lshloc::Error on fewer than 2 beams, fov outside (0, 2 pi] or a
-/// non-positive max range.
+/// Throws lshloc::Error when LaserConfig::validate() does.
 void set_beam_layout(const LaserConfig& config, LaserScan& scan);
 
 /// Fills scan.ranges (layout set by set_beam_layout) as seen from `laser_pose`

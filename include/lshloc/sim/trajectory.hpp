@@ -19,6 +19,9 @@ struct TrajectoryConfig {
   double lookahead = 0.4;            ///< [m] the heading aims this far ahead along the path
   double stop_to_turn = 0.6;         ///< [rad] heading error at which the robot stops and turns on the spot
   std::size_t goal_choices = 3;      ///< the next goal is drawn from this many nearest unvisited waypoints
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
 };
 
 /// The robot's true poses, one per period, and how it got there.

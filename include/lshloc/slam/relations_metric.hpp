@@ -36,6 +36,9 @@ struct RelationsError {
 
 struct RelationsMetricConfig {
   double time_tolerance = 1e-3;  ///< [s] a relation stamp joins the trajectory pose nearest to it within this
+
+  /// Throws lshloc::Error naming the first field out of range.
+  void validate() const;
 };
 
 /// The error of one relation: translational [m] and rotational [rad].
