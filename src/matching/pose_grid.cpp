@@ -118,9 +118,7 @@ void PoseGridHashMap::mark_cell(std::uint64_t xy, int itheta, CellFlags flags) {
 }
 
 bool PoseGridHashMap::has_room_for(const MarkPlan& plan) const {
-  const auto most =
-      static_cast<std::size_t>(std::floor(config_.max_load_factor * static_cast<double>(std::size_t{1} << 32)));
-  return used_ + plan.writes.size() <= most;
+  return used_ + plan.writes.size() <= grow_threshold(config_.max_load_factor, std::size_t{1} << 32);
 }
 
 void PoseGridHashMap::grow() {
