@@ -391,6 +391,25 @@ TEST(CarmenWriter, NonFlaserLayoutsUseRobotLaser1) {
   std::filesystem::remove(path);
 }
 
+// A spinning lidar's n beams lie a full turn apart, none twice; its
+// ROBOTLASER1 lines read back with the same layout.
+TEST(CarmenWriter, A360DegreeLaserHasNoBeamTwice) {
+  const auto b = building_with_seed(3);
+  SimulationConfig config;
+  config.scans = 30;
+  config.laser.beams = 400, config.laser.fov = 2.0 * kPi;
+  const BuildingRecording rec = simulate_recording(b, config);
+  const LaserScan& scan = rec.raw_scans.front();
+  EXPECT_DOUBLE_EQ(scan.angle_min, -kPi);
+  EXPECT_DOUBLE_EQ(scan.angle_increment, 2.0 * kPi / 400.0);
+  EXPECT_NEAR(scan.angle_min + 399 * scan.angle_increment, kPi - 2.0 * kPi / 400.0, 1e-12);
+  const std::string path = test::temp_path(".log");
+  io::write_carmen_log(path, rec.raw_scans, true);
+  const io::CarmenLog back = io::read_carmen_log(path);
+  expect_same_scans(rec.raw_scans, back.scans);
+  std::filesystem::remove(path);
+}
+
 // The laser's mount (forward, sideways, angle) as CARMEN's three PARAMs,
 // read back whole (FLASER lines carry no mount of their own).
 TEST(CarmenWriter, TheLasersMountReadsBack) {

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "laser_options.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/figures/figures.hpp"
@@ -32,6 +33,7 @@ namespace {
 struct ScaleOptions {
   std::vector<std::size_t> sizes{1, 10, 40};
   sim::SyntheticScenarioConfig world{.seed = 7, .map_scans = 3300, .target_scans = 300};
+  SimulatedLaserOptions laser;  ///< every robot's
   std::size_t targets = 3;
   bool random_control = true;        ///< also localize every target with random hypotheses
   std::size_t recall_queries = 500;  ///< target features sampled for recall@100 (0: none)
@@ -161,9 +163,9 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
     std::vector<Feature> added;
     for (std::size_t i = 0; i < submaps; ++i) {
       // Buildings beyond the targets' take indices no target uses.
-      const Submap building = i < buildings.size()
-                                  ? std::move(buildings[i])
-                                  : sim::synthetic_submap(opt.world.seed, opt.targets + i, opt.world.map_scans);
+      const Submap building = i < buildings.size() ? std::move(buildings[i])
+                                                   : sim::synthetic_submap(opt.world.seed, opt.targets + i,
+                                                                           opt.world.map_scans, opt.world.laser);
       // One building at a time: its scans are dropped once they are in the map.
       const std::uint32_t id = map.add_submap(building.name);
       for (const LaserScan& scan : building.scans)
@@ -268,10 +270,12 @@ void add_bench_scale_command(CLI::App& bench, GlobalOptions& global) {
                   "write each target's per-scan trace (as `eval --trace` does, with its .truth.csv) into this "
                   "directory, as BUILDING.SUBMAPS.database.csv and BUILDING.SUBMAPS.random.csv");
   cmd->add_flag("--json", opt->json, "JSON lines only (the default output is JSON lines too)");
+  add_simulated_laser_options(*cmd, opt->laser);
   add_localizer_options(*cmd, opt->localizer);
   cmd->callback([opt, &global] {
     (void)global;
     if (print_config_if_asked(opt->localizer)) return;
+    opt->world.laser = opt->laser.config();
     if (opt->targets == 0) throw Error("bench scale: --targets must be at least 1");
     // A typo in the trace directory must not cost a whole run.
     if (!opt->trace_dir.empty()) io::require_writable_directory(opt->trace_dir, "the trace directory");

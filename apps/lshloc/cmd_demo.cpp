@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "commands.hpp"
+#include "laser_options.hpp"
 #include "localizer_options.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
@@ -23,6 +24,7 @@ namespace {
 struct DemoOptions {
   sim::SyntheticScenarioConfig world{
       .seed = 2026, .buildings = 6, .target_building = 3, .map_scans = 1500, .target_scans = 400};
+  SimulatedLaserOptions laser;  ///< every robot's
   std::string out = "lshloc-demo";
   bool json = false;
   LocalizerOptions localizer;
@@ -50,6 +52,7 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
       ->check(within(1, 1e6));
   cmd->add_option("--out", opt->out, "directory for the figures and the trace")->capture_default_str();
   cmd->add_flag("--json", opt->json, "print the scenario's JSON line instead of the report");
+  add_simulated_laser_options(*cmd, opt->laser);
   add_localizer_options(*cmd, opt->localizer);
   cmd->callback([opt, &global, target] {
     (void)global;
@@ -61,6 +64,7 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
                   std::to_string(opt->world.buildings - 1) + " (0-based, below --buildings " +
                   std::to_string(opt->world.buildings) + ")");
     }
+    opt->world.laser = opt->laser.config();
     const bool tty = isatty(fileno(stderr));
     const auto t0 = std::chrono::steady_clock::now();
     std::fprintf(stderr, "Generating %zu synthetic buildings (seed %llu) and their mapper robots' logs...\n",

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "laser_options.hpp"
 #include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
 #include "lshloc/io/atomic_file.hpp"
@@ -26,8 +27,7 @@ struct SimulateOptions {
   std::size_t buildings = 1;
   std::uint64_t seed = 1;
   std::size_t scans = 2000;
-  std::size_t beams = 180;
-  double max_range = 30.0;
+  SimulatedLaserOptions laser;
   bool json = false;
   bool svg = false;
 };
@@ -58,8 +58,7 @@ void run_simulate(const SimulateOptions& o) {
   for (std::size_t k = 0; k < o.buildings; ++k) {
     sim::SimulationConfig base;
     base.scans = o.scans;
-    base.laser.beams = o.beams;
-    base.laser.max_range = o.max_range;
+    base.laser = o.laser.config();
     const sim::RunBuilding configs = sim::run_building(o.seed, k, base);
     auto t = std::chrono::steady_clock::now();
     const sim::SyntheticBuilding building = sim::generate_building(configs.building);
@@ -91,7 +90,8 @@ void run_simulate(const SimulateOptions& o) {
     if (o.json) {
       const nlohmann::json line = {{"name", rec.name},
                                    {"scans", rec.raw_scans.size()},
-                                   {"beams", o.beams},
+                                   {"beams", o.laser.beams},
+                                   {"fov_deg", o.laser.fov_deg},
                                    {"segments", building.plan.segments.size()},
                                    {"wall_segments", building.plan.wall_segments},
                                    {"rooms", rooms},
@@ -140,8 +140,9 @@ void add_simulate_command(CLI::App& app, GlobalOptions& /*global*/) {
   auto* cmd = app.add_subcommand(
       "simulate",
       "Generate synthetic office buildings (rooms, corridors, doors, pillars, furniture), drive a robot\n"
-      "through each (0.5 m/s, a scan every 0.2 s) and write DIR/NAME/NAME.log.gz (raw: ODOM + FLASER\n"
-      "with drifting odometry), NAME-corrected.log.gz (true poses), NAME.gfs-poses-at-raw-stamps.txt\n"
+      "through each (0.5 m/s, a scan every 0.2 s) and write DIR/NAME/NAME.log.gz (raw: ODOM + FLASER, or\n"
+      "ROBOTLASER1 for lasers other than 180 degrees, with drifting odometry), NAME-corrected.log.gz (true\n"
+      "poses), NAME.gfs-poses-at-raw-stamps.txt\n"
       "(truth) and NAME.segments.txt (the floor plan as x1 y1 x2 y2 lines).\n"
       "Prints one line per building and the generation rate (scans/s, without writing).");
   auto o = std::make_shared<SimulateOptions>();
@@ -149,12 +150,7 @@ void add_simulate_command(CLI::App& app, GlobalOptions& /*global*/) {
   cmd->add_option("--buildings", o->buildings, "number of buildings")->capture_default_str()->check(within(1, 1000));
   cmd->add_option("--seed", o->seed, "run seed: building k's layout and tour derive from it")->capture_default_str();
   cmd->add_option("--scans", o->scans, "scans per building")->capture_default_str()->check(within(1, 1e6));
-  cmd->add_option("--beams", o->beams, "beams per scan over 180 degrees")
-      ->capture_default_str()
-      ->check(CLI::Range(2, 100000));
-  cmd->add_option("--max-range", o->max_range, "[m] laser max range (no return beyond)")
-      ->capture_default_str()
-      ->check(within(0.01, 1000));
+  add_simulated_laser_options(*cmd, o->laser);
   cmd->add_flag("--json", o->json, "one JSON object per line");
   cmd->add_flag("--svg", o->svg, "also draw each floor plan with the robot's path (DIR/NAME/NAME.svg)");
   cmd->callback([o] { run_simulate(*o); });

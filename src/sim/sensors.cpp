@@ -23,6 +23,10 @@ void set_beam_layout(const LaserConfig& config, LaserScan& scan) {
   scan.max_range = config.max_range;
   if (std::abs(config.fov - std::numbers::pi) < 1e-12) {
     set_flaser_geometry(scan);
+  } else if (config.fov >= 2.0 * std::numbers::pi) {
+    // A 360-degree laser: n beams a full turn apart, the last one step short of the first.
+    scan.angle_min = -std::numbers::pi;
+    scan.angle_increment = 2.0 * std::numbers::pi / static_cast<double>(config.beams);
   } else {
     scan.angle_min = -config.fov / 2.0;
     scan.angle_increment = config.fov / static_cast<double>(config.beams - 1);

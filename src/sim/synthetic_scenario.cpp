@@ -5,9 +5,10 @@
 
 namespace lshloc::sim {
 
-Submap synthetic_submap(std::uint64_t seed, std::size_t index, std::size_t scans) {
+Submap synthetic_submap(std::uint64_t seed, std::size_t index, std::size_t scans, const LaserConfig& laser) {
   RunBuilding rb = run_building(seed, index);
   rb.simulation.scans = scans;
+  rb.simulation.laser = laser;
   rb.simulation.with_raw = false;
   const SyntheticBuilding building = generate_building(rb.building);
   return whole_building_submap(simulate_recording(building, rb.simulation));
@@ -18,6 +19,7 @@ SplitBuilding synthetic_split_building(const SyntheticScenarioConfig& config, st
   RunBuilding rb = run_building(config.seed, index);
   if (config.target_seed != 0) rb.simulation.seed = config.target_seed;
   rb.simulation.scans = config.map_scans + windows * config.target_scans;
+  rb.simulation.laser = config.laser;
   const SyntheticBuilding building = generate_building(rb.building);
   const BuildingRecording rec = simulate_recording(building, rb.simulation);
   // Windows centred at (w + 1) / (windows + 1) of the tour.
@@ -56,7 +58,8 @@ Scenario synthetic_scenario(const SyntheticScenarioConfig& config) {
   Scenario sc;
   sc.target_submap = config.target_building;
   for (std::size_t k = 0; k < config.buildings; ++k) {
-    sc.submaps.push_back(k == config.target_building ? Submap{} : synthetic_submap(config.seed, k, config.map_scans));
+    sc.submaps.push_back(
+        k == config.target_building ? Submap{} : synthetic_submap(config.seed, k, config.map_scans, config.laser));
   }
 
   SplitBuilding split = synthetic_split_building(config, config.target_building, 1);

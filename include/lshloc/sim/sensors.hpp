@@ -29,6 +29,7 @@ struct LaserConfig {
 
 /// Sets the scan's beam layout and max range for `config`, and sizes its
 /// ranges. At fov = pi the layout is the FLASER one (set_flaser_geometry),
+/// at 2 pi the n beams are 2 pi / n apart from -pi (a 360-degree laser),
 /// otherwise beams span [-fov/2, +fov/2] with both ends included.
 /// Throws lshloc::Error when LaserConfig::validate() does.
 void set_beam_layout(const LaserConfig& config, LaserScan& scan);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "lshloc/eval/scenario.hpp"
+#include "lshloc/sim/sensors.hpp"
 
 namespace lshloc::sim {
 
@@ -23,10 +24,11 @@ struct SyntheticScenarioConfig {
   std::size_t target_scans = 300;   ///< scans of the target's run, in the middle of its building's tour
   double guard_s = 30.0;            ///< [s] map scans this close to the target's window are left out
   std::uint64_t target_seed = 0;    ///< 0: the target building's own simulation seed
+  LaserConfig laser{};              ///< every robot's laser (180 beams over 180 degrees by default)
 };
 
 /// One synthetic building as a mapper robot records it (corrected scans only).
-Submap synthetic_submap(std::uint64_t seed, std::size_t index, std::size_t scans);
+Submap synthetic_submap(std::uint64_t seed, std::size_t index, std::size_t scans, const LaserConfig& laser = {});
 
 /// A building toured once for `map_scans + windows * target_scans` scans;
 /// `windows` target runs are cut out of it, evenly spaced, and the submap is
