@@ -379,6 +379,9 @@ PYBIND11_MODULE(lshloc, m) {
       .def_property_readonly("gmapping_corrected", &io::CarmenLog::gmapping_corrected,
                              "whether GMapping corrected the log (it has NEFF messages): its scan poses are then map "
                              "poses, not odometry")
+      .def_property_readonly("poses_corrected", &io::CarmenLog::poses_corrected,
+                             "whether the log's scan poses are map poses: GMapping's NEFF messages, or lshloc's "
+                             "PARAM lshloc_scan_poses map (a corrected log that lshloc wrote)")
       .def_readonly("warnings", &io::CarmenLog::warnings,
                     "what the reader noticed (time stamps backwards or repeated, bytes after the gzip stream), "
                     "each naming the file and line")
@@ -400,7 +403,7 @@ PYBIND11_MODULE(lshloc, m) {
       .def("__repr__", [](const io::CarmenLog& l) {
         std::string text;
         io::append_format(text, "<lshloc.CarmenLog %s: %zu scans, %s>", l.path.c_str(), l.scans.size(),
-                          l.gmapping_corrected() ? "corrected poses" : "raw");
+                          l.poses_corrected() ? "corrected poses" : "raw");
         return text;
       });
   m.def(

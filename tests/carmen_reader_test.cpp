@@ -39,6 +39,7 @@ TEST(CarmenReader, ReadsFlaserOdomParamAndSkipsTheRest) {
       "NEFF 10 0 pippo 0\nSYNC foo\nODOM 1 2 0.1 0.5 0.0 0 100.5 host 100.5\n" +
           flaser_line(180, 2.5, 101.0) + flaser_line(361, 81.91, 102.0));
   const CarmenLog log = read_carmen_log(path);
+  EXPECT_TRUE(log.poses_corrected());  // GMapping's NEFF lines
   ASSERT_EQ(log.scans.size(), 2u);
   ASSERT_EQ(log.odometry.size(), 1u);
   EXPECT_DOUBLE_EQ(log.odometry[0].timestamp, 100.5);

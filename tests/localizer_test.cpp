@@ -3,6 +3,7 @@
 // building and pose (checked against the simulator's ground truth).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -58,6 +59,22 @@ TEST(Localizer, FindsItsPoseWithA270Or360DegreeLaser) {
     ASSERT_EQ(sc.submaps.front().scans.front().ranges.size(), laser.beams);
     expect_localized(sc);
   }
+}
+
+// A laser mounted upside down sweeps clockwise: its beams come in the
+// other order (a negative angle increment). The target's scans, reversed so,
+// still localize in a map its mappers made with the usual sweep.
+TEST(Localizer, FindsItsPoseWithALaserSweepingTheOtherWay) {
+  Scenario sc = sim::synthetic_scenario(test::small_world());
+  for (LaserScan& scan : sc.target.scans) {
+    const double last = scan.bearing(scan.size() - 1);
+    const double first = scan.bearing(0);
+    std::reverse(scan.ranges.begin(), scan.ranges.end());
+    scan.angle_min = last;
+    scan.angle_increment = -scan.angle_increment;
+    ASSERT_NEAR(scan.bearing(scan.size() - 1), first, 1e-12);
+  }
+  expect_localized(sc);
 }
 
 // Many robots, one map: localizers only read the map, so several may run on

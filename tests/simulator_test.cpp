@@ -374,6 +374,9 @@ TEST(CarmenWriter, GeneratedBuildingRoundTripsThroughTheReader) {
   // The raw log also carries one ODOM line per scan with the same pose.
   const io::CarmenLog raw = io::read_carmen_log(files.raw_log);
   ASSERT_EQ(raw.odometry.size(), rec.raw_scans.size());
+  // The corrected log says its scan poses are the map's; the raw log does not.
+  EXPECT_TRUE(io::read_carmen_log(files.corrected_log).poses_corrected());
+  EXPECT_FALSE(raw.poses_corrected());
   EXPECT_NEAR(translation_distance(raw.odometry.back().pose, rec.raw_scans.back().odometry), 0.0, 2e-6);
   std::filesystem::remove_all(dir);
 }

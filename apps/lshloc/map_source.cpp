@@ -112,10 +112,11 @@ Submap load_map_argument(const std::string& arg, bool slam) {
       s.scans = slam_mapped_scans(scans, log.front_laser_offset());
       s.poses_from_slam = true;
     } else {
-      if (!log.gmapping_corrected()) {
+      if (!log.poses_corrected()) {
         std::fprintf(stderr,
-                     "lshloc: warning: %s: its submap takes the log's own scan poses, and the log has no GMapping "
-                     "marks (NEFF): if it is a raw log these are odometry, which drifts. Give LOG,POSES or LOG,slam "
+                     "lshloc: warning: %s: its submap takes the log's own scan poses, and the log has no mark of "
+                     "corrected poses (GMapping's NEFF lines, lshloc's PARAM lshloc_scan_poses map): if it is a raw "
+                     "log these are odometry, which drifts. Give LOG,POSES or LOG,slam "
                      "for a raw log (or SLAM for every log: localize --map-slam, map build --slam).\n",
                      log_path.c_str());
       }

@@ -107,6 +107,9 @@ def test_a_log_is_a_sequence_of_scans_and_paths_may_be_pathlib(world, tmp_path):
     with pytest.raises(IndexError):
         log[len(log)]
     assert f"{len(log)} scans" in repr(log) and f"{len(scans[0])} beams" in repr(scans[0])
+    # lshloc marks its corrected logs; the raw log's poses are odometry
+    assert log.poses_corrected and not log.gmapping_corrected and "corrected poses" in repr(log)
+    assert not lshloc.read_carmen_log(world / "sim-3-000" / "sim-3-000.log.gz").poses_corrected
     gmap = lshloc.GlobalMap()
     feed(gmap, [("a", scans[:100])])
     st = gmap.stats()

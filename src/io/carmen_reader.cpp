@@ -272,6 +272,11 @@ void CarmenReader::require_messages() const {
                 std::to_string(lines_read()) + " lines; expected a CARMEN log");
 }
 
+bool CarmenLog::poses_corrected() const {
+  const auto mark = params.find("lshloc_scan_poses");
+  return gmapping_corrected() || (mark != params.end() && mark->second == "map");
+}
+
 Pose2 CarmenLog::front_laser_offset() const {
   if (robotlaser_offset) return *robotlaser_offset;
   std::array<double, 3> v{};  // forward, sideways, angle: kLaserOffsetParams' order

@@ -198,6 +198,9 @@ void write_carmen_log(const std::string& path, std::span<const LaserScan> scans,
     if (ec == std::errc())
       out.param("robot_front_laser_max", std::string_view(text, static_cast<std::size_t>(end - text)));
   }
+  // Without odometry the scan poses are the map's (a corrected log): say so,
+  // as GMapping's NEFF lines do, so that readers need not warn of odometry.
+  if (!with_odometry) out.param("lshloc_scan_poses", "map");
   if (laser_offset.x != 0.0 || laser_offset.y != 0.0 || laser_offset.theta != 0.0) {
     // CARMEN's offset parameters: metres forward, sideways, and the angle.
     out.param("robot_frontlaser_offset", std::to_string(laser_offset.x));

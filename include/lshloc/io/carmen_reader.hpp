@@ -111,6 +111,9 @@ struct CarmenLog {
   /// Whether GMapping corrected the log (it writes NEFF messages): its scan
   /// poses are then map poses, not odometry.
   bool gmapping_corrected() const { return skipped_messages.count("NEFF") != 0; }
+  /// Whether the log's scan poses are map poses: GMapping's NEFF marks, or
+  /// lshloc's `PARAM lshloc_scan_poses map` (write_carmen_log without odometry).
+  bool poses_corrected() const;
 
   /// The laser's mounting pose on the robot: robotlaser_offset when the log
   /// has one, else PARAM robot_frontlaser_offset, robot_frontlaser_side_offset

@@ -68,7 +68,8 @@ class CarmenWriter {
 };
 
 /// Writes `scans` as one log: PARAM lines (robot_front_laser_max from the
-/// first scan; the laser mount as robot_frontlaser_offset, _side_offset and
+/// first scan; lshloc_scan_poses map without odometry: the scan poses are
+/// map poses; the laser mount as robot_frontlaser_offset, _side_offset and
 /// _angular_offset when not identity), then per scan an
 /// ODOM line (when `with_odometry`; velocities from consecutive odometry
 /// poses) and its laser message.
