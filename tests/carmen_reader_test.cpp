@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <numbers>
 
@@ -279,6 +280,37 @@ TEST(CarmenReaderBadInput, AFileWithoutCarmenMessagesIsAnError) {
   const std::string e = expect_error("# lshloc\nThis is a README, not a log.\nIt has no messages.\n");
   EXPECT_NE(e.find("no CARMEN message"), std::string::npos) << e;
   EXPECT_NE(e.find("3 lines"), std::string::npos) << e;
+}
+
+// What users give in place of a log: ROS bags and the image of a ROS map.
+// Each is named, with what to do instead.
+TEST(CarmenReaderBadInput, BagsAndMapImagesAreNamedWithWhatToDo) {
+  using namespace std::string_literals;
+  const struct {
+    std::string bytes, suffix, says, advice;
+  } cases[] = {
+      {"SQLite format 3\0rest"s, ".db3", "a ROS 2 bag (sqlite3 storage)", "rosbag_to_carmen.py"},
+      {"\x89MCAP0\r\n\x01\0\0"s, ".mcap", "a ROS 2 bag (MCAP storage)", "rosbag_to_carmen.py"},
+      {"#ROSBAG V2.0\n\x04\0\0\0"s, ".bag", "a ROS 1 bag", "rosbag_to_carmen.py"},
+      {"\x89PNG\r\n\x1a\n"s, ".png", "a PNG image", "its YAML file"},
+      {"P5\n# CREATOR: map_saver\n10 10\n255\n"s, ".pgm", "a PGM image", "its YAML file"},
+  };
+  for (const auto& c : cases) {
+    const std::string e = expect_error(c.bytes, c.suffix);
+    EXPECT_NE(e.find(c.suffix + ": is " + c.says), std::string::npos) << e;
+    EXPECT_NE(e.find(c.advice), std::string::npos) << e;
+  }
+  // A ROS 2 bag is a directory with its metadata.yaml.
+  const std::string dir = test::temp_path("-bag");
+  std::filesystem::create_directories(dir);
+  test::write_file(dir + "/metadata.yaml", "rosbag2_bagfile_information:\n  version: 5\n");
+  try {
+    read_carmen_log(dir);
+    ADD_FAILURE() << "no error for a bag directory";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("-bag: is a ROS 2 bag directory"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CarmenReaderBadInput, UpperCaseProseIsNoMessage) {

@@ -691,6 +691,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       first_scan = &read_ahead.back().scan;
     if (!stream) {
       for (const auto& path : paths) {
+        if (is_grid_argument(path))
+          throw Error(path + ": a ROS map is no target log; give it to --map, and the robot's log to --target");
         io::CarmenLog log = io::read_carmen_log(path);
         print_warnings(log.warnings);
         targets.push_back(select_target(log, path, *opt));

@@ -5,6 +5,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <charconv>
@@ -12,10 +13,35 @@
 #include <cstring>
 #include <memory>
 #include <filesystem>
+#include <string_view>
 
 #include "lshloc/common/error.hpp"
 
 namespace lshloc::io {
+
+namespace {
+
+constexpr const char* kBagAdvice =
+    "; lshloc reads CARMEN logs: convert the bag with scripts/rosbag_to_carmen.py BAG --out run.log.gz";
+
+/// What a binary file that users give in place of a text file is, by its
+/// first bytes (empty: none we know).
+std::string known_binary_format(const unsigned char* bytes, std::size_t n) {
+  const auto starts = [&](std::string_view magic) {
+    return n >= magic.size() && std::memcmp(bytes, magic.data(), magic.size()) == 0;
+  };
+  if (starts("SQLite format 3")) return std::string("a ROS 2 bag (sqlite3 storage)") + kBagAdvice;
+  if (starts("\x89MCAP")) return std::string("a ROS 2 bag (MCAP storage)") + kBagAdvice;
+  if (starts("#ROSBAG V")) return std::string("a ROS 1 bag") + kBagAdvice;
+  if (starts("\x28\xb5\x2f\xfd")) return "zstd-compressed (a rosbag2 storage file?): decompress it, or convert the bag";
+  const char* map_advice = ": a ROS map is given by its YAML file (MAP.yaml, which names the image)";
+  if (starts("\x89PNG")) return std::string("a PNG image") + map_advice;
+  if (n >= 3 && bytes[0] == 'P' && (bytes[1] == '2' || bytes[1] == '5') && std::isspace(bytes[2]) != 0)
+    return std::string("a PGM image") + map_advice;
+  return {};
+}
+
+}  // namespace
 
 /// The raw file and, for gzip input, the inflate state (zlib's own gzread
 /// would skip bytes after the last gzip member without a word).
@@ -52,7 +78,11 @@ LineReader::LineReader(std::string path) : path_(std::move(path)) {
   }
   std::error_code ec;
   if (!std::filesystem::exists(path_, ec)) throw FileError(path_ + ": no such file");
-  if (std::filesystem::is_directory(path_, ec)) throw FileError(path_ + ": is a directory, expected a log file");
+  if (std::filesystem::is_directory(path_, ec)) {
+    if (std::filesystem::exists(std::filesystem::path(path_) / "metadata.yaml", ec))
+      throw FileError(path_ + ": is a ROS 2 bag directory" + kBagAdvice);
+    throw FileError(path_ + ": is a directory, expected a log file");
+  }
   source_ = std::make_unique<Source>();
   source_->file = std::fopen(path_.c_str(), "rb");
   if (source_->file == nullptr) throw FileError(path_ + ": cannot open: " + std::strerror(errno));
@@ -62,6 +92,8 @@ LineReader::LineReader(std::string path) : path_(std::move(path)) {
   const auto size = std::filesystem::file_size(path_, size_ec);
   source_->in.resize(size_ec ? kInputBytes : std::clamp<std::size_t>(size, 4096, kInputBytes));
   source_->read_more(path_);
+  if (const std::string format = known_binary_format(source_->in.data(), source_->zs.avail_in); !format.empty())
+    throw FileError(path_ + ": is " + format);
   // gzip is told by its magic bytes, not by the name.
   source_->gzip = source_->zs.avail_in >= 2 && source_->in[0] == 0x1f && source_->in[1] == 0x8b;
   if (source_->gzip) {
