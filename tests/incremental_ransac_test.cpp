@@ -130,7 +130,7 @@ TEST(IncrementalRansac, ScoresKeepGrowingPastWhatAFloatHolds) {
   ransac.iterate([](const LocalPoint&, const HypothesisBatch& v, float* c) { std::fill_n(c, v.size, 1.0f); }, 1000);
   const auto best = ransac.best();
   ASSERT_TRUE(best.has_value());
-  EXPECT_EQ(best->score, start + 1000.0);
+  EXPECT_EQ(best->score_sum, start + 1000.0);
   EXPECT_EQ(best->mean_score(), 1.0);
 }
 
@@ -310,7 +310,7 @@ TEST(IncrementalRansac, ScanBudgetsAndStatistics) {
   const auto best = ransac.best();
   ASSERT_TRUE(best.has_value());  // C = 2 >= C_o = 2
   EXPECT_EQ(best->hypothesis.submap, 2u);
-  EXPECT_EQ(best->score, 2.0);
+  EXPECT_EQ(best->score_sum, 2.0);
   EXPECT_EQ(best->scored, 2u);
   EXPECT_EQ(ransac.stats().best_score, 2.0);
   EXPECT_EQ(ransac.stats().best_mean_score, 1.0);
@@ -386,7 +386,7 @@ TEST(IncrementalRansac, PreScoredHypothesesKeepTheirScoresAndCompeteByThem) {
   for (const ScoredHypothesis& h : active) {
     const bool pre_scored = h.hypothesis.T_submap_local.x == 2.0;
     EXPECT_EQ(h.scored, pre_scored ? 40u : 0u);
-    EXPECT_EQ(h.score, pre_scored ? 30.0 : 0.0);
+    EXPECT_EQ(h.score_sum, pre_scored ? 30.0 : 0.0);
   }
   ransac.add_data_points(std::vector<LocalPoint>(1));
   // Every data-point scores 0.5 for both: b's head start (0.75 over 40) keeps it ahead.
@@ -397,7 +397,7 @@ TEST(IncrementalRansac, PreScoredHypothesesKeepTheirScoresAndCompeteByThem) {
   ASSERT_TRUE(ransac.best().has_value());
   EXPECT_EQ(ransac.best()->hypothesis.T_submap_local.x, 2.0);
   EXPECT_EQ(ransac.best()->scored, 50u);
-  EXPECT_DOUBLE_EQ(ransac.best()->score, 35.0);
+  EXPECT_DOUBLE_EQ(ransac.best()->score_sum, 35.0);
 }
 
 TEST(IncrementalRansac, NothingHappensWithoutFeaturesOrHypotheses) {

@@ -91,7 +91,7 @@ LocalizationEstimate step(ReportPolicy& policy, const std::vector<ScoredHypothes
                           const Pose2& local = {}) {
   std::optional<ScoredHypothesis> best;
   for (const auto& h : active) {
-    if (h.score < kPreference.min_score) continue;
+    if (h.score_sum < kPreference.min_score) continue;
     if (!best || h.preference(kPreference.preference_z) > best->preference(kPreference.preference_z)) best = h;
   }
   return policy.report(best, active, local, sample);

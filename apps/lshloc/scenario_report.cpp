@@ -193,7 +193,7 @@ TruthRank rank_of_truth(const Localizer& loc, const Pose2& truth, std::size_t su
     if (h.preference(z) > best) best = h.preference(z), r.mean = h.mean_score(), r.scored = h.scored;
   }
   if (r.near == 0) return r;
-  for (const auto& h : active) r.rank += h.preference(z) > best && h.score >= loc.config().ransac.min_score;
+  for (const auto& h : active) r.rank += h.preference(z) > best && h.score_sum >= loc.config().ransac.min_score;
   return r;
 }
 

@@ -469,7 +469,7 @@ void Localizer::prescore_newly_mapped() {
       prescore_means_.clear();
       for (std::size_t i = 0; i < scored_newly_mapped_.size(); ++i) {
         const ScoredHypothesis& h = scored_newly_mapped_[i];
-        if (prescore_keep_[i] && h.scored > 0) prescore_means_.push_back(h.score / h.scored);
+        if (prescore_keep_[i] && h.scored > 0) prescore_means_.push_back(h.mean_score());
       }
       if (prescore_means_.empty()) break;
       const auto middle = prescore_means_.begin() + static_cast<std::ptrdiff_t>((prescore_means_.size() - 1) / 2);
@@ -477,7 +477,7 @@ void Localizer::prescore_newly_mapped() {
       const double median = *middle;
       for (std::size_t i = 0; i < scored_newly_mapped_.size(); ++i) {
         const ScoredHypothesis& h = scored_newly_mapped_[i];
-        prescore_keep_[i] = prescore_keep_[i] && h.scored > 0 && h.score / h.scored >= median;
+        prescore_keep_[i] = prescore_keep_[i] && h.scored > 0 && h.mean_score() >= median;
       }
     }
     // Each hypothesis's pairs in ascending k: its sum adds up in that order.
@@ -503,7 +503,7 @@ void Localizer::prescore_newly_mapped() {
     prescore_.resize(pair_points_.size());
     if (!prescore_.empty()) scorer_.score_pairs(pair_points_, pair_hypotheses_, batch, prescore_.data());
     for (std::size_t j = 0; j < pair_hypotheses_.size(); ++j)
-      scored_newly_mapped_[pair_hypotheses_[j]].score += prescore_[j];
+      scored_newly_mapped_[pair_hypotheses_[j]].score_sum += prescore_[j];
   }
   ransac_.add_scored_hypotheses(scored_newly_mapped_);
 }

@@ -157,7 +157,7 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
   const ScoredHypothesis* incumbent = nullptr;
   const RobotPlace reported_place(*reported_, local_pose);
   for (const ScoredHypothesis& h : active) {
-    if (h.score < ransac_.min_score || h.scored == 0) continue;
+    if (h.score_sum < ransac_.min_score || h.scored == 0) continue;
     if (!same_place(h.hypothesis, reported_place, local_pose, cc.same_place_m, same_angle)) continue;
     if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
   }
@@ -169,7 +169,7 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
     // The most preferred hypothesis of each of the young_place_rivals most preferred other places.
     ranked_.clear();
     for (const ScoredHypothesis& h : active) {
-      if (h.score >= ransac_.min_score && h.scored > 0) ranked_.push_back(&h);
+      if (h.score_sum >= ransac_.min_score && h.scored > 0) ranked_.push_back(&h);
     }
     std::sort(ranked_.begin(), ranked_.end(), [&](const ScoredHypothesis* a, const ScoredHypothesis* b) {
       return a->preference(z) > b->preference(z);
@@ -292,7 +292,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const ScoredHypothesis* rival = nullptr;
   const RobotPlace best_place(best->hypothesis, local_pose);
   for (const ScoredHypothesis& h : active) {
-    if (h.score < ransac_.min_score || h.scored == 0) continue;
+    if (h.score_sum < ransac_.min_score || h.scored == 0) continue;
     if (same_place(h.hypothesis, best_place, local_pose, 2.0, std::numbers::pi)) continue;
     if (h.mean_score() > (rival ? rival->mean_score() : 0.0)) rival = &h;
   }

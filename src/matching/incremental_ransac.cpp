@@ -123,7 +123,7 @@ void IncrementalRansac::add_hypotheses(std::span<const Hypothesis> hypotheses) {
 }
 
 void IncrementalRansac::add_scored_hypotheses(std::span<const ScoredHypothesis> hypotheses) {
-  for (const ScoredHypothesis& h : hypotheses) insert_hypothesis(h.hypothesis, h.score, h.scored);
+  for (const ScoredHypothesis& h : hypotheses) insert_hypothesis(h.hypothesis, h.score_sum, h.scored);
 }
 
 void IncrementalRansac::insert_hypothesis(const Hypothesis& h, double score, std::uint32_t scored) {
@@ -241,7 +241,8 @@ IncrementalRansacStats IncrementalRansac::stats() const {
   IncrementalRansacStats s = stats_;
   s.active_hypotheses = tx_.size();
   s.data_points = data_points_.size();
-  if (const auto b = best()) s.best_score = b->score, s.best_mean_score = b->mean_score(), s.best_scored = b->scored;
+  if (const auto b = best())
+    s.best_score = b->score_sum, s.best_mean_score = b->mean_score(), s.best_scored = b->scored;
   return s;
 }
 

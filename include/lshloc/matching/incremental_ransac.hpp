@@ -127,9 +127,9 @@ class HypothesisBatchBuffer {
 /// was scored against.
 struct ScoredHypothesis {
   Hypothesis hypothesis;
-  double score = 0.0;        ///< C_j
-  std::uint32_t scored = 0;  ///< N_j
-  double mean_score() const { return scored > 0 ? score / scored : 0.0; }
+  double score_sum = 0.0;    ///< C_j, the sum of its scores
+  std::uint32_t scored = 0;  ///< N_j, how many data-points it was scored on
+  double mean_score() const { return scored > 0 ? score_sum / scored : 0.0; }
   /// The preference value of best(): mean_score() - z / sqrt(N).
   double preference(double z) const { return scored > 0 ? mean_score() - z / std::sqrt(double(scored)) : -1e30; }
 };
