@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Convert a ROS 2 bag (sqlite3 or MCAP) of laser scans and odometry into a
-CARMEN log (ROBOTLASER1 lines) that lshloc reads.
+"""Convert a ROS 2 bag (sqlite3 or MCAP) or a ROS 1 bag (format 2.0, .bag) of
+laser scans and odometry into a CARMEN log (ROBOTLASER1 lines) that lshloc reads.
 
 rosbag2's compression is undone: storage files compressed whole
 (compression_mode file: NAME.db3.zstd, NAME.mcap.zstd, decompressed into a
@@ -9,12 +9,18 @@ message); metadata.yaml says which, and a single file is recognised by its
 zstd magic bytes. The laser's mount comes from /tf_static, else from /tf when
 the base -> laser chain there stays fixed over the bag, else --laser-offset.
 
+A ROS 1 bag is read record by record from its start, its chunks plain, bz2 or
+lz4, without its index: a bag whose recording was cut off reads up to its last
+whole record. Its sensor_msgs/LaserScan, nav_msgs/Odometry and
+tf2_msgs/TFMessage (or tf/tfMessage) messages go the same way as ROS 2's.
+
 Standard library only; zstandard (python3-zstandard) and lz4 (python3-lz4) are
 imported when something is compressed with them. Messages are decoded from CDR
-by hand, so no ROS installation is needed.
+or ROS 1's serialization by hand, so no ROS installation is needed.
 """
 import argparse
 import bisect
+import bz2
 import collections
 import gzip
 import math
@@ -33,12 +39,19 @@ TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 TF_STATIC_TOPIC = "/tf_static"
 TF_TOPIC = "/tf"
 WANTED_TYPES = (LASER_SCAN, ODOMETRY, TF_MESSAGE)
+# ROS 1 names of the wanted types; tf/tfMessage has tf2_msgs/TFMessage's layout.
+ROS1_TYPES = {"sensor_msgs/LaserScan": LASER_SCAN, "nav_msgs/Odometry": ODOMETRY, "tf2_msgs/TFMessage": TF_MESSAGE,
+              "tf/tfMessage": TF_MESSAGE}
+CDR, ROS1 = "cdr", "ros1"  # the serializations: a topic's encoding in Bag.topics
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
 ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 STORAGE_SUFFIXES = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
 OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x02, 0x03, 0x04, 0x05, 0x06
+ROS1_PREFIX = b"#ROSBAG V"
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+ROS1_MESSAGE, ROS1_CHUNK, ROS1_CONNECTION = 0x02, 0x05, 0x07  # the other ops (bag header, index, chunk info): skipped
 
 # Scans further than this outside the odometry's time span have no robot pose.
 ODOMETRY_MARGIN_NS = 500_000_000
@@ -76,10 +89,12 @@ class RawMessage:
 
 
 class Bag:
-    """What the storage files hold: topic name -> (type, encoding), and the messages of the wanted types."""
+    """What the storage files hold: topic name -> (type, encoding), and the messages of the wanted types. A ROS 1
+    topic of a wanted type is listed under the ROS 2 name; `bag_types` keeps the name the bag gives it."""
 
     def __init__(self):
         self.topics = {}
+        self.bag_types = {}
         self.messages = []
         self.files = []
         self.compressed_messages = False  # metadata.yaml says compression_mode message
@@ -93,8 +108,8 @@ def storage_files(bag_path):
     """The bag's storage files, and whether metadata.yaml says each message is compressed."""
     path = pathlib.Path(bag_path)
     if not path.exists():
-        raise BagError(bag_path, "no such file or directory; expected a ROS 2 bag directory or a .db3 / .mcap file "
-                       "(or one compressed as .zstd)")
+        raise BagError(bag_path, "no such file or directory; expected a ROS 2 bag directory, a .db3 / .mcap file "
+                       "(or one compressed as .zstd) or a ROS 1 .bag file")
     if path.is_file():
         return [path], False
     metadata = read_metadata(path / "metadata.yaml")
@@ -220,9 +235,24 @@ def read_plain_storage(file, bag, name, what=""):
         read_mcap(file, bag, name)
     elif start == SQLITE_MAGIC:
         read_sqlite(file, bag, name)
+    elif start.startswith(ROS1_PREFIX):
+        read_ros1(file, bag, name)
     else:
-        raise BagError(name, f"{what}neither a sqlite3 database nor an MCAP file (by its first bytes); expected a "
-                       "ROS 2 bag's .db3 or .mcap storage file")
+        raise BagError(name, f"{what}neither a sqlite3 database nor an MCAP file nor a ROS 1 bag (by its first "
+                       "bytes); expected a ROS 2 bag's .db3 or .mcap storage file or a ROS 1 .bag file")
+
+
+def lz4_decompress(data, path, where):
+    """One LZ4 frame (MCAP's and ROS 1's lz4 chunks), lz4 (python3-lz4) imported only then."""
+    try:
+        import lz4.frame
+    except ImportError:
+        raise BagError(path, f"{where} is lz4-compressed and the Python module lz4 is missing; expected it "
+                       "installed (apt install python3-lz4)") from None
+    try:
+        return lz4.frame.decompress(data)
+    except RuntimeError as e:
+        raise BagError(path, f"{where}: lz4 says {e}; expected a valid LZ4 frame") from None
 
 
 def zstandard_module(path, what):
@@ -418,47 +448,169 @@ def decompress(data, compression, uncompressed_size, path, at):
         except zstandard.ZstdError as e:
             raise BagError(path, f"chunk at byte {at}: zstd says {e}; expected a valid zstd frame") from None
     if compression == "lz4":
-        try:
-            import lz4.frame
-        except ImportError:
-            raise BagError(path, f"chunk at byte {at} is lz4-compressed and the Python module lz4 is missing; "
-                           "expected it installed (apt install python3-lz4)") from None
-        try:
-            return lz4.frame.decompress(data)
-        except RuntimeError as e:
-            raise BagError(path, f"chunk at byte {at}: lz4 says {e}; expected a valid LZ4 frame") from None
+        return lz4_decompress(data, path, f"chunk at byte {at}")
     raise BagError(path, f"chunk at byte {at} uses compression '{compression}'; expected none, zstd or lz4")
 
 
-# ---------------------------------------------------------------- CDR
+# ---------------------------------------------------------------- ROS 1 bags
+
+ROS1_OPS = {0x02: "message data", 0x03: "bag header", 0x04: "index data", 0x05: "chunk", 0x06: "chunk info",
+            0x07: "connection"}
 
 
-class CdrError(Exception):
-    """A message that is no plain CDR."""
+def read_ros1(file, bag, path):
+    """Reads the ROS 1 bag `file` record by record from its start, not through its index (which a bag whose
+    recording was cut off lacks); errors and warnings name `path`."""
+    with open(file, "rb") as f:
+        line = f.readline(64)
+    if line != ROS1_MAGIC:
+        shown = line.rstrip(b"\n").decode("ascii", errors="replace")
+        raise BagError(path, f"begins '{shown}', a ROS 1 bag of format {shown[len(ROS1_PREFIX):] or '?'}; expected "
+                       "format 2.0 ('#ROSBAG V2.0'), the only one read")
+    with open(file, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        state = Ros1State(path, bag)
+        for at, fields, data in ros1_records(buf, len(ROS1_MAGIC), len(buf), path, "record at", cut_off_ok=True):
+            state.read_record(fields, buf, data, at, f"record at byte {at}")
 
 
-class CdrEndsEarly(CdrError):
+def ros1_records(buf, start, end, path, where, cut_off_ok):
+    """The records (offset, header fields, (start, end) of the data) between two offsets of `buf`: header length,
+    header, data length, data. A record running past `end` is an error, or with `cut_off_ok` (the file's last
+    record, from a recording cut off) a warning that ends the walk."""
+    pos = start
+    while pos < end:
+        at = pos
+        data_at = at + 4 + (struct.unpack_from("<I", buf, at)[0] if end - at >= 4 else end)
+        data_len = struct.unpack_from("<I", buf, data_at)[0] if end - data_at >= 4 else end
+        pos = data_at + 4 + data_len
+        if pos > end:
+            if not cut_off_ok:
+                raise BagError(path, f"{where} byte {at}: a record runs past the end ({end - at} bytes left); "
+                               "expected whole records, each header length, header, data length and data")
+            warn(f"{path}: the file ends inside the record at byte {at} ({end - at} bytes of it there); read the "
+                 "records before it (a bag whose recording was cut off?)")
+            return
+        # The data as offsets: copied only when read (a bag's camera images need not be).
+        yield at, ros1_fields(buf, at + 4, data_at, path, f"{where} byte {at}"), (data_at + 4, pos)
+
+
+def ros1_fields(buf, start, end, path, where):
+    """A ROS 1 header between two offsets: fields of u32 length then name=value, as name -> the value's bytes."""
+    fields = {}
+    pos = start
+    while pos < end:
+        length = struct.unpack_from("<I", buf, pos)[0] if end - pos >= 4 else end
+        if length > end - pos - 4:
+            raise BagError(path, f"{where}: a header field at byte {pos} runs past the header's end ({end - pos} "
+                           "bytes left); expected fields of u32 length then name=value")
+        name, equals, value = bytes(buf[pos + 4:pos + 4 + length]).partition(b"=")
+        if not equals:
+            raise BagError(path, f"{where}: the header field at byte {pos} has no '='; expected name=value")
+        fields.setdefault(name.decode("ascii", errors="replace"), value)
+        pos += 4 + length
+    return fields
+
+
+class Ros1State:
+    """The connections (id -> topic, type) seen so far in a ROS 1 bag."""
+
+    def __init__(self, path, bag):
+        self.path, self.bag = path, bag
+        self.connections = {}
+
+    def field(self, fields, name, fmt, op, where):
+        value = fields.get(name)
+        size = struct.calcsize(fmt)
+        if value is None or len(value) != size:
+            held = "no" if value is None else f"a {len(value)}-byte"
+            record = f"the {ROS1_OPS[op]} record" if op in ROS1_OPS else "the record"
+            raise BagError(self.path, f"{where}: {record} has {held} field '{name}'; expected a {size}-byte {name} "
+                           "(format 2.0)")
+        values = struct.unpack(fmt, value)
+        return values[0] if len(values) == 1 else values
+
+    def read_record(self, fields, buf, data, at, where):
+        """Reads one record, its data between the offsets `data` of `buf`."""
+        op = self.field(fields, "op", "<B", None, where)
+        if op == ROS1_CHUNK:
+            self.read_chunk(fields, buf[data[0]:data[1]], at, where)
+        elif op == ROS1_CONNECTION:
+            conn = self.field(fields, "conn", "<I", op, where)
+            if conn in self.connections:
+                return  # the index section repeats the chunks' connection records
+            described = ros1_fields(buf, *data, self.path, f"{where}: connection {conn}'s connection header")
+            topic = fields.get("topic", described.get("topic", b"")).decode("utf-8", errors="replace")
+            bag_type = described.get("type", b"").decode("utf-8", errors="replace")
+            if not topic or not bag_type:
+                raise BagError(self.path, f"{where}: connection {conn} has no {'topic' if bag_type else 'type'}; "
+                               "expected topic and type fields in its connection record")
+            type_name = ROS1_TYPES.get(bag_type, bag_type)
+            self.connections[conn] = (topic, type_name)
+            if topic not in self.bag.topics:  # a topic's first type is the one read
+                self.bag.topics[topic] = (type_name, ROS1)
+                self.bag.bag_types[topic] = bag_type
+        elif op == ROS1_MESSAGE:
+            conn = self.field(fields, "conn", "<I", op, where)
+            sec, nsec = self.field(fields, "time", "<II", op, where)
+            connection = self.connections.get(conn)
+            if connection is None:
+                raise BagError(self.path, f"{where}: a message on connection {conn}, which no connection record "
+                               "defined before it; expected connections before their messages")
+            topic, type_name = connection
+            if type_name in WANTED_TYPES and self.bag.topics[topic][0] == type_name:
+                self.bag.messages.append(RawMessage(topic, sec * 1_000_000_000 + nsec, buf[data[0]:data[1]],
+                                                    self.path))
+
+    def read_chunk(self, fields, data, at, where):
+        compression = fields.get("compression", b"").decode("ascii", errors="replace")
+        size = self.field(fields, "size", "<I", ROS1_CHUNK, where)
+        records = ros1_decompress(data, compression, self.path, f"chunk at byte {at}")
+        if len(records) != size:
+            raise BagError(self.path, f"chunk at byte {at}: {len(records)} bytes uncompressed; expected {size}, its "
+                           "size field (a damaged chunk?)")
+        chunk = f"chunk at byte {at}, record at"
+        for inner_at, inner, inner_data in ros1_records(records, 0, size, self.path, chunk, cut_off_ok=False):
+            self.read_record(inner, records, inner_data, inner_at, f"{chunk} byte {inner_at}")
+
+
+def ros1_decompress(data, compression, path, where):
+    if compression == "none":
+        return data
+    if compression == "bz2":
+        try:
+            return bz2.decompress(data)
+        except (OSError, ValueError, EOFError) as e:
+            raise BagError(path, f"{where}: bz2 says {e}; expected a valid bz2 stream") from None
+    if compression == "lz4":
+        return lz4_decompress(data, path, where)
+    raise BagError(path, f"{where} uses compression '{compression}'; expected none, bz2 or lz4")
+
+
+# ---------------------------------------------------------------- CDR and ROS 1 serialization
+
+
+class MessageError(Exception):
+    """A message its serialization does not describe."""
+
+
+class MessageEndsEarly(MessageError):
     """A message shorter than its fields."""
 
 
-class CdrReader:
-    """Plain CDR (XCDR1): each primitive aligned to its size, counted from the end of the 4-byte header."""
+class MessageReader:
+    """Reads primitives in byte order `order` from byte `pos` of `data`, each after `_pad` bytes of padding."""
 
-    def __init__(self, data):
-        if len(data) < 4:
-            raise CdrEndsEarly(f"{len(data)} bytes, less than the 4-byte encapsulation header")
-        if data[0] != 0 or data[1] not in (0, 1):
-            raise CdrError(f"encapsulation header {data[0]:02x} {data[1]:02x}; expected plain CDR "
-                             "(00 01 little-endian or 00 00 big-endian)")
-        self.order = "<" if data[1] == 1 else ">"
-        self.data = data
-        self.pos = 4
+    def __init__(self, data, order, pos):
+        self.data, self.order, self.pos = data, order, pos
+
+    def _pad(self, size):
+        return 0
 
     def _take(self, code, size, count):
-        self.pos += -(self.pos - 4) % size
+        self.pos += self._pad(size)
         end = self.pos + size * count
         if end > len(self.data):
-            raise CdrEndsEarly(f"{len(self.data)} bytes, a field at byte {self.pos} needs {end}")
+            raise MessageEndsEarly(f"{len(self.data)} bytes, a field at byte {self.pos} needs {end}")
         values = struct.unpack_from(f"{self.order}{count}{code}", self.data, self.pos)
         self.pos = end
         return values
@@ -478,28 +630,59 @@ class CdrReader:
     def string(self):
         length = self.u32()
         if self.pos + length > len(self.data):
-            raise CdrEndsEarly(f"{len(self.data)} bytes, a string at byte {self.pos} needs {self.pos + length}")
+            raise MessageEndsEarly(f"{len(self.data)} bytes, a string at byte {self.pos} needs {self.pos + length}")
         text = self.data[self.pos:self.pos + length].rstrip(b"\0")
         self.pos += length
         return text.decode("utf-8", errors="replace")
+
+
+class CdrReader(MessageReader):
+    """Plain CDR (XCDR1): each primitive aligned to its size, counted from the end of the 4-byte header."""
+
+    def __init__(self, data):
+        if len(data) < 4:
+            raise MessageEndsEarly(f"{len(data)} bytes, less than the 4-byte encapsulation header")
+        if data[0] != 0 or data[1] not in (0, 1):
+            raise MessageError(f"encapsulation header {data[0]:02x} {data[1]:02x}; expected plain CDR "
+                               "(00 01 little-endian or 00 00 big-endian)")
+        super().__init__(data, "<" if data[1] == 1 else ">", 4)
+
+    def _pad(self, size):
+        return -(self.pos - 4) % size
 
     def header(self):
         sec, nanosec = self.i32(), self.u32()
         return sec * 1_000_000_000 + nanosec, self.string()
 
 
+class Ros1Reader(MessageReader):
+    """ROS 1's serialization: little-endian and packed, no header; times are u32 sec, u32 nsec."""
+
+    def __init__(self, data):
+        super().__init__(data, "<", 0)
+
+    def header(self):
+        self.u32()  # seq: a counter of no use here
+        sec, nanosec = self.u32(), self.u32()
+        return sec * 1_000_000_000 + nanosec, self.string()
+
+
+READERS = {CDR: CdrReader, ROS1: Ros1Reader}
+SERIALIZED = {CDR: "CDR-encoded", ROS1: "ROS 1-serialized"}
+
+
 class Scan:
     __slots__ = ("stamp_ns", "bag_ns", "frame", "angle_min", "angle_increment", "range_min", "range_max", "ranges")
 
 
-def decode_scan(cdr):
+def decode_scan(reader):
     scan = Scan()
-    scan.stamp_ns, scan.frame = cdr.header()
+    scan.stamp_ns, scan.frame = reader.header()
     angle_min, _angle_max, scan.angle_increment, _time_increment, _scan_time, scan.range_min, scan.range_max = \
-        cdr.f32s(7)
+        reader.f32s(7)
     scan.angle_min = angle_min
-    scan.ranges = cdr.f32s(cdr.u32())
-    cdr.f32s(cdr.u32())  # intensities: read only to check the message is whole
+    scan.ranges = reader.f32s(reader.u32())
+    reader.f32s(reader.u32())  # intensities: read only to check the message is whole
     return scan
 
 
@@ -507,23 +690,23 @@ class Odometry:
     __slots__ = ("stamp_ns", "bag_ns", "child_frame", "x", "y", "yaw")
 
 
-def decode_odometry(cdr):
+def decode_odometry(reader):
     odom = Odometry()
-    odom.stamp_ns, _frame = cdr.header()
-    odom.child_frame = cdr.string()
-    odom.x, odom.y, _z, qx, qy, qz, qw = cdr.f64s(7)
+    odom.stamp_ns, _frame = reader.header()
+    odom.child_frame = reader.string()
+    odom.x, odom.y, _z, qx, qy, qz, qw = reader.f64s(7)
     odom.yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-    cdr.f64s(36 + 6 + 36)  # pose covariance, twist and its covariance: read only to check the message is whole
+    reader.f64s(36 + 6 + 36)  # pose covariance, twist and its covariance: read only to check the message is whole
     return odom
 
 
-def decode_tf(cdr):
+def decode_tf(reader):
     transforms = []
-    for _ in range(cdr.u32()):
-        _stamp, parent = cdr.header()
-        child = cdr.string()
-        translation = cdr.f64s(3)
-        rotation = cdr.f64s(4)
+    for _ in range(reader.u32()):
+        _stamp, parent = reader.header()
+        child = reader.string()
+        translation = reader.f64s(3)
+        rotation = reader.f64s(4)
         transforms.append((parent.lstrip("/"), child.lstrip("/"), Transform.from_ros(translation, rotation)))
     return transforms
 
@@ -535,15 +718,17 @@ def decode_topic(bag, topic, type_name):
     """Decodes every message of one topic; errors name the file, topic and message number."""
     decoded = []
     encoding = bag.topics[topic][1]
+    reader = READERS.get(encoding)
     for number, msg in enumerate((m for m in bag.messages if m.topic == topic), start=1):
-        if encoding != "cdr":
+        if reader is None:
             raise BagError(msg.path, f"topic {topic} is serialized as '{encoding}'; expected 'cdr' (ROS 2's default)")
+        where = f"message {number} on topic {topic}"
         try:
-            value = DECODERS[type_name](CdrReader(message_bytes(bag, msg, f"message {number} on topic {topic}")))
-        except CdrEndsEarly as e:
-            raise BagError(msg.path, f"message {number} on topic {topic} ends early ({e}); expected a complete "
-                           f"CDR-encoded {type_name}") from None
-        except CdrError as e:
+            value = DECODERS[type_name](reader(msg.data if encoding == ROS1 else message_bytes(bag, msg, where)))
+        except MessageEndsEarly as e:
+            raise BagError(msg.path, f"{where} ends early ({e}); expected a complete {SERIALIZED[encoding]} "
+                           f"{bag.bag_types.get(topic, type_name)}") from None
+        except MessageError as e:
             raise BagError(msg.path, f"message {number} on topic {topic}: {e}") from None
         if type_name != TF_MESSAGE:
             value.bag_ns = msg.bag_ns
@@ -552,7 +737,7 @@ def decode_topic(bag, topic, type_name):
 
 
 def message_bytes(bag, msg, where):
-    """A message's serialized bytes, decompressed when rosbag2 compressed it alone (compression_mode message).
+    """A ROS 2 message's serialized bytes, decompressed when rosbag2 compressed it alone (compression_mode message).
     CDR begins with a 00 byte, so a zstd frame's magic tells the two apart without metadata.yaml."""
     if not msg.data.startswith(ZSTD_MAGIC):
         if bag.compressed_messages:
@@ -796,8 +981,8 @@ def choose_topic(bag, bag_path, type_name, option, requested):
             raise BagError(bag_path, f"no topic {requested} ({option}); expected one of "
                            f"{', '.join(sorted(bag.topics)) or 'none'}")
         if bag.topics[requested][0] != type_name:
-            raise BagError(bag_path, f"topic {requested} ({option}) is a {bag.topics[requested][0]}; expected a "
-                           f"{type_name}")
+            found = bag.bag_types.get(requested, bag.topics[requested][0])
+            raise BagError(bag_path, f"topic {requested} ({option}) is a {found}; expected a {type_name}")
         return requested
     if len(candidates) == 1:
         return candidates[0]
@@ -820,7 +1005,8 @@ def convert(args):
 
     scan_topic = choose_topic(bag, args.bag, LASER_SCAN, "--scan-topic", args.scan_topic)
     if scan_topic is None:
-        listed = ", ".join(f"{t} ({ty})" for t, (ty, _) in sorted(bag.topics.items())) or "no topics"
+        listed = ", ".join(f"{t} ({bag.bag_types.get(t, ty)})" for t, (ty, _) in sorted(bag.topics.items())) \
+            or "no topics"
         raise BagError(args.bag, f"no {LASER_SCAN} topic (found {listed}); expected a bag with laser scans")
     odom_topic = choose_topic(bag, args.bag, ODOMETRY, "--odom-topic", args.odom_topic)
 
@@ -885,13 +1071,18 @@ def parse_args(argv):
     parser = argparse.ArgumentParser(
         prog="rosbag_to_carmen.py",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Convert a ROS 2 bag (sqlite3 .db3 or MCAP, MCAP chunks plain, zstd or lz4) of "
-                    f"{LASER_SCAN} and {ODOMETRY} messages into a CARMEN log of ROBOTLASER1 lines for lshloc. "
+        description="Convert a ROS 2 bag (sqlite3 .db3 or MCAP, MCAP chunks plain, zstd or lz4) or a ROS 1 bag "
+                    "(.bag, format 2.0, chunks plain, bz2 or lz4) of "
+                    f"{LASER_SCAN} and {ODOMETRY} messages (sensor_msgs/LaserScan and nav_msgs/Odometry in ROS 1) "
+                    "into a CARMEN log of ROBOTLASER1 lines for lshloc. "
                     "Each scan gets the odometry interpolated at its stamp and the laser's mount on the robot.",
         epilog="Compression: bags recorded with --compression-mode file (storage files NAME.db3.zstd, "
                "NAME.mcap.zstd, decompressed into a temporary file) or --compression-mode message (each message "
                "zstd-compressed) are read as they are; metadata.yaml says which, and a single file given is "
                "recognised by its zstd magic bytes. Needs the Python module zstandard (python3-zstandard).\n\n"
+               "ROS 1 bags: read record by record from the start, not through the index, so a bag whose recording "
+               "was cut off converts up to its last whole record (with a warning); tf2_msgs/TFMessage and "
+               "tf/tfMessage both give transforms. lz4 chunks need the Python module lz4 (python3-lz4).\n\n"
                "Laser mount: the chain of transforms from the base frame to the scans' frame_id in /tf_static; "
                "where /tf_static lacks a link of it, the link from /tf, when it stays within 1 mm and 0.1 degrees "
                "of its first value over the bag (a laser that moves is refused: give --laser-offset). "
@@ -900,10 +1091,12 @@ def parse_args(argv):
                "reads as no return; invalid ones (NaN, -inf, below range_min) as nan, an invalid beam.\n\n"
                "example:\n"
                "  rosbag_to_carmen.py my_bag/ --out run.log.gz\n"
+               "  rosbag_to_carmen.py my_ros1.bag --out run.log.gz\n"
                "  lshloc localize --map map.yaml --target run.log.gz")
     parser.add_argument("bag", metavar="BAG",
                         help="a ROS 2 bag directory (the storage files its metadata.yaml lists, else its .db3 / "
-                             ".mcap files in name order, each maybe compressed as .zstd) or one such file")
+                             ".mcap files in name order, each maybe compressed as .zstd) or one such file, or a "
+                             "ROS 1 .bag file (format 2.0, known by its first line #ROSBAG V2.0)")
     parser.add_argument("--out", required=True, metavar="LOG",
                         help="the CARMEN log to write; gzip-compressed when it ends in .gz")
     parser.add_argument("--scan-topic", metavar="T",

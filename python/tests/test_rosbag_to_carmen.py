@@ -2,9 +2,13 @@
 log turned into ROS 2 bags (sqlite3 and MCAP, plain, zstd and lz4 chunks) by
 this file's own CDR encoder and bag writers, converted back and compared scan
 by scan and by localizing it; the same bags compressed by rosbag2's file and
-message modes, and with the laser mount on /tf; CDR golden bytes written out
-by hand; an upside-down laser; and bad input."""
+message modes, and with the laser mount on /tf; ROS 1 bags (plain, bz2 and lz4
+chunks, without an index, cut off) by this file's own ROS 1 encoder and bag
+writer; CDR and ROS 1 golden bytes written out by hand; an upside-down laser;
+and bad input."""
+import bz2
 import gzip
+import itertools
 import json
 import math
 import os
@@ -76,9 +80,35 @@ class CdrWriter:
         return self.header + bytes(self.body)
 
 
+class Ros1Writer:
+    """ROS 1's serialization: little-endian, packed; strings and variable arrays after a u32 length, fixed arrays
+    without. A Header is u32 seq, u32 sec, u32 nsec, frame_id; seq counts up from one writer to the next."""
+    sequence = itertools.count(1)
+
+    def __init__(self, seq=None):
+        self.seq = next(Ros1Writer.sequence) if seq is None else seq
+        self.body = bytearray()
+
+    def put(self, code, *values):
+        self.body += struct.pack(f"<{len(values)}{code}", *values)
+
+    def string(self, text):
+        encoded = text.encode()
+        self.put("I", len(encoded))
+        self.body += encoded
+
+    def stamp_header(self, stamp_ns, frame):
+        self.put("I", self.seq % 2**32, stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000)
+        self.string(frame)
+
+    def data(self):
+        return bytes(self.body)
+
+
 def laser_scan_cdr(stamp_ns, frame, angle_min, angle_increment, ranges, range_min=0.02, range_max=30.0,
-                   big_endian=False):
-    w = CdrWriter(big_endian)
+                   big_endian=False, writer=None):
+    """writer: a Ros1Writer for ROS 1's serialization; by default CDR."""
+    w = writer or CdrWriter(big_endian)
     w.stamp_header(stamp_ns, frame)
     angle_max = angle_min + (len(ranges) - 1) * angle_increment
     w.put("f", angle_min, angle_max, angle_increment, 0.0, 0.25, range_min, range_max)  # scan_time 0.25 s
@@ -92,8 +122,9 @@ def yaw_quaternion(yaw):
     return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
 
 
-def odometry_cdr(stamp_ns, x, y, yaw=0.0, rotation=None, frame="odom", child="base_link", big_endian=False):
-    w = CdrWriter(big_endian)
+def odometry_cdr(stamp_ns, x, y, yaw=0.0, rotation=None, frame="odom", child="base_link", big_endian=False,
+                 writer=None):
+    w = writer or CdrWriter(big_endian)
     w.stamp_header(stamp_ns, frame)
     w.string(child)
     w.put("d", x, y, 0.0, *(rotation or yaw_quaternion(yaw)))
@@ -103,9 +134,9 @@ def odometry_cdr(stamp_ns, x, y, yaw=0.0, rotation=None, frame="odom", child="ba
     return w.data()
 
 
-def tf_cdr(stamp_ns, transforms):
+def tf_cdr(stamp_ns, transforms, writer=None):
     """transforms: (parent, child, (x, y, z), (qx, qy, qz, qw))."""
-    w = CdrWriter()
+    w = writer or CdrWriter()
     w.put("I", len(transforms))
     for parent, child, translation, rotation in transforms:
         w.stamp_header(stamp_ns, parent)
@@ -210,14 +241,18 @@ def test_the_encoder_writes_and_the_converter_reads_golden_cdr_bytes(tmp_path):
                             big_endian=True) if big_endian else GOLDEN_ODOMETRY
         write_sqlite(bag, {"/scan": LASER_SCAN, "/odom": ODOMETRY}, [("/scan", 5, scan), ("/odom", 5, odom)])
         out = tmp_path / f"golden-{big_endian}.log"
-        run = convert(bag, out)
-        assert "no /tf_static transforms and no --laser-offset" in run.stderr
-        fields = out.read_text().splitlines()[1].split()
-        assert fields[:12] == ["ROBOTLASER1", "0", "-0.5", "1", "1", "8", "0.01", "0", "2", "1.5", "2", "0"]
-        numbers = [float(v) for v in fields[12:18]]
-        assert numbers[:2] == [1.0, 2.0] and numbers[3:5] == [1.0, 2.0]
-        assert abs(math.cos(numbers[2]) + 1) < 1e-12 and abs(math.cos(numbers[5]) + 1) < 1e-12  # yaw pi
-        assert fields[18:] == ["0"] * 5 + ["1.000000002", "rosbag", "1.000000002"]
+        assert_golden_log(convert(bag, out), out)
+
+
+def assert_golden_log(run, out):
+    """The log of the golden scan and odometry, at one time."""
+    assert "no /tf_static transforms and no --laser-offset" in run.stderr
+    fields = out.read_text().splitlines()[1].split()
+    assert fields[:12] == ["ROBOTLASER1", "0", "-0.5", "1", "1", "8", "0.01", "0", "2", "1.5", "2", "0"]
+    numbers = [float(v) for v in fields[12:18]]
+    assert numbers[:2] == [1.0, 2.0] and numbers[3:5] == [1.0, 2.0]
+    assert abs(math.cos(numbers[2]) + 1) < 1e-12 and abs(math.cos(numbers[5]) + 1) < 1e-12  # yaw pi
+    assert fields[18:] == ["0"] * 5 + ["1.000000002", "rosbag", "1.000000002"]
 
 
 # ---------------------------------------------------------------- the simulated robot as a bag
@@ -249,9 +284,11 @@ def world(tmp_path_factory):
 
 
 class TargetBag:
-    """The raw target log as bag messages, and what its conversion must give back."""
+    """The raw target log as bag messages, and what its conversion must give back. writer: makes each message's
+    encoder, CdrWriter or Ros1Writer."""
 
-    def __init__(self, log_path):
+    def __init__(self, log_path, writer=CdrWriter):
+        self.writer = writer
         log = lshloc.read_carmen_log(str(log_path))
         self.original = log
         self.mount = tuple(o + s for o, s in zip(log.laser_offset, MOUNT_SHIFT))
@@ -265,14 +302,16 @@ class TargetBag:
         # The chain base_link -> laser walks the first edge backwards.
         self.mount_tf = [("base_footprint", "base_link", (0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0)),
                          ("base_footprint", "laser", (x, y, 0.25), yaw_quaternion(theta))]
-        self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], self.mount_tf)))
+        self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], self.mount_tf,
+                                                                           writer=writer())))
         self.messages.append(("/tf_static", self.stamps[0] - 10**9, tf_cdr(self.stamps[0], [
-            ("base_link", "imu", (0.0, 0.0, 0.2), (0.0, 0.0, 0.0, 1.0))])))
+            ("base_link", "imu", (0.0, 0.0, 0.2), (0.0, 0.0, 0.0, 1.0))], writer=writer())))
         for i, scan in enumerate(log.scans):
             ranges, expected = self.ros_ranges(i, scan)
             self.expected_ranges.append(expected)
             self.messages.append(("/scan", self.stamps[i] + BAG_LATENCY_NS, laser_scan_cdr(
-                self.stamps[i], "laser", scan.angle_min, scan.angle_increment, ranges, range_max=scan.max_range)))
+                self.stamps[i], "laser", scan.angle_min, scan.angle_increment, ranges, range_max=scan.max_range,
+                writer=writer())))
             self.messages.extend(self.odometry_messages(i))
 
     def ros_ranges(self, i, scan):
@@ -290,14 +329,15 @@ class TargetBag:
     def odometry_messages(self, i):
         stamp, (x, y, yaw) = self.stamps[i], self.robot[i]
         if i % ODOM_SHIFTED_EVERY != ODOM_SHIFTED_EVERY // 2 or i + 1 == len(self.stamps):
-            return [("/odom", stamp + BAG_LATENCY_NS, odometry_cdr(stamp, x, y, yaw))]
+            return [("/odom", stamp + BAG_LATENCY_NS, odometry_cdr(stamp, x, y, yaw, writer=self.writer()))]
         # Two messages 3 ms before and 5 ms after, on a line through the pose at the scan's stamp.
         velocity = (0.4, -0.2, 0.3)
         out = []
         for dt_ns in (-3_000_000, 5_000_000):
             dt = dt_ns * 1e-9
             out.append(("/odom", stamp + dt_ns + BAG_LATENCY_NS, odometry_cdr(
-                stamp + dt_ns, x + velocity[0] * dt, y + velocity[1] * dt, yaw + velocity[2] * dt)))
+                stamp + dt_ns, x + velocity[0] * dt, y + velocity[1] * dt, yaw + velocity[2] * dt,
+                writer=self.writer())))
         return out
 
 
@@ -577,6 +617,232 @@ def test_a_laser_that_moves_on_tf_is_refused(target, tmp_path):
                        "--laser-offset")
     run = convert(bag, out, "--laser-offset=0.1,0.2,0.3")
     assert "from --laser-offset" in run.stderr
+
+
+# ---------------------------------------------------------------- ROS 1 bags
+
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+ROS1_NAMES = {LASER_SCAN: "sensor_msgs/LaserScan", ODOMETRY: "nav_msgs/Odometry", TF_MESSAGE: "tf2_msgs/TFMessage"}
+ROS1_HEADER_RECORD_SIZE = 4096  # rosbag pads the bag header record to this, to rewrite it in place when closing
+
+
+def u32(value):
+    return struct.pack("<I", value)
+
+
+def ros1_time(ns):
+    return struct.pack("<II", ns // 1_000_000_000, ns % 1_000_000_000)
+
+
+def ros1_header(fields):
+    """A record header or connection header: each field u32 length, then name=value."""
+    return b"".join(u32(len(name) + 1 + len(value)) + name.encode() + b"=" + value for name, value in fields)
+
+
+def ros1_record(fields, data=b""):
+    header = ros1_header(fields)
+    return u32(len(header)) + header + u32(len(data)) + data
+
+
+def ros1_connection(conn, topic, type_name):
+    return ros1_record([("op", b"\x07"), ("conn", u32(conn)), ("topic", topic.encode())], ros1_header([
+        ("topic", topic.encode()), ("type", type_name.encode()), ("md5sum", b"0" * 32),  # the converter checks none
+        ("message_definition", b"# left out: the converter knows the layouts it reads\n")]))
+
+
+def ros1_message(conn, stamp_ns, data):
+    return ros1_record([("op", b"\x02"), ("conn", u32(conn)), ("time", ros1_time(stamp_ns))], data)
+
+
+def ros1_chunk(records, compression="none", size=None):
+    """A chunk record; compressions other than bz2 and lz4 are stored plain under their name."""
+    if compression == "bz2":
+        packed = bz2.compress(records)
+    elif compression == "lz4":
+        import lz4.frame
+        packed = lz4.frame.compress(records)
+    else:
+        packed = records
+    return ros1_record([("op", b"\x05"), ("compression", compression.encode()),
+                        ("size", u32(len(records) if size is None else size))], packed)
+
+
+def ros1_bag_header(index_pos=0, conn_count=0, chunk_count=0):
+    fields = [("op", b"\x03"), ("index_pos", struct.pack("<Q", index_pos)), ("conn_count", u32(conn_count)),
+              ("chunk_count", u32(chunk_count))]
+    return ros1_record(fields, b" " * (ROS1_HEADER_RECORD_SIZE - 8 - len(ros1_header(fields))))
+
+
+def write_ros1(path, topics, messages, compression="none", chunk_messages=400, index=True):
+    """A ROS 1 bag (format 2.0) as rosbag writes it: the bag header record, chunks of connection and message data
+    records each followed by its index data records, then the index section (connection and chunk info records),
+    which index=False leaves out as in a recording cut off. topics: {name: ROS 1 type}; messages: (topic, bag time
+    [ns], data). Returns each chunk's (offset, end offset, message count)."""
+    conn_of = {name: i for i, name in enumerate(topics)}
+    body, chunks, chunk_infos, seen = b"", [], b"", set()
+    for start in range(0, len(messages), chunk_messages):
+        group = messages[start:start + chunk_messages]
+        records, entries = b"", {}
+        for topic, stamp, data in group:
+            if topic not in seen:
+                seen.add(topic)
+                records += ros1_connection(conn_of[topic], topic, topics[topic])
+            entries.setdefault(conn_of[topic], []).append(ros1_time(stamp) + u32(len(records)))
+            records += ros1_message(conn_of[topic], stamp, data)
+        chunk_at = len(ROS1_MAGIC) + ROS1_HEADER_RECORD_SIZE + len(body)
+        body += ros1_chunk(records, compression)
+        chunks.append((chunk_at, len(ROS1_MAGIC) + ROS1_HEADER_RECORD_SIZE + len(body), len(group)))
+        for conn, listed in entries.items():
+            body += ros1_record([("op", b"\x04"), ("ver", u32(1)), ("conn", u32(conn)), ("count", u32(len(listed)))],
+                                b"".join(listed))
+        stamps = [stamp for _, stamp, _ in group]
+        chunk_infos += ros1_record([("op", b"\x06"), ("ver", u32(1)), ("chunk_pos", struct.pack("<Q", chunk_at)),
+                                    ("start_time", ros1_time(min(stamps))), ("end_time", ros1_time(max(stamps))),
+                                    ("count", u32(len(entries)))],
+                                   b"".join(u32(conn) + u32(len(listed)) for conn, listed in entries.items()))
+    if index:
+        header = ros1_bag_header(len(ROS1_MAGIC) + ROS1_HEADER_RECORD_SIZE + len(body), len(seen), len(chunks))
+        body += b"".join(ros1_connection(conn_of[name], name, topics[name]) for name in topics if name in seen)
+        body += chunk_infos
+    else:
+        header = ros1_bag_header()  # as rosbag leaves it until the bag is closed
+    assert len(header) == ROS1_HEADER_RECORD_SIZE
+    pathlib.Path(path).write_bytes(ROS1_MAGIC + header + body)
+    return chunks
+
+
+def ros1_topics(topics):
+    return {name: ROS1_NAMES[type_name] for name, type_name in topics.items()}
+
+
+@pytest.fixture(scope="module")
+def ros1_target(world):
+    return TargetBag(world / "sim-3-001" / "sim-3-001.log.gz", Ros1Writer)
+
+
+@pytest.mark.parametrize("compression", ["none", "bz2", "lz4"])
+def test_ros1_bags_give_the_same_log_as_sqlite(ros1_target, sqlite_log, tmp_path, compression):
+    if compression == "lz4":
+        pytest.importorskip("lz4.frame")
+    bag = tmp_path / "run.bag"
+    write_ros1(bag, ros1_topics(ros1_target.topics), ros1_target.messages, compression)
+    out = tmp_path / "converted.log.gz"
+    run = convert(bag, out)
+    assert "from /tf_static base_link -> laser" in run.stderr and "warning" not in run.stderr
+    assert log_body(out) == log_body(sqlite_log)
+
+
+def test_a_ros1_bag_without_its_index_or_cut_off_reads_the_records_there(target, ros1_target, sqlite_log,
+                                                                           tmp_path):
+    recording = tmp_path / "recording"  # no .bag suffix: known by its first line
+    chunks = write_ros1(recording, ros1_topics(ros1_target.topics), ros1_target.messages, "bz2", index=False)
+    out = tmp_path / "out.log.gz"
+    run = convert(recording, out)
+    assert "warning" not in run.stderr
+    assert log_body(out) == log_body(sqlite_log)
+
+    # cut in the middle of the last chunk (then the last record): its messages are lost, the chunks before it read
+    last_at, last_end, last_count = chunks[-1]
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(recording.read_bytes()[:(last_at + last_end) // 2])
+    run = convert(cut, out)
+    assert f"warning: {cut}: the file ends inside the record at byte {last_at}" in run.stderr
+    assert "recording was cut off" in run.stderr
+    kept = len(ros1_target.messages) - last_count
+    assert 0 < kept < len(ros1_target.messages)
+    before = tmp_path / "before.db3"
+    write_sqlite(before, target.topics, target.messages[:kept])
+    want = tmp_path / "want.log.gz"
+    convert(before, want)
+    assert log_body(out) == log_body(want)
+
+
+def test_a_ros1_laser_mount_on_tf_in_tf_tfmessages_gives_the_same_log(ros1_target, sqlite_log, tmp_path):
+    """tf/tfMessage, ROS 1's older transform message, on /tf: the chain base_link -> base_footprint -> laser at
+    every 100th scan (once 0.4 mm and 0.05 degrees off, within a fixed mount's tolerance), odom -> base_link at
+    each scan."""
+    footprint_base, footprint_laser = ros1_target.mount_tf
+    messages = ros1_target.messages[1:]  # /tf_static keeps only the imu
+    for i, stamp in enumerate(ros1_target.stamps):
+        x, y, yaw = ros1_target.robot[i]
+        transforms = [("odom", "base_link", (x, y, 0.0), yaw_quaternion(yaw))]
+        if i % 100 == 0:
+            laser = moved(footprint_laser, 0.0004, math.radians(0.05)) if i == 500 else footprint_laser
+            transforms += [footprint_base, laser]
+        messages.append(("/tf", stamp + BAG_LATENCY_NS, tf_cdr(stamp, transforms, writer=Ros1Writer())))
+    messages.sort(key=lambda message: message[1])
+    bag = tmp_path / "tf.bag"
+    write_ros1(bag, {**ros1_topics(ros1_target.topics), "/tf": "tf/tfMessage"}, messages)
+    out = tmp_path / "out.log.gz"
+    run = convert(bag, out)
+    assert "from /tf base_link -> laser" in run.stderr
+    assert log_body(out) == log_body(sqlite_log)
+    with gzip.open(out, "rt") as f:
+        assert f.readline().rstrip().endswith("(topics /scan, /odom, /tf)")
+
+
+# LaserScan{seq 7, stamp 1 s 2 ns, frame "l", angle_min -0.5, angle_max 0.5, increment 1, time_increment 0,
+# scan_time 0.25, range_min 0.125, range_max 8, ranges [1.5, 2], no intensities}, as GOLDEN_SCAN in ROS 1.
+GOLDEN_ROS1_SCAN = bytes.fromhex(
+    "07000000"                      # seq
+    "01000000" "02000000"           # sec, nsec
+    "01000000" "6c"                 # frame_id "l": no terminating NUL, no padding after it
+    "000000bf" "0000003f" "0000803f" "00000000" "0000803e" "0000003e" "00000041"
+    "02000000" "0000c03f" "00000040"  # ranges [1.5, 2.0]
+    "00000000")                     # no intensities
+# Odometry{seq 8, stamp 1 s 2 ns, frame "o", child "b", position (1, 2, 0), orientation (0, 0, 1, 0): yaw pi, rest 0}.
+GOLDEN_ROS1_ODOMETRY = bytes.fromhex(
+    "08000000"
+    "01000000" "02000000"
+    "01000000" "6f"                 # frame_id "o"
+    "01000000" "62"                 # child_frame_id "b": the doubles follow unaligned
+    "000000000000f03f" "0000000000000040" "0000000000000000"            # position
+    "0000000000000000" "0000000000000000" "000000000000f03f" "0000000000000000"  # orientation x y z w
+) + bytes(8 * (36 + 6 + 36))
+
+
+def test_the_ros1_encoder_writes_and_the_converter_reads_golden_bytes(tmp_path):
+    assert laser_scan_cdr(1_000_000_002, "l", -0.5, 1.0, [1.5, 2.0], range_min=0.125, range_max=8.0,
+                          writer=Ros1Writer(7)) == GOLDEN_ROS1_SCAN
+    assert odometry_cdr(1_000_000_002, 1.0, 2.0, rotation=(0.0, 0.0, 1.0, 0.0), frame="o", child="b",
+                        writer=Ros1Writer(8)) == GOLDEN_ROS1_ODOMETRY
+    bag = tmp_path / "golden.bag"
+    write_ros1(bag, {"/scan": "sensor_msgs/LaserScan", "/odom": "nav_msgs/Odometry"},
+               [("/scan", 5, GOLDEN_ROS1_SCAN), ("/odom", 5, GOLDEN_ROS1_ODOMETRY)])
+    out = tmp_path / "golden.log"
+    assert_golden_log(convert(bag, out), out)
+
+
+def test_bad_ros1_bags_are_refused_naming_the_file_and_what_was_expected(tmp_path):
+    out = tmp_path / "out.log"
+    topics = {"/scan": "sensor_msgs/LaserScan"}
+    scans = [("/scan", n, laser_scan_cdr(n, "laser", -0.1, 0.1, [1.0, 2.0], writer=Ros1Writer())) for n in (1, 2)]
+
+    def refused(name, content, *parts):
+        path = tmp_path / name
+        path.write_bytes(content)
+        assert_refused(convert(path, out, expect_ok=False), str(path), *parts)
+
+    good = tmp_path / "good.bag"
+    write_ros1(good, topics, scans)
+    assert convert(good, out).returncode == 0
+    refused("old.bag", b"#ROSBAG V1.2\n" + good.read_bytes()[len(ROS1_MAGIC):], "'#ROSBAG V1.2'",
+            "a ROS 1 bag of format 1.2", "expected format 2.0")
+    records = ros1_connection(0, "/scan", "sensor_msgs/LaserScan") + b"".join(
+        ros1_message(0, stamp, data) for _, stamp, data in scans)
+    start = ROS1_MAGIC + ros1_bag_header()
+    chunk_at = len(start)
+    refused("zstd.bag", start + ros1_chunk(records, "zstd"), f"chunk at byte {chunk_at} uses compression 'zstd'",
+            "expected none, bz2 or lz4")
+    refused("size.bag", start + ros1_chunk(records, "bz2", size=len(records) + 1),
+            f"chunk at byte {chunk_at}: {len(records)} bytes uncompressed; expected {len(records) + 1}")
+    stray = ros1_connection(0, "/scan", "sensor_msgs/LaserScan") + ros1_message(9, 1, scans[0][2])
+    message_at = len(ros1_connection(0, "/scan", "sensor_msgs/LaserScan"))
+    refused("stray.bag", start + ros1_chunk(stray), f"chunk at byte {chunk_at}, record at byte {message_at}",
+            "a message on connection 9, which no connection record defined before it")
+    write_ros1(tmp_path / "short.bag", topics, [scans[0], ("/scan", 2, scans[1][2][:30])])
+    refused("short.bag", (tmp_path / "short.bag").read_bytes(), "message 2 on topic /scan ends early",
+            "expected a complete ROS 1-serialized sensor_msgs/LaserScan")
 
 
 # ---------------------------------------------------------------- an upside-down laser
