@@ -113,6 +113,25 @@ for r in final:
     assert abs(t[1] - (float(r["x"]) - 0.25 * math.cos(th))) < 2e-4 and abs(t[2] - (float(r["y"]) - 0.25 * math.sin(th))) < 2e-4
     assert abs(math.remainder(2 * math.atan2(t[6], t[7]) - th, 2 * math.pi)) < 1e-4
 PY
+# The answer and the stream's rows give the robot's pose too (the mount taken off), for a pose tracker.
+"$LSHLOC" localize --map "$d/named.map" --target "$d/mounted.log" --start 300 --length 150 --json >"$d/n.json" \
+  2>/dev/null || fail "localize --json with a mount"
+"$LSHLOC" localize --map "$d/named.map" --target - --start 300 --length 150 --json <"$d/mounted.log" \
+  >"$d/n_stream.jsonl" 2>/dev/null || fail "localize --target - --json with a mount"
+python3 - "$d/n.json" "$d/n_stream.jsonl" "$d/n.tum.csv" <<'PY' || fail "robot poses in the JSON answer and stream"
+import csv, json, math, sys
+j = json.load(open(sys.argv[1]))
+rows = [json.loads(l) for l in open(sys.argv[2])]
+last_csv = list(csv.DictReader(open(sys.argv[3])))[-1]
+def off(p):
+    return [p[0] - 0.25 * math.cos(p[2]), p[1] - 0.25 * math.sin(p[2]), p[2]]
+assert j["localized"] and all(abs(a - b) < 1e-9 for a, b in zip(j["final_robot_pose"], off(j["final_pose"]))), j
+assert abs(j["final_time"] - float(last_csv["time"])) < 1e-6, (j["final_time"], last_csv["time"])
+placed = [r for r in rows if "pose" in r]
+assert len(rows) == 150 and placed
+assert all(abs(a - b) < 1e-9 for r in placed for a, b in zip(r["robot_pose"], off(r["pose"])))
+assert rows[-1]["pose"] == j["final_pose"] and rows[-1]["robot_pose"] == j["final_robot_pose"]
+PY
 # The same mount given by a config for a log without one: the same TUM robot poses.
 zcat "$b/sim-3-001.log.gz" >"$d/unmounted.log"
 echo '{"localizer": {"scan_matcher": {"laser_offset": {"x": 0.25, "y": 0, "theta": 0}}}}' >"$d/mount.json"

@@ -193,6 +193,9 @@ void write_files_atomically(const FileTexts& files) {
   io::write_files_atomically(outputs);
 }
 
+/// A pose as JSON: [x, y, theta] [m, m, rad].
+nlohmann::json pose_json(const Pose2& p) { return nlohmann::json::array({p.x, p.y, p.theta}); }
+
 /// Writes the CSV and the TUM files together (all or none). The CSV holds
 /// laser poses, as every other output; the TUM files hold robot poses (the
 /// target's laser mount taken off), in time order, as TUM tools expect.
@@ -404,7 +407,8 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                           {"stamp_clash", e.stamp_clash}};
       if (e.has_estimate)
         j.update({{"submap", submap},
-                  {"pose", {e.pose.x, e.pose.y, e.pose.theta}},
+                  {"pose", pose_json(e.pose)},
+                  {"robot_pose", pose_json(e.pose * robot_from_laser)},
                   {"heading_deg", degrees(e.pose.theta)},
                   {"score", e.mean_score}});
       std::printf("%s\n", io::json_text(j).c_str());
@@ -446,6 +450,10 @@ void print_answer(const nlohmann::json& j) {
     std::printf("Localized in %s: x %.3f m, y %.3f m, heading %.1f deg (the laser, in that submap's frame)\n",
                 j["final_submap"].get<std::string>().c_str(), j["final_pose"][0].get<double>(),
                 j["final_pose"][1].get<double>(), j["final_heading_deg"].get<double>());
+    if (const auto& robot = j["final_robot_pose"]; robot != j["final_pose"])
+      std::printf("  the robot (its laser mount taken off): x %.3f m, y %.3f m, heading %.1f deg, at log time %.3f s\n",
+                  robot[0].get<double>(), robot[1].get<double>(), degrees(robot[2].get<double>()),
+                  j["final_time"].get<double>());
     std::printf("  confident since scan %zu (%.1f s into the run), at %zu of %.0f scans\n",
                 j["first_localized_at"].get<std::size_t>(), j["first_localized_time_s"].get<double>(),
                 j["confident_scans"].get<std::size_t>(), scans);
@@ -566,7 +574,11 @@ nlohmann::json answer_json(const std::string& path, const TargetRun& target, con
       first_localized ? nlohmann::json(target.scans[*first_localized].timestamp - t_first) : nlohmann::json();
   j["final_submap"] = last.has_estimate ? nlohmann::json(map.submap_name(last.submap)) : nlohmann::json();
   j["final_submap_id"] = last.has_estimate ? nlohmann::json(last.submap) : nlohmann::json();
-  j["final_pose"] = last.has_estimate ? nlohmann::json({last.pose.x, last.pose.y, last.pose.theta}) : nlohmann::json();
+  j["final_pose"] = last.has_estimate ? pose_json(last.pose) : nlohmann::json();
+  // The robot's pose (the laser mount taken off) at the last scan's time: what a
+  // ROS robot hands its pose tracker (AMCL's /initialpose, in the map's frame).
+  j["final_robot_pose"] = last.has_estimate ? pose_json(last.pose * target.laser_offset.inverse()) : nlohmann::json();
+  j["final_time"] = target.scans.back().timestamp;
   j["final_heading_deg"] = last.has_estimate ? nlohmann::json(degrees(last.pose.theta)) : nlohmann::json();
   j["final_mean_score"] = last.mean_score;
   j["final_scored"] = last.scored;
