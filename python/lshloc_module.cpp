@@ -11,9 +11,11 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <numbers>
@@ -74,6 +76,43 @@ LaserScan make_scan(const py::array_t<float, py::array::c_style | py::array::for
                 " beams: expected radians (a scan spans at most 2 pi)");
   if (!(max_range > 0.0)) throw Error("LaserScan: expected max_range > 0 [m], got " + std::to_string(max_range));
   return s;
+}
+
+/// The stamp of a ROS message's header [s]: ROS 2's builtin_interfaces/Time
+/// (sec, nanosec) or ROS 1's rospy Time (secs, nsecs).
+double ros_stamp(const py::object& msg) {
+  const py::object stamp = msg.attr("header").attr("stamp");
+  if (py::hasattr(stamp, "nanosec"))
+    return stamp.attr("sec").cast<double>() + 1e-9 * stamp.attr("nanosec").cast<double>();
+  if (py::hasattr(stamp, "nsecs")) return stamp.attr("secs").cast<double>() + 1e-9 * stamp.attr("nsecs").cast<double>();
+  throw Error("LaserScan.from_ros: header.stamp has neither sec/nanosec (ROS 2) nor secs/nsecs (ROS 1)");
+}
+
+/// A sensor_msgs/LaserScan message (rclpy's or rospy's, or any object with its
+/// fields) as lshloc reads it: no return (+inf, above range_max) as
+/// range_max, invalid beams (NaN, -inf, below range_min) as NaN, as
+/// scripts/rosbag_to_carmen.py converts them.
+LaserScan scan_from_ros(const py::object& msg, const PoseTuple& odometry, const PoseTuple& pose) {
+  for (const char* field : {"ranges", "angle_min", "angle_increment", "range_min", "range_max", "header"})
+    if (!py::hasattr(msg, field))
+      throw Error(std::string("LaserScan.from_ros: the message has no field '") + field +
+                  "'; expected a sensor_msgs/LaserScan");
+  const auto range_min = msg.attr("range_min").cast<float>();
+  const auto range_max = msg.attr("range_max").cast<float>();
+  if (!(range_max > 0.0f))
+    throw Error("LaserScan.from_ros: expected range_max > 0 [m], got " + std::to_string(range_max));
+  const auto given = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(msg.attr("ranges"));
+  if (!given || given.ndim() != 1) throw Error("LaserScan.from_ros: expected ranges, a sequence of numbers");
+  // A copy: the message's own array is the caller's.
+  py::array_t<float> ranges(given.shape(0));
+  const auto in = given.unchecked<1>();
+  auto out = ranges.mutable_unchecked<1>();
+  for (py::ssize_t i = 0; i < in.shape(0); ++i) {
+    const float r = in(i);
+    out(i) = std::isnan(r) || r < range_min ? std::numeric_limits<float>::quiet_NaN() : std::min(r, range_max);
+  }
+  return make_scan(ranges, msg.attr("angle_min").cast<double>(), msg.attr("angle_increment").cast<double>(), range_max,
+                   ros_stamp(msg), pose, odometry);
 }
 
 /// A grid of nav_msgs cells, checked: what the constructor and __setstate__ make.
@@ -355,6 +394,12 @@ PYBIND11_MODULE(lshloc, m) {
           "odometry", [](const LaserScan& s) { return to_tuple(s.odometry); },
           [](LaserScan& s, const PoseTuple& p) { s.odometry = finite_pose(p, "LaserScan.odometry"); },
           "the robot's odometry pose (x, y, theta) at the scan")
+      .def_static("from_ros", &scan_from_ros, py::arg("msg"), py::arg("odometry") = PoseTuple{0, 0, 0},
+                  py::arg("pose") = PoseTuple{0, 0, 0},
+                  "A sensor_msgs/LaserScan message from rclpy or rospy (any object with its fields): its ranges, "
+                  "angles, range_max and header stamp [s]; no return (+inf, above range_max) becomes range_max and "
+                  "invalid beams (NaN, -inf, below range_min) NaN, as scripts/rosbag_to_carmen.py converts them. "
+                  "odometry: the robot's odometry pose (x, y, theta) at the scan (from nav_msgs/Odometry or tf)")
       .def("__len__", [](const LaserScan& s) { return s.ranges.size(); })
       .def(py::pickle(&scan_state, &scan_from_state))
       .def("__repr__", [](const LaserScan& s) {

@@ -8,7 +8,6 @@ so this file is a starting point, not a tested component.
 """
 import math
 
-import numpy as np
 import rclpy
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
@@ -40,9 +39,8 @@ class LshlocNode(Node):
         self.odom = (p.position.x, p.position.y, yaw_of(p.orientation))
 
     def on_scan(self, msg):
-        scan = lshloc.LaserScan(np.asarray(msg.ranges, dtype=np.float32), msg.angle_min, msg.angle_increment,
-                                max_range=msg.range_max, timestamp=msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
-                                odometry=self.odom)
+        # The message's beams as lshloc reads them (+inf: no return; below range_min: invalid), its stamp in s.
+        scan = lshloc.LaserScan.from_ros(msg, odometry=self.odom)
         e = self.localizer.add_scan(scan)
         # "confident": the flag, unless another scan stamped within 5 ms was estimated elsewhere.
         if not e["confident"]:

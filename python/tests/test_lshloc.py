@@ -531,3 +531,58 @@ def test_help_states_the_conventions():
         assert "read-only copy" in array.__doc__
     assert "Localizer" in lshloc.CarmenLog.laser_offset.__doc__
     assert "[rad]" in lshloc.GlobalMap.add_grid_submap.__doc__
+
+
+def ros_scan_message(scan, ros1=False, range_min=0.02):
+    """A stand-in for rclpy's (or, with ros1, rospy's) sensor_msgs/LaserScan of `scan`: +inf for no return."""
+    from types import SimpleNamespace
+    import array
+    sec = math.floor(scan.timestamp)
+    nsec = round((scan.timestamp - sec) * 1e9)
+    stamp = SimpleNamespace(secs=sec, nsecs=nsec) if ros1 else SimpleNamespace(sec=sec, nanosec=nsec)
+    ranges = [math.inf if r >= scan.max_range else float(r) for r in scan.ranges]
+    n = len(ranges)
+    return SimpleNamespace(header=SimpleNamespace(stamp=stamp, frame_id="laser"), angle_min=scan.angle_min,
+                           angle_max=scan.angle_min + (n - 1) * scan.angle_increment,
+                           angle_increment=scan.angle_increment, time_increment=0.0, scan_time=0.0,
+                           range_min=range_min, range_max=scan.max_range,
+                           ranges=tuple(ranges) if ros1 else array.array("f", ranges), intensities=[])
+
+
+def test_a_ros_laser_scan_message_reads_as_the_log_scan_and_localizes_alike(world):
+    """LaserScan.from_ros takes rclpy's and rospy's messages (stamps, +inf no-return) to the scan the log
+    gives, so that a ROS robot's scans localize as the converted log's."""
+    target = lshloc.read_carmen_log(world / "sim-3-001" / "sim-3-001.log.gz")
+    b = lshloc.read_carmen_log(world / "sim-3-001" / "sim-3-001-corrected.log.gz")
+    gmap = lshloc.GlobalMap()
+    feed(gmap, [("b", b.scans[:600])])
+    from_log, from_ros = lshloc.Localizer(gmap), lshloc.Localizer(gmap)
+    for i, scan in enumerate(target.scans[700:760]):
+        msg = ros_scan_message(scan, ros1=i % 2 == 1)
+        ros = lshloc.LaserScan.from_ros(msg, odometry=scan.odometry)
+        assert abs(ros.timestamp - scan.timestamp) < 1e-6 and ros.max_range == scan.max_range
+        assert np.array_equal(ros.ranges, np.minimum(scan.ranges, scan.max_range))
+        estimate = from_ros.add_scan(ros)
+        assert estimate == from_log.add_scan(scan)
+    assert estimate["has_estimate"] and estimate["submap"] == 0
+
+
+def test_ros_beams_out_of_range_follow_the_converters_rules():
+    """+inf or above range_max: no return (range_max); NaN, -inf or below range_min: invalid (NaN); the
+    message's own array is left as it was."""
+    from types import SimpleNamespace
+    given = np.array([1.0, math.inf, 9.0, math.nan, -math.inf, 0.01, 7.5], dtype=np.float32)
+    msg = SimpleNamespace(header=SimpleNamespace(stamp=SimpleNamespace(sec=12, nanosec=500_000_000)),
+                          angle_min=-0.3, angle_increment=0.1, range_min=0.05, range_max=8.0, ranges=given)
+    scan = lshloc.LaserScan.from_ros(msg)
+    assert scan.timestamp == 12.5 and scan.max_range == 8.0 and scan.angle_min == -0.3
+    want = [1.0, 8.0, 8.0, math.nan, math.nan, math.nan, 7.5]
+    assert np.array_equal(scan.ranges, np.array(want, dtype=np.float32), equal_nan=True)
+    assert np.isinf(given[1]) and given[2] == 9.0  # not changed in place
+    del msg.range_min
+    with pytest.raises(lshloc.Error, match="no field 'range_min'"):
+        lshloc.LaserScan.from_ros(msg)
+    msg.range_min = 0.05
+    msg.header.stamp = SimpleNamespace(seconds=1)
+    with pytest.raises(lshloc.Error, match="neither sec/nanosec"):
+        lshloc.LaserScan.from_ros(msg)
