@@ -1,6 +1,6 @@
 # cmake --install and find_package(lshloc): the five layer libraries as
 # lshloc::core, lshloc::io, lshloc::figures, lshloc::eval, lshloc::sim, the
-# public headers, and the lshloc tool.
+# public headers, the lshloc tool and the ROS bag converter (lshloc-rosbag-to-carmen).
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
@@ -10,6 +10,9 @@ install(TARGETS lshloc_core lshloc_io lshloc_figures lshloc_eval lshloc_sim
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS lshloc RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# The ROS bag converter beside the tool (standard-library Python: nothing to build).
+install(PROGRAMS ${PROJECT_SOURCE_DIR}/scripts/rosbag_to_carmen.py DESTINATION ${CMAKE_INSTALL_BINDIR}
+        RENAME lshloc-rosbag-to-carmen)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lshloc DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(EXPORT lshlocTargets NAMESPACE lshloc:: DESTINATION ${LSHLOC_CMAKE_DIR})
 

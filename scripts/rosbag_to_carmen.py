@@ -1069,7 +1069,7 @@ def parse_offset(text):
 
 def parse_args(argv):
     parser = argparse.ArgumentParser(
-        prog="rosbag_to_carmen.py",
+        prog=pathlib.Path(sys.argv[0]).name or "rosbag_to_carmen.py",  # installed as lshloc-rosbag-to-carmen
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Convert a ROS 2 bag (sqlite3 .db3 or MCAP, MCAP chunks plain, zstd or lz4) or a ROS 1 bag "
                     "(.bag, format 2.0, chunks plain, bz2 or lz4) of "

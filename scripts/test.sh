@@ -18,4 +18,6 @@ cmake -S examples/embed -B "$prefix/embed" -DCMAKE_PREFIX_PATH="$prefix/install"
 cmake --build "$prefix/embed" -j"$(nproc)" >/dev/null
 "$prefix/embed/embed"
 echo "embed: built against the installed package and ran"
+"$prefix/install/bin/lshloc-rosbag-to-carmen" --help >/dev/null
+echo "lshloc-rosbag-to-carmen: installed and runs"
 ./scripts/sanitize.sh

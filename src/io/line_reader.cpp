@@ -22,7 +22,8 @@ namespace lshloc::io {
 namespace {
 
 constexpr const char* kBagAdvice =
-    "; lshloc reads CARMEN logs: convert the bag with scripts/rosbag_to_carmen.py BAG --out run.log.gz";
+    "; lshloc reads CARMEN logs: convert the bag with lshloc-rosbag-to-carmen BAG --out run.log.gz "
+    "(scripts/rosbag_to_carmen.py in the source tree)";
 
 /// What a binary file that users give in place of a text file is, by its
 /// first bytes (empty: none we know).
