@@ -17,9 +17,8 @@ SyntheticBuilding building(double size, std::uint64_t seed = 1) {
   return generate_building(config);
 }
 
-/// One 180-beam scan from poses along a recorded tour (noise included).
-void BM_CastScan(benchmark::State& state) {
-  const auto b = building(static_cast<double>(state.range(0)));
+/// Casts one 180-beam scan per iteration from poses along a recorded tour of `b` (noise included).
+void cast_scans(benchmark::State& state, const SyntheticBuilding& b) {
   const Trajectory tour = drive_tour(b.plan, {}, 2000, 5);
   LaserConfig laser;
   LaserScan scan;
@@ -31,6 +30,12 @@ void BM_CastScan(benchmark::State& state) {
     benchmark::DoNotOptimize(scan.ranges.data());
   }
   state.SetItemsProcessed(state.iterations());  // scans
+}
+
+/// One 180-beam scan from poses along a recorded tour (noise included).
+void BM_CastScan(benchmark::State& state) {
+  const auto b = building(static_cast<double>(state.range(0)));
+  cast_scans(state, b);
   state.counters["segments"] = static_cast<double>(b.plan.segments.size());
 }
 BENCHMARK(BM_CastScan)->Arg(30)->Arg(80)->Arg(200)->Arg(400);
@@ -41,17 +46,7 @@ void BM_CastScanCell(benchmark::State& state) {
   config.plan.min_size = config.plan.max_size = 60.0;
   config.caster.cell = static_cast<double>(state.range(0)) / 10.0;
   const auto b = generate_building(config);
-  const Trajectory tour = drive_tour(b.plan, {}, 2000, 5);
-  LaserConfig laser;
-  LaserScan scan;
-  set_beam_layout(laser, scan);
-  std::mt19937_64 rng(1);
-  std::size_t k = 0;
-  for (auto _ : state) {
-    simulate_ranges(b.caster, tour.poses[k++ % tour.poses.size()], laser, rng, scan);
-    benchmark::DoNotOptimize(scan.ranges.data());
-  }
-  state.SetItemsProcessed(state.iterations());  // scans
+  cast_scans(state, b);
   state.counters["bucket_entries"] = static_cast<double>(b.caster.bucket_entries());
 }
 BENCHMARK(BM_CastScanCell)->Arg(3)->Arg(5)->Arg(10)->Arg(20)->Arg(40);

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <numbers>
 #include <random>
+#include <utility>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/io/carmen_writer.hpp"
@@ -381,36 +382,33 @@ TEST(CarmenWriter, GeneratedBuildingRoundTripsThroughTheReader) {
   std::filesystem::remove_all(dir);
 }
 
+// Lasers other than 180 degrees are written as ROBOTLASER1 and read back
+// with their layout: a 270-degree one with beams at both ends, and a
+// spinning lidar whose n beams lie a full turn apart, none twice.
 TEST(CarmenWriter, NonFlaserLayoutsUseRobotLaser1) {
   const auto b = building_with_seed(3);
-  SimulationConfig config;
-  config.scans = 50;
-  config.laser.beams = 541, config.laser.fov = 1.5 * kPi, config.laser.max_range = 20.0;
-  const BuildingRecording rec = simulate_recording(b, config);
-  const std::string path = test::temp_path(".log");
-  io::write_carmen_log(path, rec.raw_scans, true);
-  const io::CarmenLog back = io::read_carmen_log(path);
-  expect_same_scans(rec.raw_scans, back.scans);
-  std::filesystem::remove(path);
-}
-
-// A spinning lidar's n beams lie a full turn apart, none twice; its
-// ROBOTLASER1 lines read back with the same layout.
-TEST(CarmenWriter, A360DegreeLaserHasNoBeamTwice) {
-  const auto b = building_with_seed(3);
-  SimulationConfig config;
-  config.scans = 30;
-  config.laser.beams = 400, config.laser.fov = 2.0 * kPi;
-  const BuildingRecording rec = simulate_recording(b, config);
-  const LaserScan& scan = rec.raw_scans.front();
-  EXPECT_DOUBLE_EQ(scan.angle_min, -kPi);
-  EXPECT_DOUBLE_EQ(scan.angle_increment, 2.0 * kPi / 400.0);
-  EXPECT_NEAR(scan.angle_min + 399 * scan.angle_increment, kPi - 2.0 * kPi / 400.0, 1e-12);
-  const std::string path = test::temp_path(".log");
-  io::write_carmen_log(path, rec.raw_scans, true);
-  const io::CarmenLog back = io::read_carmen_log(path);
-  expect_same_scans(rec.raw_scans, back.scans);
-  std::filesystem::remove(path);
+  for (const auto& [beams, fov] : {std::pair<std::size_t, double>{541, 1.5 * kPi}, {400, 2.0 * kPi}}) {
+    SCOPED_TRACE(beams);
+    SimulationConfig config;
+    config.scans = 40;
+    config.laser.beams = beams, config.laser.fov = fov, config.laser.max_range = 20.0;
+    const BuildingRecording rec = simulate_recording(b, config);
+    const LaserScan& scan = rec.raw_scans.front();
+    const double last = scan.angle_min + static_cast<double>(beams - 1) * scan.angle_increment;
+    if (fov < 2.0 * kPi) {
+      EXPECT_DOUBLE_EQ(scan.angle_min, -fov / 2.0);
+      EXPECT_NEAR(last, fov / 2.0, 1e-12);
+    } else {
+      EXPECT_DOUBLE_EQ(scan.angle_min, -kPi);
+      EXPECT_DOUBLE_EQ(scan.angle_increment, 2.0 * kPi / static_cast<double>(beams));
+      EXPECT_NEAR(last, kPi - scan.angle_increment, 1e-12);
+    }
+    const std::string path = test::temp_path(".log");
+    io::write_carmen_log(path, rec.raw_scans, true);
+    const io::CarmenLog back = io::read_carmen_log(path);
+    expect_same_scans(rec.raw_scans, back.scans);
+    std::filesystem::remove(path);
+  }
 }
 
 // The laser's mount (forward, sideways, angle) as CARMEN's three PARAMs,
