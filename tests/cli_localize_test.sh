@@ -145,6 +145,14 @@ zcat "$b/sim-3-001.log.gz" | awk '$1 == "FLASER" { for (i = 3; i <= $2 + 2; i++)
 grep -q "20 of 20 scans have no return between .* (ranges must be metres" "$d/err.txt" ||
   fail "a log in millimetres: $(cat "$d/err.txt")"
 
+# A log without time stamps (every scan at one time): the flag rises, but every flagged scan's stamp
+# clashes with one estimated elsewhere, so none is confident; the answer says so (it once threw).
+zcat "$b/sim-3-001.log.gz" | awk '$1=="FLASER"{n=$2; $(n+9)="100.0"; $(n+11)="100.0"} $1=="ODOM"{$8="100.0"; $10="100.0"} {print}' \
+  >"$d/one_time.log"
+"$LSHLOC" localize "${maps[@]}" --target "$d/one_time.log" --start 300 --length 150 >"$d/one_time.txt" 2>&1 ||
+  fail "a log without time stamps: $(tail -3 "$d/one_time.txt")"
+grep -q "^Localized in sim-3-001" "$d/one_time.txt" && grep -q "no scan marked confident" "$d/one_time.txt" &&
+  grep -q "its stamps span no time" "$d/one_time.txt" || fail "a log without time stamps: $(cat "$d/one_time.txt")"
 # gzip on stdin: refused with the way to give it.
 if "$LSHLOC" localize "${maps[@]}" --target - --length 5 <"$b/sim-3-001.log.gz" >/dev/null 2>"$d/err.txt"; then
   fail "gzip on stdin was read"

@@ -454,9 +454,12 @@ void print_answer(const nlohmann::json& j) {
       std::printf("  the robot (its laser mount taken off): x %.3f m, y %.3f m, heading %.1f deg, at log time %.3f s\n",
                   robot[0].get<double>(), robot[1].get<double>(), degrees(robot[2].get<double>()),
                   j["final_time"].get<double>());
-    std::printf("  confident since scan %zu (%.1f s into the run), at %zu of %.0f scans\n",
-                j["first_localized_at"].get<std::size_t>(), j["first_localized_time_s"].get<double>(),
-                j["confident_scans"].get<std::size_t>(), scans);
+    if (!j["first_localized_at"].is_null())
+      std::printf("  confident since scan %zu (%.1f s into the run), at %zu of %.0f scans\n",
+                  j["first_localized_at"].get<std::size_t>(), j["first_localized_time_s"].get<double>(),
+                  j["confident_scans"].get<std::size_t>(), scans);
+    else  // the flag is up, but every flagged scan shares its time stamp with one estimated elsewhere
+      std::printf("  no scan marked confident: every flagged scan's time stamp clashes (see below)\n");
   } else if (!j["final_submap"].is_null()) {
     std::printf(
         "Not localized: no confident answer at the last of %.0f scans. Best guess (not confident): %s, x %.3f "
@@ -481,10 +484,12 @@ void print_answer(const nlohmann::json& j) {
       "elsewhere)\n",
       j["confidence"].get<double>(), j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(),
       j["final_margin"].get<double>());
-  std::printf(
-      "  cost: %.0f scans (%.1f s of log) in %.2f s CPU: %.2f ms per scan, %.0fx real time; the map took %.1f s\n",
-      scans, j["log_s"].get<double>(), j["localize_cpu_s"].get<double>(), j["ms_per_scan"].get<double>(),
-      j["realtime_factor"].get<double>(), j["map_s"].get<double>());
+  std::string pace = "its stamps span no time";  // a log without time stamps
+  if (j["log_s"].get<double>() > 0.0)
+    pace = std::to_string(std::lround(j["realtime_factor"].get<double>())) + "x real time";
+  std::printf("  cost: %.0f scans (%.1f s of log) in %.2f s CPU: %.2f ms per scan, %s; the map took %.1f s\n", scans,
+              j["log_s"].get<double>(), j["localize_cpu_s"].get<double>(), j["ms_per_scan"].get<double>(), pace.c_str(),
+              j["map_s"].get<double>());
 }
 
 /// Where --out writes each target's files: OUT itself for one target; with
