@@ -153,6 +153,10 @@ zcat "$b/sim-3-001.log.gz" | awk '$1=="FLASER"{n=$2; $(n+9)="100.0"; $(n+11)="10
   fail "a log without time stamps: $(tail -3 "$d/one_time.txt")"
 grep -q "^Localized in sim-3-001" "$d/one_time.txt" && grep -q "no scan marked confident" "$d/one_time.txt" &&
   grep -q "its stamps span no time" "$d/one_time.txt" || fail "a log without time stamps: $(cat "$d/one_time.txt")"
+"$LSHLOC" localize "${maps[@]}" --target - --start 300 --length 150 <"$d/one_time.log" >/dev/null 2>"$d/one_time.err" ||
+  fail "a stream without time stamps"
+grep -q "^Localized in sim-3-001.*no scan marked confident" "$d/one_time.err" ||
+  fail "a stream without time stamps: $(cat "$d/one_time.err")"
 # gzip on stdin: refused with the way to give it.
 if "$LSHLOC" localize "${maps[@]}" --target - --length 5 <"$b/sim-3-001.log.gz" >/dev/null 2>"$d/err.txt"; then
   fail "gzip on stdin was read"

@@ -438,6 +438,11 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                  "Localized in %s: x %.3f m, y %.3f m, heading %.1f deg; confident since scan %zu, at %zu of %zu\n",
                  map.submap_name(last.submap).c_str(), last.pose.x, last.pose.y, degrees(last.pose.theta),
                  *first_confident, confident, done);
+  else if (last.localized)
+    std::fprintf(stderr,
+                 "Localized in %s: x %.3f m, y %.3f m, heading %.1f deg; no scan marked confident: every flagged "
+                 "scan's time stamp clashes with a scan estimated elsewhere\n",
+                 map.submap_name(last.submap).c_str(), last.pose.x, last.pose.y, degrees(last.pose.theta));
   else
     std::fprintf(stderr, "Not localized after %zu scans\n", done);
   for (const auto& r : not_confident_reasons(last, config.report.confidence, map))
