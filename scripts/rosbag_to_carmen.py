@@ -60,11 +60,16 @@ MOUNT_STEADY_M = 0.001
 MOUNT_STEADY_RAD = math.radians(0.1)
 
 
+def one_line(text):
+    """`text` with its control characters escaped: names read from a damaged bag must not break a message's line."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class BagError(Exception):
     """A problem with the input, reported as one line naming the file."""
 
     def __init__(self, path, what):
-        super().__init__(f"{path}: {what}")
+        super().__init__(one_line(f"{path}: {what}"))
 
 
 class Progress:
@@ -77,7 +82,7 @@ class Progress:
 
 
 def warn(text):
-    print(f"rosbag_to_carmen: warning: {text}", file=sys.stderr)
+    print(f"rosbag_to_carmen: warning: {one_line(text)}", file=sys.stderr)
 
 
 class RawMessage:
@@ -295,18 +300,26 @@ def read_sqlite(file, bag, path):
         db = sqlite3.connect(file.resolve().as_uri() + "?mode=ro", uri=True)
     except sqlite3.Error as e:
         raise BagError(path, f"cannot open the sqlite3 database ({e})") from None
+    # Damaged text (not UTF-8) reads with replacement characters, to be refused by name below.
+    db.text_factory = lambda raw: raw.decode("utf-8", errors="replace")
     try:
         ids = {}
         for topic_id, name, type_name, encoding in db.execute(
                 "SELECT id, name, type, serialization_format FROM topics"):
+            if not all(isinstance(v, str) for v in (name, type_name, encoding)):
+                raise BagError(path, f"topic id {topic_id!r}: name {name!r}, type {type_name!r}, serialization "
+                               f"{encoding!r}; expected text in each column of the topics table")
             bag.topics[name] = (type_name, encoding)
             if type_name in WANTED_TYPES:
                 ids[topic_id] = name
         rows = db.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY timestamp, id")
         for topic_id, stamp, data in rows:
             if topic_id in ids:
-                bag.messages.append(RawMessage(ids[topic_id], stamp, bytes(data), path))
-    except sqlite3.Error as e:
+                if not isinstance(stamp, int) or not isinstance(data, bytes):
+                    raise BagError(path, f"a message on {ids[topic_id]} has timestamp {stamp!r} and data of type "
+                                   f"{type(data).__name__}; expected an integer [ns] and a blob in the messages table")
+                bag.messages.append(RawMessage(ids[topic_id], stamp, data, path))
+    except (sqlite3.Error, UnicodeDecodeError) as e:  # a damaged schema's column names are no UTF-8
         raise BagError(path, f"not a readable rosbag2 database ({e}); expected the tables topics(id, name, type, "
                        "serialization_format) and messages(topic_id, timestamp, data)") from None
     finally:
@@ -464,9 +477,13 @@ def read_ros1(file, bag, path):
     with open(file, "rb") as f:
         line = f.readline(64)
     if line != ROS1_MAGIC:
-        shown = line.rstrip(b"\n").decode("ascii", errors="replace")
-        raise BagError(path, f"begins '{shown}', a ROS 1 bag of format {shown[len(ROS1_PREFIX):] or '?'}; expected "
-                       "format 2.0 ('#ROSBAG V2.0'), the only one read")
+        head = line.split(b"\n")[0][:16]  # a damaged line may run on into binary records
+
+        def shown(text):
+            return repr(text)[2:-1]  # bytes as Python writes them: escapes, no raw control bytes
+
+        raise BagError(path, f"begins '{shown(head)}', a ROS 1 bag of format {shown(head[len(ROS1_PREFIX):]) or '?'}; "
+                       "expected format 2.0 ('#ROSBAG V2.0'), the only one read")
     with open(file, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         state = Ros1State(path, bag)
         for at, fields, data in ros1_records(buf, len(ROS1_MAGIC), len(buf), path, "record at", cut_off_ok=True):
@@ -1027,8 +1044,10 @@ def convert(args):
     track = OdometryTrack(odometry, stamp_of) if odometry else None
     if track is None:
         warn(f"no {ODOMETRY} topic: writing zero odometry; localize the log with `lshloc localize --no-odometry`")
-    lines = [f"# converted by rosbag_to_carmen.py from {args.bag} (topics {scan_topic}, {odom_topic or 'no odometry'}"
-             f"{''.join(', ' + topic for topic in mount.topics)})"]
+    header = (f"# converted by rosbag_to_carmen.py from {args.bag} (topics {scan_topic}, {odom_topic or 'no odometry'}"
+              f"{''.join(', ' + topic for topic in mount.topics)})")
+    # The log is ASCII: a bag path or topic outside it (a user's "Läufer.bag") is written escaped.
+    lines = [header.encode("ascii", "backslashreplace").decode("ascii")]
     dropped = 0
     for scan in scans:
         stamp = stamp_of(scan)

@@ -1025,3 +1025,69 @@ def test_bad_compressed_input_is_refused_and_leaves_no_temporary_file(tmp_path):
     write_metadata(bag, ["bag_0.db3", "bag_1.db3.zstd"], "FILE", "zstd")
     assert_refused(convert(bag, out, expect_ok=False), str(bag / "metadata.yaml"),
                    "relative_file_paths lists bag_1.db3.zstd", "expected the bag's storage files beside metadata.yaml")
+
+
+def small_bag_messages(writer_of):
+    """A few scans and odometry messages, serialized by writer_of() (a CdrWriter or a Ros1Writer)."""
+    messages = []
+    for k in range(12):
+        stamp = 1_000_000_000 + k * 100_000_000
+        messages.append(("/scan", stamp, laser_scan_cdr(stamp, "laser", -0.1, 0.1, [1.0, 2.0, 3.0],
+                                                         writer=writer_of())))
+        messages.append(("/odom", stamp, odometry_cdr(stamp, 0.1 * k, 0.0, writer=writer_of())))
+    return messages
+
+
+@pytest.mark.parametrize("storage", ["db3", "mcap", "ros1-none", "ros1-bz2"])
+def test_damaged_bags_are_refused_with_a_message_never_a_traceback(tmp_path, storage):
+    """Seeded damage to a small bag (bytes flipped, runs zeroed, the file cut short): each run converts or exits 1
+    with a one-line error naming the bag; no exception escapes the converter (run in-process: 150 runs a second)."""
+    import contextlib
+    import importlib.util
+    import io
+    import random
+    spec = importlib.util.spec_from_file_location("rosbag_to_carmen_under_test", CONVERTER)
+    converter = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(converter)
+    good = tmp_path / "good.bag"
+    if storage.startswith("ros1"):
+        write_ros1(good, {"/scan": "sensor_msgs/LaserScan", "/odom": "nav_msgs/Odometry"},
+                   small_bag_messages(Ros1Writer), compression=storage.split("-")[1], chunk_messages=8)
+    else:
+        write_storage(good, storage, {"/scan": LASER_SCAN, "/odom": ODOMETRY}, small_bag_messages(CdrWriter))
+    original = good.read_bytes()
+    rng = random.Random(20261206)
+    bad, out = tmp_path / "bad.bag", tmp_path / "out.log"
+    refused = 0
+    for run in range(150):
+        data = bytearray(original)
+        kind = run % 3
+        if kind == 0:  # a few bytes flipped
+            for _ in range(rng.randint(1, 8)):
+                data[rng.randrange(len(data))] ^= 1 << rng.randrange(8)
+        elif kind == 1:  # a run of bytes zeroed
+            at = rng.randrange(len(data))
+            n = min(rng.randint(1, 64), len(data) - at)
+            data[at:at + n] = bytes(n)
+        else:  # cut short
+            data = data[:rng.randrange(16, len(data))]
+        bad.write_bytes(bytes(data))
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            code = converter.main([str(bad), "--out", str(out), "--quiet"])
+        assert code in (0, 1), (run, kind, code)
+        if code == 1:
+            refused += 1
+            last = err.getvalue().splitlines()[-1]  # warnings (a cut-off record) may come first
+            assert last.startswith("rosbag_to_carmen: error: ") and str(bad) in last, (run, kind, last)
+    assert refused > 0  # the damage is seen, not only passed over
+
+
+def test_a_bag_whose_name_is_not_ascii_converts_with_the_name_escaped(tmp_path):
+    """The CARMEN log is ASCII: a user's "Läufer.db3" is named escaped in its first line, not a crash."""
+    bag = tmp_path / "L\u00e4ufer.db3"
+    tiny_bag(bag, [1.0, 1.1, 1.2], [0.9, 1.3])
+    run = convert(bag, tmp_path / "out.log")
+    first = (tmp_path / "out.log").read_text(encoding="ascii").splitlines()[0]
+    assert "L\\xe4ufer.db3" in first, first
+    assert sum(1 for line in (tmp_path / "out.log").open() if line.startswith("ROBOTLASER1")) == 3, run.stderr
