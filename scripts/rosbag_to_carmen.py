@@ -42,6 +42,11 @@ WANTED_TYPES = (LASER_SCAN, ODOMETRY, TF_MESSAGE)
 # ROS 1 names of the wanted types; tf/tfMessage has tf2_msgs/TFMessage's layout.
 ROS1_TYPES = {"sensor_msgs/LaserScan": LASER_SCAN, "nav_msgs/Odometry": ODOMETRY, "tf2_msgs/TFMessage": TF_MESSAGE,
               "tf/tfMessage": TF_MESSAGE}
+# The md5sum ROS 1 gives each of those definitions, the layouts decoded here: another is another layout.
+ROS1_MD5 = {"sensor_msgs/LaserScan": "90c7ef2dc6895d81024acba2ac42f369",
+            "nav_msgs/Odometry": "cd5e73d190d741a2f92e81eda573aca7",
+            "tf2_msgs/TFMessage": "94810edda583a504dfda3829e70d7eec",
+            "tf/tfMessage": "94810edda583a504dfda3829e70d7eec"}
 CDR, ROS1 = "cdr", "ros1"  # the serializations: a topic's encoding in Bag.topics
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -562,6 +567,10 @@ class Ros1State:
                 raise BagError(self.path, f"{where}: connection {conn} has no {'topic' if bag_type else 'type'}; "
                                "expected topic and type fields in its connection record")
             type_name = ROS1_TYPES.get(bag_type, bag_type)
+            md5 = described.get("md5sum", b"").decode("ascii", errors="replace")
+            if bag_type in ROS1_MD5 and md5 not in ("", "*", ROS1_MD5[bag_type]):
+                raise BagError(self.path, f"{where}: topic {topic} is {bag_type} with md5sum {md5}; expected "
+                               f"{ROS1_MD5[bag_type]}, the standard definition (this one's fields differ)")
             self.connections[conn] = (topic, type_name)
             if topic not in self.bag.topics:  # a topic's first type is the one read
                 self.bag.topics[topic] = (type_name, ROS1)

@@ -644,9 +644,16 @@ def ros1_record(fields, data=b""):
     return u32(len(header)) + header + u32(len(data)) + data
 
 
-def ros1_connection(conn, topic, type_name):
+# The md5sums rosbag records for the standard definitions (`rosbag info` lists them).
+ROS1_MD5 = {"sensor_msgs/LaserScan": b"90c7ef2dc6895d81024acba2ac42f369",
+            "nav_msgs/Odometry": b"cd5e73d190d741a2f92e81eda573aca7",
+            "tf2_msgs/TFMessage": b"94810edda583a504dfda3829e70d7eec",
+            "tf/tfMessage": b"94810edda583a504dfda3829e70d7eec"}
+
+
+def ros1_connection(conn, topic, type_name, md5=None):
     return ros1_record([("op", b"\x07"), ("conn", u32(conn)), ("topic", topic.encode())], ros1_header([
-        ("topic", topic.encode()), ("type", type_name.encode()), ("md5sum", b"0" * 32),  # the converter checks none
+        ("topic", topic.encode()), ("type", type_name.encode()), ("md5sum", md5 or ROS1_MD5.get(type_name, b"0" * 32)),
         ("message_definition", b"# left out: the converter knows the layouts it reads\n")]))
 
 
@@ -840,6 +847,10 @@ def test_bad_ros1_bags_are_refused_naming_the_file_and_what_was_expected(tmp_pat
     message_at = len(ros1_connection(0, "/scan", "sensor_msgs/LaserScan"))
     refused("stray.bag", start + ros1_chunk(stray), f"chunk at byte {chunk_at}, record at byte {message_at}",
             "a message on connection 9, which no connection record defined before it")
+    # Another definition under the standard name: its bytes would decode to wrong numbers.
+    custom = ros1_connection(0, "/scan", "sensor_msgs/LaserScan", md5=b"f" * 32)
+    refused("custom.bag", start + ros1_chunk(custom + ros1_message(0, 1, scans[0][2])),
+            f"topic /scan is sensor_msgs/LaserScan with md5sum {'f' * 32}", "expected 90c7ef2dc6895d81024acba2ac42f369")
     write_ros1(tmp_path / "short.bag", topics, [scans[0], ("/scan", 2, scans[1][2][:30])])
     refused("short.bag", (tmp_path / "short.bag").read_bytes(), "message 2 on topic /scan ends early",
             "expected a complete ROS 1-serialized sensor_msgs/LaserScan")
