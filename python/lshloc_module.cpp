@@ -88,11 +88,37 @@ double ros_stamp(const py::object& msg) {
   throw Error("LaserScan.from_ros: header.stamp has neither sec/nanosec (ROS 2) nor secs/nsecs (ROS 1)");
 }
 
+/// A planar pose (x, y, yaw) from a ROS message: nav_msgs/Odometry,
+/// geometry_msgs/PoseWithCovarianceStamped, PoseStamped or Pose (position +
+/// orientation), TransformStamped or Transform (translation + rotation).
+PoseTuple pose_from_ros(const py::object& msg) {
+  py::object at = msg;
+  for (const char* inner : {"pose", "pose", "transform"})  // Odometry.pose.pose, PoseStamped.pose, ...
+    if (py::hasattr(at, inner)) at = at.attr(inner);
+  const char* place = py::hasattr(at, "position") ? "position" : "translation";
+  const char* turn = py::hasattr(at, "orientation") ? "orientation" : "rotation";
+  if (!py::hasattr(at, place) || !py::hasattr(at, turn))
+    throw Error(
+        "pose_from_ros: expected a nav_msgs/Odometry, a geometry_msgs pose (position, orientation) or transform "
+        "(translation, rotation)");
+  const py::object p = at.attr(place), q = at.attr(turn);
+  const auto get = [](const py::object& o, const char* name) { return o.attr(name).cast<double>(); };
+  const double qx = get(q, "x"), qy = get(q, "y"), qz = get(q, "z"), qw = get(q, "w");
+  const double yaw = std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
+  const PoseTuple pose{get(p, "x"), get(p, "y"), yaw};
+  finite_pose(pose, "pose_from_ros");
+  return pose;
+}
+
 /// A sensor_msgs/LaserScan message (rclpy's or rospy's, or any object with its
 /// fields) as lshloc reads it: no return (+inf, above range_max) as
 /// range_max, invalid beams (NaN, -inf, below range_min) as NaN, as
 /// scripts/rosbag_to_carmen.py converts them.
-LaserScan scan_from_ros(const py::object& msg, const PoseTuple& odometry, const PoseTuple& pose) {
+LaserScan scan_from_ros(const py::object& msg, const py::object& odometry_in, const PoseTuple& pose) {
+  // The odometry as (x, y, theta), or a ROS odometry or pose message.
+  const PoseTuple odometry = py::isinstance<py::tuple>(odometry_in) || py::isinstance<py::list>(odometry_in)
+                                 ? odometry_in.cast<PoseTuple>()
+                                 : pose_from_ros(odometry_in);
   for (const char* field : {"ranges", "angle_min", "angle_increment", "range_min", "range_max", "header"})
     if (!py::hasattr(msg, field))
       throw Error(std::string("LaserScan.from_ros: the message has no field '") + field +
@@ -394,12 +420,13 @@ PYBIND11_MODULE(lshloc, m) {
           "odometry", [](const LaserScan& s) { return to_tuple(s.odometry); },
           [](LaserScan& s, const PoseTuple& p) { s.odometry = finite_pose(p, "LaserScan.odometry"); },
           "the robot's odometry pose (x, y, theta) at the scan")
-      .def_static("from_ros", &scan_from_ros, py::arg("msg"), py::arg("odometry") = PoseTuple{0, 0, 0},
+      .def_static("from_ros", &scan_from_ros, py::arg("msg"), py::arg("odometry") = py::make_tuple(0.0, 0.0, 0.0),
                   py::arg("pose") = PoseTuple{0, 0, 0},
                   "A sensor_msgs/LaserScan message from rclpy or rospy (any object with its fields): its ranges, "
                   "angles, range_max and header stamp [s]; no return (+inf, above range_max) becomes range_max and "
                   "invalid beams (NaN, -inf, below range_min) NaN, as scripts/rosbag_to_carmen.py converts them. "
-                  "odometry: the robot's odometry pose (x, y, theta) at the scan (from nav_msgs/Odometry or tf)")
+                  "odometry: the robot's odometry pose at the scan, (x, y, theta) or a nav_msgs/Odometry or "
+                  "geometry_msgs pose or transform message (as pose_from_ros reads it)")
       .def("__len__", [](const LaserScan& s) { return s.ranges.size(); })
       .def(py::pickle(&scan_state, &scan_from_state))
       .def("__repr__", [](const LaserScan& s) {
@@ -451,6 +478,10 @@ PYBIND11_MODULE(lshloc, m) {
                           l.poses_corrected() ? "corrected poses" : "raw");
         return text;
       });
+  m.def("pose_from_ros", &pose_from_ros, py::arg("msg"),
+        "(x, y, yaw) [m, m, rad] of a ROS message: nav_msgs/Odometry, geometry_msgs PoseWithCovarianceStamped, "
+        "PoseStamped or Pose, TransformStamped or Transform (rclpy's, rospy's, or any object with those fields); "
+        "the yaw of its quaternion");
   m.def(
       "read_carmen_log", [](const std::filesystem::path& path) { return io::read_carmen_log(path.string()); },
       py::arg("path"), py::call_guard<py::gil_scoped_release>(), "Reads a CARMEN log (plain or .gz)");

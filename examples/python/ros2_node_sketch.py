@@ -17,10 +17,6 @@ from sensor_msgs.msg import LaserScan
 import lshloc
 
 
-def yaw_of(q):
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-
-
 class LshlocNode(Node):
     def __init__(self):
         super().__init__("lshloc")
@@ -35,8 +31,7 @@ class LshlocNode(Node):
         self.pub = self.create_publisher(PoseWithCovarianceStamped, "lshloc/pose", 10)
 
     def on_odom(self, msg):
-        p = msg.pose.pose
-        self.odom = (p.position.x, p.position.y, yaw_of(p.orientation))
+        self.odom = lshloc.pose_from_ros(msg)  # (x, y, yaw) of nav_msgs/Odometry
 
     def on_scan(self, msg):
         # The message's beams as lshloc reads them (+inf: no return; below range_min: invalid), its stamp in s.

@@ -586,3 +586,29 @@ def test_ros_beams_out_of_range_follow_the_converters_rules():
     msg.header.stamp = SimpleNamespace(seconds=1)
     with pytest.raises(lshloc.Error, match="neither sec/nanosec"):
         lshloc.LaserScan.from_ros(msg)
+
+
+def test_poses_from_ros_odometry_pose_and_transform_messages():
+    """pose_from_ros reads (x, y, yaw) from each message shape a robot publishes; LaserScan.from_ros takes the
+    odometry message itself."""
+    from types import SimpleNamespace as N
+    yaw = 2.5
+    q = N(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+    pose = N(position=N(x=1.5, y=-2.0, z=0.3), orientation=q)
+    shapes = {
+        "Odometry": N(header=None, child_frame_id="base_link", pose=N(pose=pose, covariance=[0.0] * 36)),
+        "PoseWithCovarianceStamped": N(header=None, pose=N(pose=pose, covariance=[0.0] * 36)),
+        "PoseStamped": N(header=None, pose=pose),
+        "Pose": pose,
+        "TransformStamped": N(header=None, child_frame_id="laser",
+                              transform=N(translation=N(x=1.5, y=-2.0, z=0.3), rotation=q)),
+    }
+    for name, msg in shapes.items():
+        x, y, th = lshloc.pose_from_ros(msg)
+        assert (x, y) == (1.5, -2.0) and abs(th - yaw) < 1e-12, name
+    with pytest.raises(lshloc.Error, match="expected a nav_msgs/Odometry"):
+        lshloc.pose_from_ros(N(x=1.0))
+    scan = N(header=N(stamp=N(sec=3, nanosec=0)), angle_min=-0.1, angle_increment=0.1, range_min=0.0,
+             range_max=10.0, ranges=[1.0, 2.0, 3.0])
+    assert lshloc.LaserScan.from_ros(scan, odometry=shapes["Odometry"]).odometry == lshloc.pose_from_ros(pose)
+    assert lshloc.LaserScan.from_ros(scan, odometry=(1.0, 2.0, 0.5)).odometry == (1.0, 2.0, 0.5)
