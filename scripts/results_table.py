@@ -25,23 +25,41 @@ def fmt(v, digits=3):
     return str(v)
 
 
+def judged(r):
+    """Judged / scans: how much of the window the figures see (every scan with a measured or interpolated truth)."""
+    return f"{r['judged_scans']} / {r['length']}" if "judged_scans" in r else "—"
+
+
+def wrong_dense(r):
+    """Confident scans judged, and of them wrong: on every judged scan (at ground-truth scans only)."""
+    if "confident_judged" not in r:  # a line from before every scan was judged
+        return f"— / {r['confident_wrong']} (at truth)"
+    return f"{r['confident_judged']} / {r['confident_wrong']} ({r['confident_wrong_at_truth']})"
+
+
+def wrong_total(rows):
+    conf = sum(r.get("confident_judged", 0) for r in rows)
+    wrong = sum(r["confident_wrong"] for r in rows)
+    at_truth = sum(r.get("confident_wrong_at_truth", r["confident_wrong"]) for r in rows)
+    return conf, wrong, at_truth
+
+
 def grid():
     rows = load("grid")
     if not rows:
         return
-    print("| building | R | map features | success | final error [m] | heading err [deg] | localized at | median error after [m] | CPU s to localize | confident / wrong | ms/scan | x real time |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| building | R | map features | success | final error [m] | heading err [deg] | localized at | median error after [m] | CPU s to localize | judged / scans | confident judged / wrong (at truth scans) | ms/scan | x real time |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in sorted(rows, key=lambda r: (r["building"], r["submaps"])):
         print(f"| {r['building']} | {r['submaps']} | {r['map_features']} | {fmt(r['success'])} | {fmt(r['final_error_m'])} | "
               f"{fmt(r['final_heading_error_deg'], 2)} | {fmt(r['localized_at'])} | {fmt(r['median_error_after_m'])} | "
-              f"{fmt(r['cpu_s_to_localize'], 2)} | {r['confident_scans']} / {r['confident_wrong']} | {fmt(r['ms_per_scan'], 2)} | "
+              f"{fmt(r['cpu_s_to_localize'], 2)} | {judged(r)} | {wrong_dense(r)} | {fmt(r['ms_per_scan'], 2)} | "
               f"{fmt(r['realtime_factor'], 0)} |")
     ok = sum(r["success"] for r in rows)
     errs = [r["final_error_m"] for r in rows if r["final_error_m"] is not None]
     print(f"\n{ok}/{len(rows)} scenarios succeed; median final error {statistics.median(errs):.3f} m" if errs else "")
-    conf = sum(r["confident_scans"] for r in rows)
-    wrong = sum(r["confident_wrong"] for r in rows)
-    print(f"; confident estimates at ground-truth scans: {conf}, wrong: {wrong}.\n")
+    conf, wrong, at_truth = wrong_total(rows)
+    print(f"; confident estimates judged: {conf}, wrong: {wrong} (counted at ground-truth scans only: {at_truth}).\n")
 
 
 def beside_batch(rows):
@@ -90,11 +108,10 @@ def live():
     ok = sum(r["success"] for r in rows)
     m2l = [r["mapped_to_localized"] for r in rows if r["mapped_to_localized"] is not None]
     before = sum(r["confident_wrong_before_mapped"] for r in rows)
-    wrong = sum(r["confident_wrong"] for r in rows)
-    truth = sum(r["truth_scans"] for r in rows)
+    conf, wrong, at_truth = wrong_total(rows)
     print(f"\n{ok}/{len(rows)} live scenarios succeed; median mapped_to_localized "
-          f"{fmt(statistics.median(m2l) if m2l else None, 1)} scans; confident but wrong {wrong} of {truth} "
-          f"ground-truth scans, {before} before the place was mapped.\n")
+          f"{fmt(statistics.median(m2l) if m2l else None, 1)} scans; confident but wrong {wrong} of {conf} "
+          f"judged confident scans ({at_truth} at ground-truth scans), {before} before the place was mapped.\n")
 
 
 def live_starts():
@@ -128,10 +145,9 @@ def summary_line(rs):
     ok = sum(r["success"] for r in rs)
     at = sorted(r["localized_at"] for r in rs if r["success"] and r["localized_at"] is not None)
     med = [r["median_error_after_m"] for r in rs if r["median_error_after_m"] is not None]
-    wrong = sum(r["confident_wrong"] for r in rs)
-    conf = sum(r["confident_scans"] for r in rs)
+    conf, wrong, at_truth = wrong_total(rs)
     return (f"{ok}/{len(rs)} | {fmt(statistics.median(at) if at else None, 1)} | "
-            f"{fmt(statistics.median(med) if med else None)} | {conf} / {wrong}")
+            f"{fmt(statistics.median(med) if med else None)} | {conf} / {wrong} ({at_truth})")
 
 
 def orders():
@@ -167,22 +183,23 @@ def flag_line(rs):
             for r in succ if r.get("localized_at") is not None and "first_confident_at" in r]
     changes = [r["flag_changes"] for r in succ if r.get("flag_changes") is not None]
     heading = sum(r.get("confident_wrong_heading", 0) for r in rs)
-    truth = sum(r["truth_scans"] for r in rs)
-    wrong = sum(r["confident_wrong"] for r in rs)
+    conf, wrong, _ = wrong_total(rs)
     return (f"{fmt(statistics.median(share) if share else None, 2)} | "
             f"{sum(v >= 0.5 for v in share)}/{len(share)} | "
             f"{fmt(statistics.median(lags) if lags else None, 1)} | {sum(l == float('inf') for l in lags)} | "
             f"{fmt(statistics.median(changes) if changes else None, 1)} | "
-            f"{wrong} ({heading} in heading) of {truth} = {100.0 * wrong / truth if truth else 0:.3f}%")
+            + (f"{wrong} ({heading} in heading) of {conf} = {100.0 * wrong / conf:.3f}%" if conf else
+               f"{wrong} ({heading} in heading) at truth scans"))
 
 
 FLAG_HEADER = ("median confident share after | runs flagged ≥ half | median lag to flag [scans] | never flagged | "
-               "median flag changes | confident but wrong (2 m / 10°)")
+               "median flag changes | confident but wrong of judged confident scans")
 TUNED = {"fr079", "intel"}
 
 
 def starts_table(rows, title):
-    print(f"| {title} | starts succeeding | median localized at | median error after [m] | confident / wrong | "
+    print(f"| {title} | starts succeeding | median localized at | median error after [m] | "
+          f"confident judged / wrong (at truth scans) | "
           f"{FLAG_HEADER} |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for b, rs in sorted(by(rows, lambda r: r["building"]).items()):
@@ -214,6 +231,12 @@ def ingest():
         print(f"| {submaps} | {features} | {m} | {rs[0]['mapper_scans']} | {', '.join(f'{v:,.0f}' for v in rates)} | "
               f"{statistics.median(rates):,.0f} | {statistics.median(r['ms_per_scan'] for r in rs):.2f} "
               f"({statistics.median(r['ms_per_scan_p99'] for r in rs):.2f}) |")
+
+
+def heldout():
+    rows = load("heldout")
+    if rows:
+        starts_table(rows, "held-out window (R = 15, seed 3)")
 
 
 def starts_seeded():

@@ -11,6 +11,10 @@
 #                                the other buildings in seeded orders 1 and 2),
 #                                live (the grid with eval --live: every submap
 #                                starts empty and its mapper replays at 4x),
+#                                heldout (16 windows no tuning looks at: fr079,
+#                                fr101, intel and aces, 1000 scans halfway
+#                                between starts 2-3, 7-8, 12-13 and 17-18, R = 15,
+#                                the other buildings in seeded order 3),
 #                                live_starts (20 evenly spaced starts of fr079,
 #                                fr101, intel and aces at R = 15, --live),
 #                                ingest (map ingest, mapper scans per CPU second,
@@ -92,6 +96,16 @@ jobs_for() {  # jobs_for PART: one line per eval to run
       start_windows | grep -v mit-csail | while read -r b start len; do
         echo "results/live_starts.jsonl --building $b --submaps 15 --start $start --length $len --live"
       done ;;
+    heldout)
+      while read -r b total; do for i in 2 7 12 17; do
+        echo "results/heldout.jsonl --building $b --submaps 15 --start $(( (2 * i + 1) * (total - 1000) / 38 )) --length 1000 --seed 3"
+      done; done <<'LIST'
+fr079 4934
+fr101 4758
+intel 13631
+aces 7374
+LIST
+      ;;
     grid_maps)
       for b in fr079 fr101 intel aces; do for r in 1 4 9 15; do
         echo "results/grid_maps.jsonl --building $b --submaps $r --grid-maps"; done; done ;;

@@ -28,6 +28,22 @@ $header
 1,0.1,1,0,0,0,0,0,0.15,0.5,100,0.3,0,0,0,0.5,3.0
 CSV
 echo "not a trace" >"$d/dir/b.csv.truth.csv"
+# Traces with interpolated truth: there a heading is wrong only beyond 45 deg
+# (12 deg off is right, 50 deg wrong); a row estimated in another submap is
+# judged (wrong) without any truth.
+cat >"$d/c.csv" <<CSV
+$header,interpolated_x,interpolated_y,interpolated_theta
+0,0.0,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,0.10,12.0,0,0,0
+1,0.1,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,0.10,50.0,0,0,0
+2,0.2,1,1,0,0,0,1,0.95,0.5,100,0.3,,,,inf,,,,
+3,0.3,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,,,,,
+CSV
+"$LSHLOC" calibration "$d/c.csv" >"$d/jc.json"
+python3 - "$d/jc.json" <<'PY' || fail "calibration with interpolated truth: $(cat "$d/jc.json")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["scans"] == 3 and j["right"] == 1, j
+PY
 "$LSHLOC" calibration "$d/a.csv" "$d/dir" --out "$d/rel" >"$d/j.json"
 python3 - "$d/j.json" "$d/rel.csv" <<'PY' || fail "calibration numbers: $(cat "$d/j.json")"
 import csv, json, sys
@@ -58,6 +74,11 @@ none = [r for r in rows if r["has_estimate"] == "0"]
 assert none and all(r["x"] == r["submap"] == r["theta"] == "" for r in none), none[:1]
 assert all(r["heading_error_deg"] == "" for r in rows if r["error_m"] == "inf")
 assert all(r["heading_error_deg"] != "" for r in rows if r["error_m"] not in ("", "inf"))
+# Every scan between two truth scans is judged: measured truth or interpolated, never both.
+assert all(not (r["truth_x"] and r["interpolated_x"]) for r in rows)
+judged = [r for r in rows if r["truth_x"] or r["interpolated_x"]]
+assert len([r for r in rows if r["interpolated_x"]]) > len([r for r in rows if r["truth_x"]]), "no interpolated truth"
+assert all(r["error_m"] != "" for r in judged)
 PY
   "$LSHLOC" calibration "$d/tr.csv" >/dev/null || fail "calibration of an eval trace"
 else

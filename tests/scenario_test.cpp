@@ -2,12 +2,16 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <numbers>
 #include <set>
 
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/dataset_catalog.hpp"
+#include "lshloc/eval/localization_metrics.hpp"
 #include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/sim/simulator.hpp"
 #include "test_support.hpp"
@@ -237,6 +241,46 @@ TEST(ScenarioRealData, TargetWindowNeverInTheMap) {
   std::size_t truth = 0;
   for (const auto& t : sc.target.truth) truth += t.has_value();
   EXPECT_GT(truth, 900u);  // fr079 has ground truth on 97% of scans
+}
+
+TEST(ScenarioRealData, TruthInterpolatedAlongOdometryMeetsFr079sDenseTruth) {
+  LSHLOC_REQUIRE_DATA(dir);
+  const io::DatasetCatalog catalog(dir);
+  const BuildingRecording rec = catalog.load("fr079", true);
+  ScenarioConfig cfg;
+  cfg.building = "fr079";
+  cfg.start = 0;
+  cfg.length = rec.raw_scans.size();
+  Submap map_side;
+  TargetRun whole;
+  split_target_building(rec, cfg, map_side, whole);
+  // fr079's truth covers 97% of its scans: keep every 12th truth scan (the
+  // spacing of intel, aces, fr101) and judge the interpolation by the rest.
+  std::vector<std::optional<Pose2>> thinned(whole.truth.size());
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < whole.truth.size(); ++i) {
+    if (whole.truth[i] && kept++ % 12 == 0) thinned[i] = whole.truth[i];
+  }
+  const JudgedTruth judged = interpolate_truth(whole.scans, thinned, whole.laser_offset);
+  std::vector<double> position_m, heading_deg;
+  for (std::size_t i = 0; i < whole.truth.size(); ++i) {
+    if (!whole.truth[i] || thinned[i] || !judged.pose[i]) continue;
+    position_m.push_back(translation_distance(*judged.pose[i], *whole.truth[i]));
+    heading_deg.push_back(angle_distance(judged.pose[i]->theta, whole.truth[i]->theta) * 180.0 / std::numbers::pi);
+  }
+  ASSERT_GT(position_m.size(), 4000u);  // nearly every scan between two kept truth scans is judged
+  std::sort(position_m.begin(), position_m.end());
+  std::sort(heading_deg.begin(), heading_deg.end());
+  const auto p99 = [](const std::vector<double>& v) { return v[v.size() * 99 / 100]; };
+  std::printf(
+      "fr079, truth thinned to every 12th: %zu scans interpolated; position p99 %.3f m, max %.3f m; "
+      "heading p99 %.2f deg, max %.2f deg\n",
+      position_m.size(), p99(position_m), position_m.back(), p99(heading_deg), heading_deg.back());
+  // Far inside the confident-but-wrong rule's 2 m (and 45 deg between truth scans).
+  EXPECT_LT(p99(position_m), 0.5);
+  EXPECT_LT(position_m.back(), 1.0);
+  EXPECT_LT(p99(heading_deg), 10.0);
+  EXPECT_LT(heading_deg.back(), 25.0);
 }
 
 TEST(DatasetCatalog, KnowsFifteenBuildingsAndReportsMissingThings) {

@@ -62,11 +62,12 @@ void localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
     LocalizerObserver observer;
     if (!trace_dir.empty()) observer = truth_rank_observer(targets[t], target_submaps[t], ranks);
     const ScenarioRun run = localize_target(map, targets[t], config, {}, observer);
-    const auto m = evaluate_localization(run.scan_estimates(), targets[t].truth, target_submaps[t]);
+    const JudgedTruth truth = interpolate_truth(targets[t].scans, targets[t].truth, targets[t].laser_offset);
+    const auto m = evaluate_localization(run.scan_estimates(), truth, target_submaps[t]);
     if (!trace_dir.empty()) {
       const std::string path =
           trace_dir + "/" + targets[t].building + "." + std::to_string(map.submap_count()) + "." + label + ".csv";
-      write_scenario_trace(path, targets[t], run, m);
+      write_scenario_trace(path, targets[t], truth, run, m);
       write_truth_ranks(path + ".truth.csv", targets[t], ranks);
     }
     o.localized += m.success;

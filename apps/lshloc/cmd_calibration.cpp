@@ -61,7 +61,8 @@ std::vector<std::string> trace_files(const std::vector<std::string>& args) {
   return files;
 }
 
-/// Appends the (value, right) pair of every ground-truth scan of one trace.
+/// Appends the (value, right) pair of every judged scan of one trace: with a
+/// measured or interpolated truth, or estimated in another submap.
 void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, std::vector<double>& values,
                 std::vector<bool>& right) {
   io::LineReader reader(path);
@@ -77,13 +78,16 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
   };
   const std::size_t c_value = column("confidence"), c_has = column("has_estimate"), c_err = column("error_m"),
                     c_heading = column("heading_error_deg");
+  // Traces written before every scan was judged have no interpolated truth.
+  const std::size_t c_interpolated =
+      static_cast<std::size_t>(std::find(header.begin(), header.end(), "interpolated_x") - header.begin());
   const std::size_t columns = header.size();
   while (reader.next(line)) {
     const auto f = split_commas(line);
     if (f.size() != columns)
       throw Error(reader.where() + ": " + std::to_string(f.size()) + " fields; expected " + std::to_string(columns) +
                   " as in the header");
-    if (f[c_err].empty()) continue;  // no ground truth at this scan
+    if (f[c_err].empty()) continue;  // not judged
     const double value = io::parse_double(f[c_value], reader.where(), c_value, "a confidence value in [0, 1]");
     if (!(value >= 0.0 && value <= 1.0))
       throw Error(reader.where() + ": confidence " + std::string(f[c_value]) + " is outside [0, 1]");
@@ -92,8 +96,10 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
     const double heading = f[c_heading].empty()
                                ? std::numeric_limits<double>::infinity()
                                : io::parse_double(f[c_heading], reader.where(), c_heading, "a heading error [deg]");
+    const bool interpolated = c_interpolated < columns && !f[c_interpolated].empty();
+    const double heading_limit = interpolated ? rule.wrong_confident_interpolated_deg : rule.wrong_confident_deg;
     values.push_back(value);
-    right.push_back(f[c_has] == "1" && err <= rule.wrong_confident_m && heading <= rule.wrong_confident_deg);
+    right.push_back(f[c_has] == "1" && err <= rule.wrong_confident_m && heading <= heading_limit);
   }
 }
 
@@ -103,7 +109,7 @@ void run_calibration(const CalibrationOptions& opt) {
   std::vector<bool> right;
   const std::vector<std::string> files = trace_files(opt.traces);
   for (const std::string& f : files) read_trace(f, rule, values, right);
-  if (values.empty()) throw Error("calibration: the traces hold no scan with ground truth");
+  if (values.empty()) throw Error("calibration: the traces hold no judged scan (no error_m)");
   const Calibration c = calibrate(values, right, opt.bins);
   nlohmann::json bins = nlohmann::json::array();
   std::string csv = "lo,hi,count,mean_value,share_right\n";
@@ -136,8 +142,9 @@ void add_calibration_command(CLI::App& app, GlobalOptions&) {
   auto* cmd = app.add_subcommand(
       "calibration",
       "How well the confidence value is calibrated, over `eval --trace` files: prints a JSON line with the\n"
-      "expected calibration error and the reliability bins (an estimate is right in the true submap within\n"
-      "2 m and 10 deg, the confident-but-wrong rule); --out also draws the reliability diagram.");
+      "expected calibration error and the reliability bins over every judged scan (an estimate is right in\n"
+      "the true submap within 2 m and 10 deg of a measured truth, 45 deg of an interpolated one: the\n"
+      "confident-but-wrong rule); --out also draws the reliability diagram.");
   cmd->add_option("traces", opt->traces, "trace CSVs of `lshloc eval --trace`, or directories of them")->required();
   cmd->add_option("--bins", opt->bins, "equal-width bins over [0, 1]")
       ->capture_default_str()

@@ -81,13 +81,13 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
       if (tty && (done % 10 == 0 || done == total)) std::fprintf(stderr, "\r  localizing: scan %zu/%zu", done, total);
       if (done == total && tty) std::fprintf(stderr, "\n");
     });
-    const auto m =
-        evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
+    const JudgedTruth truth = interpolate_truth(sc.target.scans, sc.target.truth, sc.target.laser_offset);
+    const auto m = evaluate_localization(run.scan_estimates(), truth, static_cast<std::uint32_t>(sc.target_submap));
     for (std::size_t i = 0; i < run.estimates.size() && !announced; ++i) {
       if (run.estimates[i].localized) announced = i;
     }
     const std::string stem = write_scenario_figures(opt->out, sc, run, m);
-    write_scenario_trace(opt->out + "/trace.csv", sc.target, run, m);
+    write_scenario_trace(opt->out + "/trace.csv", sc.target, truth, run, m);
     const double wall = seconds_since(t0);
     if (opt->json) {
       std::printf("%s\n", io::json_text(scenario_json(sc, run, m)).c_str());

@@ -229,8 +229,9 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     batch = run_eval(sc, run_config, opt, progress, observer, map_store);
   }
   const ScenarioRun& run = live ? live->run : batch;
+  const JudgedTruth truth = interpolate_truth(sc.target.scans, sc.target.truth, sc.target.laser_offset);
   const LocalizationMetrics m =
-      evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
+      evaluate_localization(run.scan_estimates(), truth, static_cast<std::uint32_t>(sc.target_submap));
   nlohmann::json j = scenario_json(sc, run, m);
   j["order_rule"] = run_config.localizer.ransac.order_rule;
   j["hypotheses"] = run_config.localizer.hypothesis_source;
@@ -257,7 +258,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   }
   if (!opt.trace.empty()) {
     const std::string& path = trace_path;
-    write_scenario_trace(path, sc.target, run, m);
+    write_scenario_trace(path, sc.target, truth, run, m);
     write_truth_ranks(path + ".truth.csv", sc.target, ranks);
   }
   io::ErrorSeries curve{"R = " + std::to_string(config.submaps), {}, {}};

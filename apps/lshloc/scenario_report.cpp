@@ -33,9 +33,12 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["correct_fraction_after"] = m.correct_fraction_after;
   j["success"] = m.success;
   j["truth_scans"] = m.truth_scans;
+  j["judged_scans"] = m.judged_scans;
   j["confident_scans"] = m.confident_scans;
+  j["confident_judged"] = m.confident_judged;
   j["confident_wrong"] = m.confident_wrong;
   j["confident_wrong_heading"] = m.confident_wrong_heading;
+  j["confident_wrong_at_truth"] = m.confident_wrong_at_truth;
   j["first_confident_at"] = m.first_confident_at ? nlohmann::json(*m.first_confident_at) : nlohmann::json();
   j["confident_share_after"] = optional_json(m.confident_share_after);
   j["flag_changes"] = m.flag_changes;
@@ -130,18 +133,18 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
   return stem;
 }
 
-void write_scenario_trace(const std::string& path, const TargetRun& target, const ScenarioRun& run,
-                          const LocalizationMetrics& m) {
+void write_scenario_trace(const std::string& path, const TargetRun& target, const JudgedTruth& truth,
+                          const ScenarioRun& run, const LocalizationMetrics& m) {
   std::string f;
   io::append_format(
       f,
       "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
       "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,rise_margin,"
       "rival_submap,rival_x,rival_y,rival_theta,rival_mean_score,rival_scored,newest_lead,flag_down_because,"
-      "truth_x,truth_y,truth_theta,error_m,heading_error_deg\n");
+      "truth_x,truth_y,truth_theta,error_m,heading_error_deg,interpolated_x,interpolated_y,interpolated_theta\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
-    const auto& t = target.truth[i];
+    const auto& t = truth.pose[i];
     io::append_format(f, "%zu,%.6f,%d,", i, target.scans[i].timestamp, e.has_estimate ? 1 : 0);
     // No estimate: no pose (empty fields, not a pose at the origin of submap 0).
     if (e.has_estimate)
@@ -158,15 +161,21 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
     else
       f += ",,,,,,";
     io::append_format(f, "%.4f,%s,", e.newest_lead, e.flag_down_because.joined().c_str());
-    if (t) {
-      io::append_format(f, "%.4f,%.4f,%.5f,%.4f,", t->x, t->y, t->theta, m.error_per_scan_m[i]);
-      // A heading error only where the estimate is in the true submap (finite error): other frames do not compare.
-      if (std::isfinite(m.error_per_scan_m[i]))
-        io::append_format(f, "%.3f", angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);
-      f += '\n';
-    } else {
-      f += ",,,,\n";
-    }
+    const bool measured = t && truth.measured[i];
+    if (measured)
+      io::append_format(f, "%.4f,%.4f,%.5f,", t->x, t->y, t->theta);
+    else
+      f += ",,,";
+    // An error wherever the scan is judged: at a truth, measured or interpolated, and in another submap anywhere.
+    if (!std::isnan(m.error_per_scan_m[i])) io::append_format(f, "%.4f", m.error_per_scan_m[i]);
+    f += ',';
+    // A heading error only where the estimate is in the true submap (finite error): other frames do not compare.
+    if (std::isfinite(m.error_per_scan_m[i]))
+      io::append_format(f, "%.3f", angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);
+    if (t && !measured)
+      io::append_format(f, ",%.4f,%.4f,%.5f\n", t->x, t->y, t->theta);
+    else
+      f += ",,,\n";
   }
   io::write_file_atomically(path, f);
 }

@@ -33,9 +33,10 @@ nlohmann::json median_localized_at(std::vector<double> scans);
 std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const ScenarioRun& run,
                                    const LocalizationMetrics& m);
 
-/// One CSV row per target scan: estimate, truth, error, scores, CPU time.
-void write_scenario_trace(const std::string& path, const TargetRun& target, const ScenarioRun& run,
-                          const LocalizationMetrics& m);
+/// One CSV row per target scan: estimate, scores, the truth it is judged against (measured,
+/// truth_*, or interpolated, interpolated_*) and its error.
+void write_scenario_trace(const std::string& path, const TargetRun& target, const JudgedTruth& truth,
+                          const ScenarioRun& run, const LocalizationMetrics& m);
 
 /// Where the true pose stands among the localizer's active hypotheses after
 /// one scan (a trace's .truth.csv row): whether verification or retrieval is

@@ -75,6 +75,7 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
   LiveRun out;
   const std::vector<std::uint32_t> ids = open_replay(scenario, events.size(), map, out);
   const TargetRun& target = scenario.target;
+  const JudgedTruth judged = interpolate_truth(target.scans, target.truth, target.laser_offset);
   const double start = target.scans.empty() ? 0.0 : target.scans.front().timestamp;
   std::size_t next = 0;
   std::vector<Pose2> target_building_in_map;  // poses of the target building's scans fed so far
@@ -90,7 +91,7 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
     }
     out.mapper_cpu_s += thread_cpu_seconds() - cpu0;
     out.map_scans_in[i] = next;
-    if (const auto& truth = target.truth[i])
+    if (const auto& truth = judged.pose[i])
       out.place_mapped[i] = place_is_mapped(target_building_in_map, *truth, radius);
   };
   out.run = localize_target(map, target, config.localizer, progress, observer, feed);
@@ -106,6 +107,7 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
   LiveRun out;
   const std::vector<std::uint32_t> ids = open_replay(scenario, events.size(), map, out);
   const TargetRun& target = scenario.target;
+  const JudgedTruth judged = interpolate_truth(target.scans, target.truth, target.laser_offset);
 
   std::shared_mutex map_mutex;
   std::vector<Pose2> target_building_in_map;  // guarded by map_mutex
@@ -188,7 +190,7 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
     }
     const std::shared_lock<std::shared_mutex> reading(map_mutex);
     out.map_scans_in[i] = inserted;
-    if (const auto& truth = target.truth[i])
+    if (const auto& truth = judged.pose[i])
       out.place_mapped[i] = place_is_mapped(target_building_in_map, *truth, radius);
   };
   try {
@@ -227,7 +229,7 @@ LiveMetrics evaluate_live(const LiveRun& live, const LocalizationMetrics& metric
   const auto& mapped = live.place_mapped;
   const auto first = std::find(mapped.begin(), mapped.end(), std::uint8_t{1});
   if (first != mapped.end()) m.first_mapped_at = static_cast<std::size_t>(first - mapped.begin());
-  // The last truth scan: the metrics' error is NaN exactly where there is no truth.
+  // The last judged scan: the metrics' error is NaN exactly where a scan is not judged.
   for (std::size_t i = mapped.size(); i-- > 0;) {
     if (!std::isnan(metrics.error_per_scan_m[i])) {
       m.final_place_mapped = mapped[i] != 0;

@@ -50,9 +50,9 @@ std::vector<MapperEvent> mapper_schedule(const std::vector<Submap>& submaps, con
 /// What a live run adds to a scenario run.
 struct LiveRun {
   ScenarioRun run;
-  /// Per target scan: 1 when it has ground truth and a scan of the target's
-  /// building within mapped_radius_m of that truth was in the map when it
-  /// was localized, else 0.
+  /// Per target scan: 1 when it has ground truth (measured or interpolated,
+  /// interpolate_truth) and a scan of the target's building within
+  /// mapped_radius_m of that truth was in the map when it was localized, else 0.
   std::vector<std::uint8_t> place_mapped;
   std::vector<std::size_t> map_scans_in;  ///< per target scan: mapper scans in the map when it was localized
   std::size_t mapper_scans = 0;           ///< mapper scans fed over the whole run
@@ -83,7 +83,7 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
 /// The live metrics (docs/design.md section 6) beside the batch ones.
 struct LiveMetrics {
   std::optional<std::size_t> first_mapped_at;  ///< first target scan whose place was mapped
-  bool final_place_mapped = false;             ///< the last truth scan's place was mapped
+  bool final_place_mapped = false;             ///< the last judged scan's place was mapped
   /// Scans from first_mapped_at to localized_at (0 when it localized
   /// earlier); nullopt when either is missing.
   std::optional<std::size_t> mapped_to_localized;
