@@ -9,8 +9,9 @@ TRACE_DIR holds `lshloc eval --trace` CSVs (scripts/sweep.sh with TRACE_DIR=...)
 named after their arguments (the building follows "--building"). The value is
 a logistic model of the report's evidence (ConfidenceConfig::weights, in the
 order of FEATURES), fitted by Newton's method on the training buildings'
-ground-truth scans only, each building weighing the same; a scan is right when its estimate is in the true
-submap within 2 m and 10 degrees. Prints the weights, the expected calibration
+judged scans only (every scan with a measured or interpolated truth, or estimated in another submap), each
+building weighing the same; a scan is right when its estimate is in the true submap within 2 m and 10 degrees
+of a measured truth (45 degrees of an interpolated one). Prints the weights, the expected calibration
 error (10 equal-width bins) per building and overall, and the flag's figures
 (rises at --up, held while the place is kept and the value stays >= --hold)
 as the acceptance check counts them; --flag evidence replays the localizer's
@@ -59,6 +60,8 @@ def load(trace_dir):
                 truth = r["error_m"] != ""
                 err = float(r["error_m"]) if truth else math.nan
                 head = float(r["heading_error_deg"]) if truth and r["heading_error_deg"] != "" else math.nan
+                # Between truth scans the heading is judged to 45 degrees (docs/design.md section 6).
+                head_limit = 45.0 if r.get("interpolated_x") else 10.0
                 # rise_margin: the margin the rise read (a rival dropped within
                 # rival_memory_scans still stands); traces before it have margin only.
                 scans.append({"lead": float(r.get("whole_map_lead") or 0.0) if has else 0.0,
@@ -68,7 +71,7 @@ def load(trace_dir):
                               "newest_lead": float(r.get("newest_lead") or "nan") if has else math.nan,
                               "x": features(r) if has else None, "truth": truth, "err": err,
                               "flag": r["localized"] == "1",
-                              "right": truth and has and err <= 2.0 and head <= 10.0,
+                              "right": truth and has and err <= 2.0 and head <= head_limit,
                               "correct": truth and has and err < 1.0})
         runs.append((building, path, scans))
     return runs

@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "lshloc/common/error.hpp"
+#include "lshloc/io/line_reader.hpp"
 #include "test_support.hpp"
 
 namespace lshloc::io {
@@ -395,6 +396,23 @@ TEST(CarmenReaderBadInput, ABeamCountTwoTooLowIsAmbiguousAndRefused) {
 TEST(CarmenReaderBadInput, AnEndlessLineIsRefused) {
   const std::string e = expect_error(std::string(17u << 20, 'x'));
   EXPECT_NE(e.find("longer than 16 MiB"), std::string::npos) << e;
+}
+
+TEST(SplitCsvRow, QuotedFieldsHoldCommasAndQuotes) {
+  EXPECT_EQ(split_csv_row("a,,b", "f:1"), (std::vector<std::string>{"a", "", "b"}));
+  EXPECT_EQ(split_csv_row("", "f:1"), (std::vector<std::string>{""}));
+  EXPECT_EQ(split_csv_row("1,\"x, \"\"y\"\"\",2", "f:1"), (std::vector<std::string>{"1", "x, \"y\"", "2"}));
+  EXPECT_EQ(split_csv_row("\"\",3", "f:1"), (std::vector<std::string>{"", "3"}));
+  const auto message = [](std::string_view line) {
+    try {
+      split_csv_row(line, "run.csv:7");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message("1,\"open"), "run.csv:7: a quoted CSV field is not closed");
+  EXPECT_EQ(message("\"a\"b,2"), "run.csv:7: text after a quoted CSV field's closing quote (expected a comma)");
 }
 
 }  // namespace

@@ -29,17 +29,6 @@ struct CalibrationOptions {
   std::string out;
 };
 
-std::vector<std::string_view> split_commas(std::string_view line) {
-  std::vector<std::string_view> fields;
-  std::size_t from = 0;
-  for (;;) {
-    const std::size_t comma = line.find(',', from);
-    fields.push_back(line.substr(from, comma == std::string_view::npos ? std::string_view::npos : comma - from));
-    if (comma == std::string_view::npos) return fields;
-    from = comma + 1;
-  }
-}
-
 /// The trace files named, a directory standing for its *.csv files (not the
 /// *.truth.csv beside them), sorted.
 std::vector<std::string> trace_files(const std::vector<std::string>& args) {
@@ -68,7 +57,7 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
   io::LineReader reader(path);
   std::string line;
   if (!reader.next(line)) throw Error(path + ": empty file; expected an `lshloc eval --trace` CSV");
-  const auto header = split_commas(line);
+  const auto header = io::split_csv_row(line, reader.where());
   const auto column = [&](std::string_view name) {
     const auto it = std::find(header.begin(), header.end(), name);
     if (it == header.end())
@@ -83,7 +72,7 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
       static_cast<std::size_t>(std::find(header.begin(), header.end(), "interpolated_x") - header.begin());
   const std::size_t columns = header.size();
   while (reader.next(line)) {
-    const auto f = split_commas(line);
+    const auto f = io::split_csv_row(line, reader.where());
     if (f.size() != columns)
       throw Error(reader.where() + ": " + std::to_string(f.size()) + " fields; expected " + std::to_string(columns) +
                   " as in the header");

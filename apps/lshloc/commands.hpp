@@ -37,5 +37,6 @@ void add_bench_robots_command(CLI::App& bench, GlobalOptions& global);
 void add_bench_shards_command(CLI::App& bench, GlobalOptions& global);
 void add_recall_command(CLI::App& app, GlobalOptions& global);
 void add_calibration_command(CLI::App& app, GlobalOptions& global);
+void add_judge_command(CLI::App& app, GlobalOptions& global);
 
 }  // namespace lshloc::app

@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   lshloc::app::add_bench_shards_command(*bench, global);
   lshloc::app::add_recall_command(app, global);
   lshloc::app::add_calibration_command(app, global);
+  lshloc::app::add_judge_command(app, global);
   lshloc::app::check_numeric_options(app);
   // An unknown first word is a mistyped command: say so and list them (CLI11 would ask for "a subcommand").
   if (argc > 1 && argv[1][0] != '-') {

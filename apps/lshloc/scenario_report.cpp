@@ -25,23 +25,8 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["submaps"] = sc.config.submaps;
   j["seed"] = sc.config.seed;
   j["map_features"] = run.map.features;
-  j["final_error_m"] = optional_json(m.final_error_m);
-  j["final_heading_error_deg"] = optional_json(m.final_heading_error_deg);
-  j["median_error_after_m"] = optional_json(m.median_error_after_m);
-  j["localized_at"] = m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json();
+  add_judgement(j, m);
   j["cpu_s_to_localize"] = m.localized_at ? nlohmann::json(run.cpu_s[*m.localized_at]) : nlohmann::json();
-  j["correct_fraction_after"] = m.correct_fraction_after;
-  j["success"] = m.success;
-  j["truth_scans"] = m.truth_scans;
-  j["judged_scans"] = m.judged_scans;
-  j["confident_scans"] = m.confident_scans;
-  j["confident_judged"] = m.confident_judged;
-  j["confident_wrong"] = m.confident_wrong;
-  j["confident_wrong_heading"] = m.confident_wrong_heading;
-  j["confident_wrong_at_truth"] = m.confident_wrong_at_truth;
-  j["first_confident_at"] = m.first_confident_at ? nlohmann::json(*m.first_confident_at) : nlohmann::json();
-  j["confident_share_after"] = optional_json(m.confident_share_after);
-  j["flag_changes"] = m.flag_changes;
   j["stamp_clash_scans"] = run.stamp_clash.clashing_scans;
   j["stamp_clash_flags_withheld"] = run.stamp_clash.flags_withheld;
   add_localizer_cost(j, run);
@@ -59,6 +44,32 @@ nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const L
   j["map_build_s"] = run.map_build_s;
   j["bytes_per_feature"] = run.map.bytes_per_feature();
   return j;
+}
+
+void add_judgement(nlohmann::json& j, const LocalizationMetrics& m) {
+  j["final_error_m"] = optional_json(m.final_error_m);
+  j["final_heading_error_deg"] = optional_json(m.final_heading_error_deg);
+  j["median_error_after_m"] = optional_json(m.median_error_after_m);
+  j["localized_at"] = m.localized_at ? nlohmann::json(*m.localized_at) : nlohmann::json();
+  j["correct_fraction_after"] = m.correct_fraction_after;
+  j["success"] = m.success;
+  j["truth_scans"] = m.truth_scans;
+  j["judged_scans"] = m.judged_scans;
+  j["confident_scans"] = m.confident_scans;
+  j["confident_judged"] = m.confident_judged;
+  j["confident_wrong"] = m.confident_wrong;
+  j["confident_wrong_heading"] = m.confident_wrong_heading;
+  j["confident_wrong_at_truth"] = m.confident_wrong_at_truth;
+  j["first_confident_at"] = m.first_confident_at ? nlohmann::json(*m.first_confident_at) : nlohmann::json();
+  j["confident_share_after"] = optional_json(m.confident_share_after);
+  j["flag_changes"] = m.flag_changes;
+  // The longest run of consecutive scans flagged confident and wrong: a rare but long wrong answer is what hurts.
+  std::size_t longest = 0, run = 0;
+  for (std::size_t k = 0; k < m.confident_wrong_scans.size(); ++k) {
+    run = k > 0 && m.confident_wrong_scans[k] == m.confident_wrong_scans[k - 1] + 1 ? run + 1 : 1;
+    longest = std::max(longest, run);
+  }
+  j["longest_confident_wrong_run"] = longest;
 }
 
 nlohmann::json target_outcome_json(const std::string& building, const LocalizationMetrics& m) {

@@ -15,6 +15,9 @@ namespace lshloc::app {
 /// The metrics of docs/design.md section 6 and the run's costs, as `lshloc eval` prints them.
 nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m);
 
+/// The metrics of docs/design.md section 6 (errors, timing, the flag and its
+/// confident-but-wrong counts over every judged scan), as keys added to `j`.
+void add_judgement(nlohmann::json& j, const LocalizationMetrics& m);
 /// The localizer's cost over the run: ms_per_scan, realtime_factor and
 /// ms_per_scan_by_stage (scan_matching, features, retrieval, ransac, other).
 /// Keys are added to `j`.

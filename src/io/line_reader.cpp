@@ -248,6 +248,34 @@ void split_fields(std::string_view line, std::vector<std::string_view>& fields) 
   }
 }
 
+std::vector<std::string> split_csv_row(std::string_view line, const std::string& where) {
+  std::vector<std::string> fields(1);
+  std::size_t i = 0;
+  while (i < line.size()) {
+    const char c = line[i++];
+    if (c == ',') {
+      fields.emplace_back();
+    } else if (c != '"' || !fields.back().empty()) {
+      fields.back() += c;
+    } else {  // a quoted field, up to its closing quote
+      for (;;) {
+        if (i >= line.size()) throw Error(where + ": a quoted CSV field is not closed");
+        if (line[i] != '"') {
+          fields.back() += line[i++];
+        } else if (i + 1 < line.size() && line[i + 1] == '"') {
+          fields.back() += '"', i += 2;
+        } else {
+          ++i;
+          break;
+        }
+      }
+      if (i < line.size() && line[i] != ',')
+        throw Error(where + ": text after a quoted CSV field's closing quote (expected a comma)");
+    }
+  }
+  return fields;
+}
+
 double parse_double(std::string_view field, const std::string& where, std::size_t index, const char* what) {
   double v = 0.0;
   const char* first = field.data();

@@ -66,6 +66,11 @@ class LineReader {
 /// Splits a line into whitespace-separated fields (views into `line`).
 void split_fields(std::string_view line, std::vector<std::string_view>& fields);
 
+/// Splits one CSV row into its fields (RFC 4180: a field in double quotes
+/// may hold commas, and "" in it stands for one quote). An unclosed quote or
+/// text after a closing one throws lshloc::Error naming `where`.
+std::vector<std::string> split_csv_row(std::string_view line, const std::string& where);
+
 /// Parses a field as a number or throws lshloc::Error naming `where`, the
 /// field's index and what was expected. Accepts "nan"/"inf" (the caller
 /// decides whether they are valid).
