@@ -233,6 +233,43 @@ def ingest():
               f"({statistics.median(r['ms_per_scan_p99'] for r in rs):.2f}) |")
 
 
+# The last commit whose results/*.jsonl judged only the scans with ground truth.
+TRUTH_ONLY_COMMIT = "fda3ba5"
+
+
+def judged_vs_truth():
+    """The grid and the starts judged at the truth scans only (TRUTH_ONLY_COMMIT's lines, the same estimates)
+    beside the same runs judged on every scan (results/*.jsonl now)."""
+    import subprocess
+    for part in ("grid", "starts"):
+        old = [json.loads(l) for l in subprocess.run(["git", "show", f"{TRUTH_ONLY_COMMIT}:results/{part}.jsonl"],
+                                                      capture_output=True, text=True, check=True).stdout.splitlines()
+               if l.strip() and "failed" not in l]
+        new = load(part)
+        if not new:
+            continue
+        print(f"| {part}: building | judged at | succeed | median share flagged after | runs flagged on ≥ half | "
+              "median lag [scans] | confident but wrong of judged confident scans |")
+        print("|---|---|---|---|---|---|---|")
+
+        def line(rs, dense):
+            succ = [r for r in rs if r["success"]]
+            share = [r["confident_share_after"] for r in succ if r.get("confident_share_after") is not None]
+            lags = [r["first_confident_at"] - r["localized_at"] if r.get("first_confident_at") is not None
+                    else float("inf") for r in succ if r.get("localized_at") is not None]
+            conf = sum(r["confident_judged"] if dense else r["confident_scans"] for r in rs)
+            wrong = sum(r["confident_wrong"] for r in rs)
+            return (f"{len(succ)}/{len(rs)} | {fmt(statistics.median(share) if share else None, 2)} | "
+                    f"{sum(v >= 0.5 for v in share)}/{len(share)} | {fmt(statistics.median(lags) if lags else None, 1)} | "
+                    f"{wrong} of {conf} ({100.0 * wrong / conf if conf else 0:.3f}%)")
+        for b in sorted({r["building"] for r in new}) + ["all"]:
+            o = old if b == "all" else [r for r in old if r["building"] == b]
+            n = new if b == "all" else [r for r in new if r["building"] == b]
+            print(f"| {b} | truth scans ({TRUTH_ONLY_COMMIT}) | {line(o, False)} |")
+            print(f"| {b} | every scan | {line(n, True)} |")
+        print()
+
+
 def heldout():
     rows = load("heldout")
     if rows:
