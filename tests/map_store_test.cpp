@@ -354,15 +354,75 @@ TEST_F(DamagedMap, TruncatedEmptyWrongMagicAndNewerVersionAreRefused) {
   bytes[0] = 'X';
   EXPECT_NE(error_of(bytes).find("not an lshloc map"), std::string::npos);
   bytes = good_;
-  bytes[8] = 2;  // format version 2, the header's checksum not resealed: newer, or damaged
-  EXPECT_NE(error_of(bytes).find("format version 2 is newer"), std::string::npos) << error_of(bytes);
+  bytes[8] = 3;  // format version 3, the header's checksum not resealed: newer, or damaged
+  EXPECT_NE(error_of(bytes).find("format version 3 is newer"), std::string::npos) << error_of(bytes);
   EXPECT_NE(error_of(bytes).find("or the header is damaged"), std::string::npos) << error_of(bytes);
-  // Resealed (a writer of version 2 keeping this header's layout): newer only.
+  // Resealed (a writer of version 3 keeping this header's layout): newer only.
   const std::uint32_t crc = static_cast<std::uint32_t>(crc32_z(crc32_z(0L, Z_NULL, 0), bytes.data(), 60));
   for (int i = 0; i < 4; ++i) bytes[60 + i] = static_cast<std::uint8_t>(crc >> (8 * i));
-  EXPECT_NE(error_of(bytes).find("format version 2 is newer than this lshloc reads (1); use a newer lshloc"),
+  EXPECT_NE(error_of(bytes).find("format version 3 is newer than this lshloc reads (2); use a newer lshloc"),
             std::string::npos)
       << error_of(bytes);
+}
+
+void put_u32(std::vector<std::uint8_t>& bytes, std::uint64_t at, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) bytes[at + static_cast<std::uint64_t>(i)] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+
+std::uint32_t plain_crc(const std::uint8_t* data, std::size_t n) {
+  return static_cast<std::uint32_t>(crc32_z(crc32_z(0L, Z_NULL, 0), data, n));
+}
+
+TEST_F(DamagedMap, AJournalSplicedFromAnotherMapIsRefused) {
+  // Another map's snapshot (60 scans, another meta) with this map's journal behind it: every check but the tie
+  // passes (the record is intact and would replay).
+  const std::string other = test::temp_path(".map");
+  io::save_map(other, *map_of_first(60), {{"made_by", "another run"}});
+  auto spliced = read_bytes(other);
+  const auto snapshot_end = static_cast<std::ptrdiff_t>(info_.snapshot_bytes);
+  spliced.insert(spliced.end(), good_.begin() + snapshot_end, good_.end());
+  const std::string e = error_of(spliced);
+  EXPECT_NE(e.find("journal record 1 at byte"), std::string::npos) << "[" << e << "]";
+  EXPECT_NE(e.find("written after another snapshot"), std::string::npos) << e;
+  EXPECT_TRUE(error_of(good_).empty()) << error_of(good_);
+}
+
+TEST_F(DamagedMap, AVersionOneFileLoadsAppendsAndCompactsIntoVersionTwo) {
+  // The same map as format version 1 wrote it: version 1 in a resealed header, the journal record's payload
+  // checksum a plain CRC-32.
+  auto v1 = good_;
+  put_u32(v1, 8, 1);
+  put_u32(v1, 60, plain_crc(v1.data(), 60));
+  const std::uint64_t record = info_.snapshot_bytes;
+  const std::uint32_t length =
+      static_cast<std::uint32_t>(v1[record + 4]) | (static_cast<std::uint32_t>(v1[record + 5]) << 8) |
+      (static_cast<std::uint32_t>(v1[record + 6]) << 16) | (static_cast<std::uint32_t>(v1[record + 7]) << 24);
+  put_u32(v1, record + 8, plain_crc(v1.data() + record + 16, length));
+  put_u32(v1, record + 12, plain_crc(v1.data() + record, 12));
+  const std::string path = test::temp_path(".map");
+  write_bytes(path, v1);
+  const io::LoadedMap loaded = io::load_map(path);
+  EXPECT_EQ(loaded.info.format_version, 1u);
+  test::expect_same_map_contents(*io::load_map(path_).map, *loaded.map);
+  {
+    io::MapAppender appender(path);  // appends untied records, as version 1 reads them
+    appender.add_scan(0, world().submaps[0].scans[61], world().submaps[0].scans[61].pose);
+  }
+  const io::LoadedMap appended = io::load_map(path);
+  EXPECT_EQ(appended.info.format_version, 1u);
+  EXPECT_EQ(appended.info.journal_scans, 2u);
+  {
+    io::MapAppender appender(path);
+    appender.compact({{"made_by", "compact"}});
+    appender.add_scan(0, world().submaps[0].scans[62], world().submaps[0].scans[62].pose);  // tied to the new one
+  }
+  const io::LoadedMap compacted = io::load_map(path);
+  EXPECT_EQ(compacted.info.format_version, io::kMapFormatVersion);
+  EXPECT_EQ(compacted.info.journal_scans, 1u);
+  auto expected = map_of_first(60);
+  for (const std::size_t i : {60, 61, 62})
+    expected->add_scan(0, world().submaps[0].scans[i], world().submaps[0].scans[i].pose);
+  test::expect_same_map_contents(*expected, *compacted.map);
 }
 
 /// Rewrites the checksums of the section whose payload starts at `offset`

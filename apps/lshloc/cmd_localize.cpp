@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <atomic>
 #include <exception>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <set>
@@ -715,7 +716,10 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       for (const auto& path : paths) {
         if (is_grid_argument(path))
           throw Error(path + ": a ROS map is no target log; give it to --map, and the robot's log to --target");
-        io::CarmenLog log = io::read_carmen_log(path);
+        // A window by scans reads the log up to its end only (a long log, or a gzip that expands without end).
+        constexpr std::size_t kAll = std::numeric_limits<std::size_t>::max();
+        const bool by_scans = !opt->from_s && !opt->to_s && opt->length > 0 && opt->length <= kAll - opt->start;
+        io::CarmenLog log = io::read_carmen_log(path, {}, by_scans ? opt->start + opt->length : kAll);
         print_warnings(log.warnings);
         targets.push_back(select_target(log, path, *opt));
       }

@@ -1,7 +1,9 @@
 // lshloc: global localization of 2D-laser robots in large, growing maps
 // (LSH-RANSAC). This file only wires the subcommands together.
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <string>
 #include <vector>
@@ -66,6 +68,11 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::fprintf(stderr, "lshloc: internal error: %s\n", e.what());
     return 3;
+  }
+  // An answer lost on its way out (a full disk, a closed pipe) is no success.
+  if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+    std::fprintf(stderr, "lshloc: error: writing to standard output: %s\n", std::strerror(errno));
+    return 1;
   }
   return global.exit_code;
 }

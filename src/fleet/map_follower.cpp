@@ -25,6 +25,8 @@ std::size_t MapFollower::catch_up(GlobalMap& map) {
       const AppliedUpdates applied = apply_updates(map, reader_.submaps(), updates);
       n += applied.added;
       note_failures(applied);
+    } catch (const MapLogRecordError&) {
+      throw;  // the log itself is damaged: said at once, not after give_up_s of reconnecting
     } catch (const Error& e) {
       // A server restart: positions are kept; reconnect and read on, for a while.
       if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > config_.give_up_s) throw;
@@ -98,6 +100,12 @@ void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
       stats_.live_updates += applied.added;
       stats_.duplicates = reader_.stats().duplicates;
       applied_ = reader_.positions();
+    } catch (const MapLogRecordError& e) {
+      // Reconnecting would meet the same entry again: following stops, and stats() names the entry.
+      std::lock_guard lock(stats_mutex_);
+      stats_.last_error = std::string("following stopped: ") + e.what();
+      stats_.stopped = true;
+      return;
     } catch (const Error& e) {
       {
         std::lock_guard lock(stats_mutex_);

@@ -261,7 +261,7 @@ std::vector<MapUpdate> MapLogReader::read_once(double block_s, bool& duplicates_
             throw Error(where + ": sequence number " + std::to_string(u.seq) + " after " +
                         std::to_string(pos.next_seq) + " was expected: updates of submap " + name + " are missing");
         } catch (const Error& e) {
-          if (collected == 0) throw;
+          if (collected == 0) throw MapLogRecordError(e.what());
           stats_.stopped = e.what();
           stop = true;
           break;

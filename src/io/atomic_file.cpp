@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -47,7 +48,43 @@ std::string temporary_path_for(const std::string& path) {
   return path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(serial++);
 }
 
+OutputKind output_kind(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return OutputKind::kFile;
+    throw FileError(system_error(path, "cannot look at what it names"));
+  }
+  if (S_ISREG(st.st_mode)) return OutputKind::kFile;
+  if (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)) return OutputKind::kStream;
+  const char* what = S_ISDIR(st.st_mode)    ? "a directory"
+                     : S_ISBLK(st.st_mode)  ? "a block device"
+                     : S_ISSOCK(st.st_mode) ? "a socket"
+                                            : "not a regular file";
+  throw Error(path + ": is " + what + "; expected a file name to write (or a character device or FIFO to write into)");
+}
+
+namespace {
+
+/// Writes `bytes` into a character device or FIFO as it is (nothing to replace there).
+void write_into_stream(const std::string& path, std::string_view bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) throw FileError(system_error(path, "cannot open to write"));
+  try {
+    write_all(fd, {reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()}, path);
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  if (::close(fd) != 0) throw FileError(system_error(path, "cannot write"));
+}
+
+}  // namespace
+
 int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
+  if (output_kind(path) != OutputKind::kFile)
+    throw Error(path +
+                ": is a character device or FIFO; expected a file name (this output is replaced whole, "
+                "and a device is never replaced)");
   const std::string tmp = temporary_path_for(path);
   const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw FileError(system_error(path, "cannot create its temporary file " + tmp));
@@ -82,10 +119,19 @@ void append_format(std::string& out, const char* format, ...) {
 }
 
 void write_file_atomically(const std::string& path, std::string_view bytes) {
+  if (output_kind(path) == OutputKind::kStream) return write_into_stream(path, bytes);
   ::close(replace_file(path, {reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()}));
 }
 
-void write_files_atomically(std::span<const FileOutput> files) {
+void write_files_atomically(std::span<const FileOutput> all) {
+  // Devices and FIFOs are written into, first; the regular files are replaced together.
+  std::vector<FileOutput> files;
+  for (const FileOutput& f : all) {
+    if (output_kind(f.path) == OutputKind::kStream)
+      write_into_stream(f.path, f.bytes);
+    else
+      files.push_back(f);
+  }
   // backups[i]: a hard link to the old files[i]; empty when there was none,
   // and then `existed[i]` says whether an old file (that cannot be linked) is replaced.
   std::vector<std::string> temporaries, backups;
@@ -140,7 +186,10 @@ void write_files_atomically(std::span<const FileOutput> files) {
 void require_writable(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (fs::is_directory(path, ec)) throw Error(path + ": is a directory; expected a file name to write");
+  if (output_kind(path) == OutputKind::kStream) {
+    if (::access(path.c_str(), W_OK) != 0) throw FileError(system_error(path, "cannot write"));
+    return;
+  }
   const fs::path dir = fs::path(path).parent_path();
   const std::string name = dir.empty() ? "." : dir.string();
   if (!fs::is_directory(name, ec))

@@ -5,6 +5,7 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string_view>
 #include <utility>
@@ -63,6 +64,36 @@ long read_count(const std::vector<std::string_view>& f, std::size_t at, const st
 
 }  // namespace
 
+namespace {
+
+/// Message types of CARMEN's logger and GMapping that lshloc passes over: skipped without a word.
+bool known_carmen_message(std::string_view type) {
+  static constexpr std::array<std::string_view, 24> kKnown = {
+      "NEFF",       "SYNC",          "TRUEPOS",       "RAWLASER1",    "RAWLASER2",  "RAWLASER3",
+      "RAWLASER4",  "ROBOTLASER2",   "RLASER",        "LASER3",       "LASER4",     "GPSNMEAGGA",
+      "GPSNMEARMC", "NMEAGGA",       "NMEARMC",       "SONAR",        "BUMPER",     "IMU",
+      "ARM",        "POSITIONLASER", "ROBOTVELOCITY", "BASEVELOCITY", "VECTORMOVE", "FOLLOWTRAJECTORY"};
+  return std::find(kKnown.begin(), kKnown.end(), type) != kKnown.end();
+}
+
+/// `text` with bytes outside printable ASCII written as \xHH (a damaged word may hold any byte).
+std::string printable(std::string_view text) {
+  std::string out;
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x20 && u < 0x7f) {
+      out += c;
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02X", u);
+      out += hex;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 void CarmenReader::parse_flaser(const std::string& where, CarmenRecord& record) {
   // FLASER n r_1..r_n x y theta odom_x odom_y odom_theta ipc_timestamp [hostname logger_timestamp]
   const auto& f = fields_;
@@ -86,6 +117,22 @@ void CarmenReader::parse_flaser(const std::string& where, CarmenRecord& record) 
                   " beams without hostname and logger time stamp; expected a hostname that is a word, or a beam "
                   "count that matches the ranges");
     }
+  }
+  // Without the tail, the line may be n - 2 beams with a numeric hostname (a beam count 2 too high): the
+  // fields that would be its ipc and logger time stamps then agree, which an odometry y and a time stamp
+  // almost never do. Refuse rather than read two pose fields as ranges.
+  if (f.size() == n + 9 && n >= 2) {
+    const auto number = [](std::string_view v, double& out) {
+      return std::from_chars(v.data(), v.data() + v.size(), out).ptr == v.data() + v.size();
+    };
+    double ipc = 0.0, host = 0.0, logger = 0.0;
+    if (number(f[n + 6], ipc) && number(f[n + 7], host) && number(f[n + 8], logger) && std::abs(ipc) > 100.0 &&
+        std::abs(logger - ipc) <= 1.0)
+      throw Error(where + ": FLASER is ambiguous: read as " + std::to_string(n) +
+                  " beams without hostname and logger time stamp, or as " + std::to_string(n - 2) +
+                  " beams with hostname '" + std::string(f[n + 7]) + "' (a number) and time stamps " +
+                  std::string(f[n + 6]) + " and " + std::string(f[n + 8]) +
+                  "; expected a hostname that is a word, or a beam count that matches the ranges");
   }
   LaserScan& s = record.scan;
   s.ranges.resize(n);
@@ -222,7 +269,13 @@ bool CarmenReader::next(CarmenRecord& record) {
           fields_.size() >= 2 &&
           std::from_chars(fields_[1].data(), fields_[1].data() + fields_[1].size(), second).ptr ==
               fields_[1].data() + fields_[1].size();
-      if (message) ++skipped_[std::string(type)];
+      if (message) {
+        if (++skipped_[std::string(type)] == 1 && !known_carmen_message(type))
+          unknown_type_first_line_[std::string(type)] = lines_.line_number();
+      } else if (non_messages_++ == 0) {
+        first_non_message_line_ = lines_.line_number();
+        first_non_message_word_ = std::string(type.substr(0, 40));
+      }
       continue;
     }
     record.message = type;
@@ -258,6 +311,14 @@ std::vector<std::string> CarmenReader::warnings() const {
                   std::to_string(first_jump_to_) +
                   " s): a bad time stamp, or stamps written with too few digits? Durations and --from/--to take "
                   "them as they are");
+  if (non_messages_ > 0)
+    out.push_back(path() + ": " + std::to_string(non_messages_) + " lines are no CARMEN message (first at line " +
+                  std::to_string(first_non_message_line_) + ", starting '" + printable(first_non_message_word_) +
+                  "'): skipped; a damaged message word?");
+  for (const auto& [type, line] : unknown_type_first_line_)
+    out.push_back(path() + ": " + std::to_string(skipped_.at(type)) + " messages of type " + type +
+                  ", which CARMEN does not know (first at line " + std::to_string(line) +
+                  "), were skipped; a damaged message word?");
   if (lines_.trailing_bytes() > 0)
     out.push_back(path() + ": " + std::to_string(lines_.trailing_bytes()) +
                   " bytes after the end of the gzip stream were ignored (a damaged or appended file?)");
@@ -292,12 +353,12 @@ Pose2 CarmenLog::front_laser_offset() const {
   return {v[0], v[1], v[2]};
 }
 
-CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config) {
+CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config, std::size_t max_scans) {
   CarmenReader reader(path, config);
   CarmenLog log;
   log.path = path;
   CarmenRecord rec;
-  while (reader.next(rec)) {
+  while (log.scans.size() < max_scans && reader.next(rec)) {
     switch (rec.type) {
       case CarmenRecord::Type::kLaser:
         log.scans.push_back(std::move(rec.scan));

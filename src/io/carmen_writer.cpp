@@ -49,13 +49,15 @@ CarmenWriter::CarmenWriter(std::string path, CarmenWriterConfig config)
     throw Error("CARMEN writer: decimals must be in 0..9 (ranges, time stamps) and 0..12 (poses)");
   }
   if (!single_word(config_.hostname)) throw Error("CARMEN writer: hostname must be one non-empty word");
-  temp_path_ = temporary_path_for(path_);
+  // A character device or FIFO (/dev/null, a pipe) is written into; a file is written beside and renamed.
+  if (output_kind(path_) == OutputKind::kFile) temp_path_ = temporary_path_for(path_);
+  const std::string& target = temp_path_.empty() ? path_ : temp_path_;
   if (ends_with(path_, ".gz")) {
     const std::string mode = "wb" + std::to_string(std::clamp(config_.compression_level, 1, 9));
-    gz_ = gzopen(temp_path_.c_str(), mode.c_str());
+    gz_ = gzopen(target.c_str(), mode.c_str());
     if (!gz_) throw Error(path_ + ": cannot open for writing");
   } else {
-    file_ = std::fopen(temp_path_.c_str(), "wb");
+    file_ = std::fopen(target.c_str(), "wb");
     if (!file_) throw Error(path_ + ": cannot open for writing");
   }
   buffer_.reserve(kFlushBytes + 16384);
@@ -66,7 +68,7 @@ CarmenWriter::~CarmenWriter() {
   // Not closed: an abandoned write, whose partial file must not stay.
   if (gz_) gzclose(static_cast<gzFile>(gz_));
   if (file_) std::fclose(static_cast<std::FILE*>(file_));
-  ::unlink(temp_path_.c_str());
+  if (!temp_path_.empty()) ::unlink(temp_path_.c_str());
 }
 
 void CarmenWriter::number(double value, int decimals) {
@@ -116,6 +118,10 @@ void CarmenWriter::close() {
     error = path_ + ": closing the gzip stream failed";
   if (file_ && std::fclose(static_cast<std::FILE*>(file_)) != 0 && error.empty()) error = path_ + ": closing failed";
   gz_ = file_ = nullptr;
+  if (temp_path_.empty()) {  // written into a device or FIFO: nothing to rename
+    if (!error.empty()) throw FileError(error);
+    return;
+  }
   if (error.empty()) {  // durable before it takes the final name (docs/reliability.md, "Writes")
     const int fd = ::open(temp_path_.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0 || ::fsync(fd) != 0) error = system_error(temp_path_, "cannot sync the log written for " + path_);

@@ -3,6 +3,7 @@
 #include <array>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <utility>
@@ -192,10 +193,26 @@ std::string json_text(const nlohmann::json& j, int indent) {
 }
 
 nlohmann::json read_json_file(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(path, ec)) {
+    const auto bytes = std::filesystem::file_size(path, ec);
+    if (!ec && bytes > kMaxJsonFileBytes)
+      throw Error(path + ": " + std::to_string(bytes) + " bytes; a JSON settings file holds at most " +
+                  std::to_string(kMaxJsonFileBytes) + " bytes");
+  }
   std::ifstream in(path);
   if (!in) throw FileError(path + ": cannot open for reading: " + std::strerror(errno));
+  // Nesting is refused as it is read: a deep tree would overflow the stack of whatever walks it.
+  const nlohmann::json::parser_callback_t within_depth = [&](int depth, nlohmann::json::parse_event_t event,
+                                                             nlohmann::json&) {
+    if ((event == nlohmann::json::parse_event_t::object_start || event == nlohmann::json::parse_event_t::array_start) &&
+        depth >= kMaxJsonDepth)
+      throw Error(path + ": nested deeper than " + std::to_string(kMaxJsonDepth) +
+                  " levels; settings are a few levels deep");
+    return true;
+  };
   try {
-    return nlohmann::json::parse(in);
+    return nlohmann::json::parse(in, within_depth);
   } catch (const nlohmann::json::exception& e) {
     // parse_error, and out_of_range for a number beyond a double (1e400).
     throw Error(path + ": not valid JSON: " + e.what());

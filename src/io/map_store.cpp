@@ -135,11 +135,31 @@ std::vector<std::uint8_t> encode_snapshot(const GlobalMap& map, const nlohmann::
   return out.take();
 }
 
-void put_record(std::vector<std::uint8_t>& out, std::span<const std::uint8_t> payload) {
+/// What ties a journal to its snapshot (format version 2): the CRC-32 of the
+/// file header and every section header, each without its own checksum (the
+/// section headers hold their payloads' CRCs). Each journal record's payload checksum starts from it, so a record
+/// written after another snapshot fails its checksum here.
+std::uint32_t snapshot_tie(std::span<const std::uint8_t> snapshot) {
+  // Each header without its own trailing CRC: a CRC run over bytes followed by their CRC ends in a constant.
+  auto tie = static_cast<std::uint32_t>(crc32_z(0L, snapshot.data(), kHeaderBytes - 4));
+  for (std::uint64_t at = kHeaderBytes; at + kSectionHeaderBytes <= snapshot.size();) {
+    const auto head = snapshot.subspan(at, kSectionHeaderBytes);
+    tie = static_cast<std::uint32_t>(crc32_z(tie, head.data(), head.size() - 4));
+    at += kSectionHeaderBytes + ByteReader(head.subspan(4 + kSectionNameBytes, 8), "a section header").u64();
+  }
+  return tie;
+}
+
+/// A record payload's checksum, started from the snapshot's tie (0 in format version 1: a plain CRC-32).
+std::uint32_t record_crc(std::uint32_t tie, std::span<const std::uint8_t> payload) {
+  return static_cast<std::uint32_t>(crc32_z(tie, payload.data(), payload.size()));
+}
+
+void put_record(std::vector<std::uint8_t>& out, std::span<const std::uint8_t> payload, std::uint32_t tie) {
   ByteWriter header;
   header.u32(kRecordMagic);
   header.u32(static_cast<std::uint32_t>(payload.size()));
-  header.u32(crc_of(payload));
+  header.u32(record_crc(tie, payload));
   header.u32(crc_of(header.bytes()));
   out.insert(out.end(), header.bytes().begin(), header.bytes().end());
   out.insert(out.end(), payload.begin(), payload.end());
@@ -161,6 +181,7 @@ struct ParsedFile {
   std::vector<MapSectionView> sections;
   std::vector<std::pair<std::uint64_t, std::span<const std::uint8_t>>> records;  ///< (offset, payload)
   std::uint64_t journal_end = 0;                                                 ///< end of the last complete record
+  std::uint32_t journal_tie = 0;  ///< snapshot_tie() from format version 2 on, else 0
   std::vector<std::string> warnings;
 };
 
@@ -289,6 +310,7 @@ ParsedFile parse_map_file(std::span<const std::uint8_t> file, const std::string&
   }
 
   // The journal: complete records up to a possibly torn last one.
+  if (version >= 2) p.journal_tie = snapshot_tie(file.subspan(0, snapshot_end));
   std::uint64_t j = snapshot_end;
   while (j < file.size()) {
     const std::string where =
@@ -315,7 +337,11 @@ ParsedFile parse_map_file(std::span<const std::uint8_t> file, const std::string&
       break;
     }
     const auto payload = file.subspan(j + kRecordHeaderBytes, length);
-    if (crc_of(payload) != payload_crc) throw Error(where + ": checksum mismatch; the file is damaged");
+    if (record_crc(p.journal_tie, payload) != payload_crc)
+      throw Error(where + ": checksum mismatch; the file is damaged" +
+                  (version >= 2 ? std::string(", or the record was written after another snapshot (a journal "
+                                              "spliced from another map file)")
+                                : std::string()));
     p.records.emplace_back(j, payload);
     j += kRecordHeaderBytes + length;
   }
@@ -371,7 +397,19 @@ LoadedMap load_parsed(const ParsedFile& p, const std::string& path) {
 namespace {}  // namespace
 
 void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta) {
-  ::close(replace_file(path, encode_snapshot(map, meta)));
+  // A map being appended to is never replaced under its appender: its lock is taken, and held over the rename.
+  const int old = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (old >= 0 && ::flock(old, LOCK_EX | LOCK_NB) != 0) {
+    ::close(old);
+    throw Error(path + ": another process is appending to this map (its lock is held); it was not replaced");
+  }
+  try {
+    ::close(replace_file(path, encode_snapshot(map, meta)));
+  } catch (...) {
+    if (old >= 0) ::close(old);
+    throw;
+  }
+  if (old >= 0) ::close(old);
 }
 
 LoadedMap load_map(const std::string& path) {
@@ -424,6 +462,7 @@ void MapAppender::open_file() {
     if (::lseek(fd_, static_cast<off_t>(parsed.journal_end), SEEK_SET) < 0)
       throw FileError(system_error(path_, "cannot seek to the journal's end"));
     journal_end_ = parsed.journal_end;
+    journal_tie_ = parsed.journal_tie;  // a version 1 file's records stay untied, as its reader expects
     acknowledged_scans_ = map_->stats().scans;
   } catch (...) {
     ::close(fd_);
@@ -451,7 +490,7 @@ std::uint32_t MapAppender::add_submap(const std::string& name) {
   ByteWriter w;
   w.u8(kSubmapRecord);
   w.string(name);
-  put_record(pending_, w.bytes());
+  put_record(pending_, w.bytes(), journal_tie_);
   return map_->add_submap(name);
 }
 
@@ -474,7 +513,7 @@ std::size_t MapAppender::add_scan(std::uint32_t submap, const LaserScan& scan, c
     broken_ = true;  // out of memory part-way: the in-memory map may hold part of the scan; the file does not
     throw;
   }
-  put_record(pending_, payload);
+  put_record(pending_, payload, journal_tie_);
   if (++pending_scans_ >= config_.sync_every) sync();
   return added;
 }
@@ -506,7 +545,9 @@ void MapAppender::compact(const nlohmann::json& meta) {
   // A map an append failed in may hold part of a scan: never make it the snapshot.
   if (broken_) throw Error(path_ + ": an earlier append failed half-way; reopen the map to compact it");
   sync();
-  const int fd = replace_file(path_, encode_snapshot(*map_, meta));
+  const std::vector<std::uint8_t> snapshot = encode_snapshot(*map_, meta);
+  const int fd = replace_file(path_, snapshot);
+  journal_tie_ = snapshot_tie(snapshot);
   ::close(fd_);
   fd_ = fd;  // locked, positioned at the end: the new, empty journal
   const off_t end = ::lseek(fd_, 0, SEEK_CUR);

@@ -151,23 +151,19 @@ GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32
   // from walls, unknown cells and the grid's edge.
   const std::vector<float> to_blocked = chamfer_distance(
       grid, [](std::int8_t v) { return v != occupancy::kFree; }, true);
-  std::vector<std::vector<Point2>> rows;
   const auto columns = static_cast<std::size_t>(static_cast<double>(w) * res / config.pose_spacing) + 1;
   const auto row_count = static_cast<std::size_t>(static_cast<double>(h) * res / config.pose_spacing) + 1;
-  for (std::size_t j = 0; j < row_count; ++j) {
-    std::vector<Point2> row;
-    for (std::size_t i = 0; i < columns; ++i) {
-      const Point2 p((static_cast<double>(i) + 0.5) * config.pose_spacing,
-                     (static_cast<double>(j) + 0.5) * config.pose_spacing);
-      const auto c = static_cast<std::size_t>(p.x() / res), r = static_cast<std::size_t>(p.y() / res);
-      if (c >= w || r >= h || grid.at(c, r) != occupancy::kFree) continue;
-      if (static_cast<double>(to_blocked[r * w + c]) * res < config.clearance) continue;
-      row.push_back(p);
-    }
-    if (j % 2 == 1) std::reverse(row.begin(), row.end());  // boustrophedon: neighbours follow each other
-    stats.positions += row.size();
-    rows.push_back(std::move(row));
-  }
+  const auto free_position = [&](std::size_t i, std::size_t j, Point2& p) {
+    p = Point2((static_cast<double>(i) + 0.5) * config.pose_spacing,
+               (static_cast<double>(j) + 0.5) * config.pose_spacing);
+    const auto c = static_cast<std::size_t>(p.x() / res), r = static_cast<std::size_t>(p.y() / res);
+    return c < w && r < h && grid.at(c, r) == occupancy::kFree &&
+           static_cast<double>(to_blocked[r * w + c]) * res >= config.clearance;
+  };
+  // Counted before any is stored: a huge extent (a wrong resolution) is refused before it takes memory.
+  Point2 position;
+  for (std::size_t j = 0; j < row_count; ++j)
+    for (std::size_t i = 0; i < columns; ++i) stats.positions += free_position(i, j, position);
   if (stats.positions == 0)
     throw Error("occupancy grid " + name + ": no free position " + std::to_string(config.clearance) +
                 " m from occupied and unknown cells on a " + std::to_string(config.pose_spacing) + " m lattice");
@@ -177,6 +173,14 @@ GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32
                 std::to_string(config.max_virtual_scans) +
                 "); use a wider pose_spacing or fewer headings (the "
                 "commands' --grid-spacing, --grid-headings)");
+  std::vector<std::vector<Point2>> rows;
+  for (std::size_t j = 0; j < row_count; ++j) {
+    std::vector<Point2> row;
+    for (std::size_t i = 0; i < columns; ++i)
+      if (free_position(i, j, position)) row.push_back(position);
+    if (j % 2 == 1) std::reverse(row.begin(), row.end());  // boustrophedon: neighbours follow each other
+    rows.push_back(std::move(row));
+  }
   // Every cell the submap marks lies within the grid's rectangle: its corners must fit the map's pose grids
   // (cells within +-2^16 of their origin), or marking would fail with the submap half-built.
   for (const Point2 corner :

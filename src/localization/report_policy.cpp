@@ -43,8 +43,17 @@ void ReportPolicyConfig::validate() const {
   require(confidence.stable_scans >= 1, "ReportPolicyConfig.confidence.stable_scans", ">= 1", confidence.stable_scans);
   require(confidence.rise_supported_scans >= 1, "ReportPolicyConfig.confidence.rise_supported_scans", ">= 1",
           confidence.rise_supported_scans);
+  // Counts of points scored per scan or per duel, and refinement rounds: beyond these caps a run only
+  // exhausts memory or time (each point costs a score, a few ns, per round).
   require(confidence.newest_points <= 1000000, "ReportPolicyConfig.confidence.newest_points", "<= 1e6",
           confidence.newest_points);
+  require(confidence.duel_points <= 1000000, "ReportPolicyConfig.confidence.duel_points", "<= 1e6",
+          confidence.duel_points);
+  require(confidence.whole_map_points <= 1000000, "ReportPolicyConfig.confidence.whole_map_points", "<= 1e6",
+          confidence.whole_map_points);
+  require(refine_points <= 1000000, "ReportPolicyConfig.refine_points", "<= 1e6", refine_points);
+  require(refine_window <= 100000000, "ReportPolicyConfig.refine_window", "<= 1e8", refine_window);
+  require(refine_rounds <= 1000, "ReportPolicyConfig.refine_rounds", "<= 1000", refine_rounds);
   require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
           "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
           confidence.unsupported_challenger_margin);

@@ -21,7 +21,8 @@ void PoseGridConfig::validate() const {
   require(theta_tolerance >= 0 && theta_tolerance <= 8, "PoseGridConfig.theta_tolerance", "0..8 bins", theta_tolerance);
   require(max_load_factor > 0.05 && max_load_factor <= 0.9, "PoseGridConfig.max_load_factor",
           "in (0.05, 0.9] for linear probing", max_load_factor);
-  require(initial_capacity >= 2, "PoseGridConfig.initial_capacity", ">= 2", initial_capacity);
+  require(initial_capacity >= 2 && initial_capacity <= (std::size_t{1} << 30), "PoseGridConfig.initial_capacity",
+          "2..2^30 cells", initial_capacity);
 }
 
 PoseGridHashMap::PoseGridHashMap(PoseGridConfig config) : config_(config) {

@@ -48,6 +48,14 @@ RunBuilding run_building(std::uint64_t run_seed, std::size_t index, const Simula
 BuildingRecording simulate_recording(const SyntheticBuilding& building, const SimulationConfig& config,
                                      SimulationStats* stats) {
   if (config.scans == 0) throw Error("simulation config: scans must be at least 1");
+  // Checked before anything is allocated: every scan holds its beams' ranges, twice with corrected scans.
+  const double ranges = static_cast<double>(config.scans) * static_cast<double>(config.laser.beams) *
+                        ((config.with_raw ? 1.0 : 0.0) + (config.with_corrected ? 1.0 : 0.0));
+  if (ranges > kMaxSimulatedRanges)
+    throw Error("simulation config: " + std::to_string(config.scans) + " scans of " +
+                std::to_string(config.laser.beams) + " beams hold " + std::to_string(static_cast<long long>(ranges)) +
+                " ranges, over the cap of " + std::to_string(static_cast<long long>(kMaxSimulatedRanges)) +
+                " (1.6 GB); record fewer scans or beams");
   if (!std::isfinite(config.start_time)) throw Error("simulation config: start_time must be finite");
   const auto t_start = Clock::now();
   SimulationStats st;

@@ -35,7 +35,7 @@ void ScanMatcherConfig::validate() const {
   require(fine_correspondence > 0.0, "ScanMatcherConfig.fine_correspondence", "> 0 [m]", fine_correspondence);
   require(coarse_correspondence >= fine_correspondence, "ScanMatcherConfig.coarse_correspondence",
           ">= fine_correspondence [m]", coarse_correspondence);
-  require(max_iterations >= 1, "ScanMatcherConfig.max_iterations", ">= 1", max_iterations);
+  require(max_iterations >= 1 && max_iterations <= 1000, "ScanMatcherConfig.max_iterations", "1..1000", max_iterations);
   require(robust_scale > 0.0, "ScanMatcherConfig.robust_scale", "> 0 [m]", robust_scale);
   require(rotation_length > 0.0, "ScanMatcherConfig.rotation_length", "> 0 [m]", rotation_length);
   require(experimental.point_sigma > 0.0, "ScanMatcherConfig.experimental.point_sigma", "> 0 [m]",

@@ -53,14 +53,16 @@ class MapFollower {
 
   /// Applies every update already in the log to `map` (no lock: before any
   /// localizer reads it), reconnecting for up to give_up_s if the server goes
-  /// away. Returns the updates applied.
+  /// away. Returns the updates applied. A damaged entry or a gap throws
+  /// MapLogRecordError at once (after what came before it is applied).
   std::size_t catch_up(GlobalMap& map);
   /// The stream positions of what has been applied to the map so far (read
   /// it while holding the map's lock, shared, for a consistent snapshot).
   std::vector<StreamPosition> applied_positions() const;
   /// Follows the log on a thread of its own until stop(): each batch is
   /// applied under `mutex` held exclusively. A lost server is retried every
-  /// retry_s; positions are kept, so nothing is applied twice or skipped.
+  /// retry_s; positions are kept, so nothing is applied twice or skipped. A
+  /// damaged entry or a gap stops the following (stats(): stopped, last_error).
   void start(GlobalMap& map, std::shared_mutex& mutex);
   /// Stops the thread (within about block_s) and applies nothing more.
   void stop();

@@ -43,6 +43,13 @@ struct MapUpdate {
   LaserScan scan;
 };
 
+/// A stream entry no reconnect can mend: a damaged record, or a gap in a
+/// submap's sequence numbers. Its message names the stream and the entry id.
+class MapLogRecordError : public Error {
+ public:
+  using Error::Error;
+};
+
 /// A stream entry's record: version (u8, 1), sequence number (u64), the scan
 /// update (io/scan_record.hpp) and a CRC-32 of everything before it.
 std::string encode_update(std::uint64_t seq, const LaserScan& scan);

@@ -60,7 +60,9 @@ class CarmenReader {
 
   /// What the caller should hear about the file read so far (once next()
   /// returned false: all of it): laser scans whose time stamp is earlier than
-  /// or equal to the scan before (counts and the first line of each), and
+  /// or equal to the scan before (counts and the first line of each), lines
+  /// that are no CARMEN message and messages of types CARMEN does not know
+  /// (a damaged message word: skipped, counted, the first line named), and
   /// bytes after the gzip stream. Each is one line, naming the file.
   std::vector<std::string> warnings() const;
   /// Throws lshloc::Error unless some CARMEN message (read or skipped) was
@@ -87,6 +89,10 @@ class CarmenReader {
   std::vector<std::string_view> fields_;
   std::map<std::string, std::size_t> skipped_;
   std::size_t messages_ = 0;  ///< FLASER, ROBOTLASER1, ODOM and PARAM returned
+  // Skipped lines that may be damaged messages: text that is no message, and message types CARMEN lacks.
+  std::size_t non_messages_ = 0, first_non_message_line_ = 0;
+  std::string first_non_message_word_;
+  std::map<std::string, std::size_t> unknown_type_first_line_;
   // Laser time order: scans stamped before / at the previous scan's time.
   double last_scan_time_ = -std::numeric_limits<double>::infinity();
   std::size_t backwards_ = 0, repeated_ = 0, first_backwards_line_ = 0, first_repeated_line_ = 0;
@@ -121,8 +127,12 @@ struct CarmenLog {
   Pose2 front_laser_offset() const;
 };
 
-/// Reads a whole log. Throws lshloc::Error for a file without any CARMEN
-/// message (e.g. a README or a binary file), besides what CarmenReader throws.
-CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config = {});
+/// Reads a whole log, or its first `max_scans` laser scans and what comes
+/// before the last of them (a window needs no more of a long log; warnings
+/// and messages then cover that part). Throws lshloc::Error for a file
+/// without any CARMEN message (e.g. a README or a binary file), besides what
+/// CarmenReader throws.
+CarmenLog read_carmen_log(const std::string& path, const CarmenReaderConfig& config = {},
+                          std::size_t max_scans = std::numeric_limits<std::size_t>::max());
 
 }  // namespace lshloc::io

@@ -60,7 +60,7 @@ class CarmenWriter {
   void flush();
 
   std::string path_;
-  std::string temp_path_;  ///< where the messages go until close()
+  std::string temp_path_;  ///< where the messages go until close(); empty: into path_, a device or FIFO
   CarmenWriterConfig config_;
   void* gz_ = nullptr;    // gzFile when compressing
   void* file_ = nullptr;  // FILE* otherwise

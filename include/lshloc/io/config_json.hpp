@@ -5,6 +5,7 @@
 // are errors naming the file and the key's path. Enums are written by name.
 // Lengths [m], angles [rad] except fields ending in _deg; see each struct.
 // Stateless; safe from any thread.
+#include <cstdint>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -112,8 +113,13 @@ void apply_config_patch(const nlohmann::json& patch, Config& config, const std::
   config = config_from_json<Config>(merged, source);
 }
 
+/// Caps on a JSON settings file, checked before its contents are built.
+inline constexpr std::uintmax_t kMaxJsonFileBytes = std::uintmax_t{16} << 20;
+inline constexpr int kMaxJsonDepth = 64;
+
 /// Reads a JSON file (throws lshloc::Error naming the file, and the line and
-/// column of a syntax error).
+/// column of a syntax error; a file over kMaxJsonFileBytes, or nested deeper
+/// than kMaxJsonDepth, is refused naming the cap).
 nlohmann::json read_json_file(const std::string& path);
 
 /// `j` as JSON text (one line, or indented by `indent` spaces). Strings that

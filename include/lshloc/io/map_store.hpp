@@ -21,8 +21,9 @@
 
 namespace lshloc::io {
 
-/// The file format version this lshloc writes and reads.
-inline constexpr std::uint32_t kMapFormatVersion = 1;
+/// The file format version this lshloc writes; it reads 1 too (whose journal
+/// records are not tied to their snapshot: docs/map-format.md).
+inline constexpr std::uint32_t kMapFormatVersion = 2;
 
 /// What a map file holds, as far as reading it found.
 struct MapFileInfo {
@@ -54,7 +55,8 @@ struct LoadedMap {
 /// Writes `map` as a snapshot with an empty journal: to a temporary file in
 /// the same directory, fsync'ed, then renamed over `path` (and the directory
 /// fsync'ed), so `path` holds either its old content or the whole new map.
-/// `meta` (a JSON object) is kept as the file's free-form description.
+/// `meta` (a JSON object) is kept as the file's free-form description. A map
+/// another process is appending to (its lock held) is refused, not replaced.
 void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta = nlohmann::json::object());
 
 /// Reads a map file: checks every checksum, restores the snapshot in bulk
@@ -131,6 +133,7 @@ class MapAppender {
   std::size_t pending_scans_ = 0;
   std::size_t acknowledged_scans_ = 0;
   std::uint64_t journal_end_ = 0;  ///< the file's end after the last good sync (or open/compact)
+  std::uint32_t journal_tie_ = 0;  ///< the snapshot's tie its records' checksums start from (0: version 1)
   bool tail_dirty_ = false;        ///< a write failed part-way: bytes may lie beyond journal_end_
   bool sync_failed_ = false;       ///< an fdatasync failed
   bool broken_ = false;            ///< an add_scan() failed half-way in memory

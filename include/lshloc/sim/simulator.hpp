@@ -74,12 +74,17 @@ struct SimulationStats {
   double scans_per_second() const { return seconds_total > 0.0 ? static_cast<double>(scans) / seconds_total : 0.0; }
 };
 
+/// The most ranges one recording holds (scans x beams, counting raw and
+/// corrected scans): 4e8 floats, 1.6 GB.
+inline constexpr double kMaxSimulatedRanges = 4e8;
+
 /// Simulates a robot driving through `building` and records it.
 /// raw_scans[k]: time stamp start_time + k * period, simulated ranges,
 /// pose = odometry = the odometry pose (as in raw logs). corrected_scans[k]:
 /// the same scan with pose = odometry = the true laser pose. truth[k] =
 /// {raw time stamp, true pose}. The laser sits at the robot's origin
-/// (laser_offset = identity). Throws lshloc::Error on an invalid config.
+/// (laser_offset = identity). Throws lshloc::Error on an invalid config, or
+/// one whose ranges exceed kMaxSimulatedRanges, before allocating.
 BuildingRecording simulate_recording(const SyntheticBuilding& building, const SimulationConfig& config,
                                      SimulationStats* stats = nullptr);
 
