@@ -393,6 +393,51 @@ TEST(CarmenReaderBadInput, ABeamCountTwoTooLowIsAmbiguousAndRefused) {
   EXPECT_NE(e.find("3 beams"), std::string::npos) << e;
 }
 
+TEST(CarmenReaderBadInput, ABeamCountTwoTooHighWithANumericHostnameIsRefused) {
+  // 3 ranges with hostname 12345, but a beam count of 5: read without the tail, the laser pose would be ranges.
+  const std::string e = expect_error("FLASER 5 1.0 2.0 3.0 0.5 0.6 0.1 0.5 0.6 0.1 100.25 12345 100.27\n");
+  EXPECT_NE(e.find("ambiguous"), std::string::npos) << e;
+  EXPECT_NE(e.find("or as 3 beams with hostname '12345'"), std::string::npos) << e;
+  // Without the tail and with stamps far from the odometry, the line is what it says: 3 beams.
+  const std::string path = test::temp_path(".log");
+  test::write_file(path, "FLASER 3 1.0 2.0 3.0 0.5 0.6 0.1 0.5 0.6 0.1 100.25\n");
+  EXPECT_EQ(read_carmen_log(path).scans.at(0).size(), 3u);
+}
+
+TEST(CarmenReaderBadInput, DamagedMessageWordsAreCountedAndWarned) {
+  const std::string path = test::temp_path(".log");
+  std::string damaged = flaser_line(3, 1.0, 11.0);
+  damaged.replace(0, 6, "FLASER360");
+  std::string prefixed = "x" + flaser_line(3, 1.0, 12.0);
+  test::write_file(path, flaser_line(3, 1.0, 10.0) + damaged + prefixed + damaged + "\xEF\xBB\xBF" +
+                             flaser_line(3, 1.0, 13.0) + "NEFF 1 2 3\n" + flaser_line(3, 1.0, 14.0));
+  const CarmenLog log = read_carmen_log(path);
+  EXPECT_EQ(log.scans.size(), 2u);
+  ASSERT_EQ(log.warnings.size(), 2u) << (log.warnings.empty() ? "" : log.warnings[0]);
+  EXPECT_NE(log.warnings[0].find("2 lines are no CARMEN message (first at line 3, starting 'xFLASER'): skipped"),
+            std::string::npos)
+      << log.warnings[0];
+  EXPECT_NE(log.warnings[1].find("2 messages of type FLASER360, which CARMEN does not know (first at line 2)"),
+            std::string::npos)
+      << log.warnings[1];
+  // The BOM in mid-file is named by its bytes; NEFF (GMapping's) is skipped without a word.
+  test::write_file(path, flaser_line(3, 1.0, 10.0) + "\xEF\xBB\xBF" + flaser_line(3, 1.0, 13.0) + "NEFF 1 2 3\n");
+  const CarmenLog bom = read_carmen_log(path);
+  ASSERT_EQ(bom.warnings.size(), 1u);
+  EXPECT_NE(bom.warnings[0].find("starting '\\xEF\\xBB\\xBFFLASER'"), std::string::npos) << bom.warnings[0];
+}
+
+TEST(CarmenReader, AWindowReadsTheLogUpToItsEndOnly) {
+  const std::string path = test::temp_path(".log");
+  test::write_file(path, flaser_line(3, 1.0, 10.0) + flaser_line(3, 1.0, 11.0) + flaser_line(3, 1.0, 12.0) +
+                             "not a log line, never read\n");
+  const CarmenLog two = read_carmen_log(path, {}, 2);
+  ASSERT_EQ(two.scans.size(), 2u);
+  EXPECT_EQ(two.scans[1].timestamp, 11.0);
+  EXPECT_TRUE(two.warnings.empty());
+  EXPECT_EQ(read_carmen_log(path).warnings.size(), 1u);  // read whole, the last line is warned
+}
+
 TEST(CarmenReaderBadInput, AnEndlessLineIsRefused) {
   const std::string e = expect_error(std::string(17u << 20, 'x'));
   EXPECT_NE(e.find("longer than 16 MiB"), std::string::npos) << e;

@@ -18,6 +18,13 @@ empty=$(mktemp -d)
 "$LSHLOC" --data "$empty" info --buildings >/dev/null 2>"$empty/err" || fail "an empty data directory"
 grep -q "warning: .*holds none of the buildings' logs" "$empty/err" || fail "no warning: $(cat "$empty/err")"
 rm -rf "$empty"
+# An answer lost on its way out is no success (a full disk: /dev/full).
+if [ -w /dev/full ]; then
+  err=$(mktemp)
+  if "$LSHLOC" localize --print-config >/dev/full 2>"$err"; then fail "a lost stdout exited 0"; fi
+  grep -q "writing to standard output: No space left on device" "$err" || fail "stdout error: $(cat "$err")"
+  rm -f "$err"
+fi
 if "$LSHLOC" info --buildings some.log 2>/dev/null; then fail "--buildings with a LOG was accepted"; fi
 if [ ! -d "$data" ]; then echo "shared data directory $data not found: skipped"; exit 0; fi
 "$LSHLOC" --data "$data" info --buildings | python3 -c '

@@ -136,9 +136,60 @@ TEST(ConfigJson, MistakesNameTheSourceAndTheKey) {
   const std::string bad_enum = error_of({{"localizer", {{"ransac", {{"order_rule", "newest"}}}}}});
   EXPECT_NE(bad_enum.find("cfg.json"), std::string::npos);
   EXPECT_NE(bad_enum.find("\"uniform\", \"recent\", \"fresh\""), std::string::npos) << bad_enum;
+  // An array setting of fixed length: the key, the length and the element type, not the JSON library's words.
+  EXPECT_NE(error_of({{"localizer", {{"report", {{"confidence", {{"value_weights", {1, 2, 3}}}}}}}}})
+                .find("cfg.json: localizer.report.confidence.value_weights: expected an array of 10 (each a number), "
+                      "got [1,2,3]"),
+            std::string::npos)
+      << error_of({{"localizer", {{"report", {{"confidence", {{"value_weights", {1, 2, 3}}}}}}}}});
   // A float where an integer is expected is a mistake too, not a silent cut.
   EXPECT_NE(error_of({{"localizer", {{"candidates_per_feature", 2.5}}}}).find("expected a non-negative integer"),
             std::string::npos);
+}
+
+TEST(ConfigJson, AFileTooDeepOrTooLargeIsRefusedBeforeItIsBuilt) {
+  const std::string path = test::temp_path(".json");
+  // 300,000 levels once overflowed the stack; 65 is past the cap, 64 is read.
+  for (const std::size_t depth : {std::size_t{300000}, std::size_t{65}}) {
+    test::write_file(path, std::string(depth, '[') + std::string(depth, ']'));
+    try {
+      io::read_json_file(path);
+      ADD_FAILURE() << depth << " levels were read";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(".json: nested deeper than 64 levels"), std::string::npos) << e.what();
+    }
+  }
+  test::write_file(path, std::string(64, '[') + std::string(64, ']'));
+  EXPECT_TRUE(io::read_json_file(path).is_array());
+  test::write_file(path, "{\"x\": \"" + std::string(io::kMaxJsonFileBytes, 'a') + "\"}");
+  try {
+    io::read_json_file(path);
+    ADD_FAILURE() << "a file over the cap was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("a JSON settings file holds at most 16777216 bytes"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(ConfigJson, CountsThatOnlyExhaustMemoryOrTimeAreRefused) {
+  for (const auto& [patch, field] :
+       {std::pair{nlohmann::json{{"localizer", {{"report", {{"confidence", {{"duel_points", 4294967296u}}}}}}}},
+                  "confidence.duel_points"},
+        std::pair{nlohmann::json{{"localizer", {{"report", {{"refine_points", 4294967296u}}}}}}, "refine_points"},
+        std::pair{nlohmann::json{{"localizer", {{"report", {{"refine_rounds", 4294967296u}}}}}}, "refine_rounds"},
+        std::pair{nlohmann::json{{"localizer", {{"scan_matcher", {{"max_iterations", 4294967296u}}}}}},
+                  "max_iterations"},
+        std::pair{nlohmann::json{{"map", {{"occupancy", {{"initial_capacity", 4294967296u}}}}}}, "initial_capacity"}}) {
+    ScenarioRunConfig c;
+    io::apply_config_patch(patch, c, "cfg.json");  // well-typed: applied, then refused by the check of use
+    std::string e;
+    try {
+      c.validate();
+    } catch (const Error& err) {
+      e = err.what();
+    }
+    EXPECT_NE(e.find(field), std::string::npos) << patch.dump() << ": " << e;
+  }
 }
 
 TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndSketchAndNothingElse) {

@@ -311,6 +311,25 @@ TEST(GridSubmap, AGridBeyondTheMapsPoseGridsIsRefusedBeforeTheMapChanges) {
   EXPECT_GT(add_grid_submap(map, submap, room_grid()).features, 0u);
 }
 
+TEST(GridSubmap, AHugeExtentIsRefusedBeforeItsPositionsAreStored) {
+  // 100 x 100 free cells of 50 m (a resolution meant as 0.05): 25 million lattice points, 200 million virtual
+  // scans. Counted first, refused by the cap, nothing stored and the map unchanged.
+  OccupancyGrid huge;
+  huge.width = huge.height = 100;
+  huge.resolution = 50.0;
+  huge.cells.assign(100 * 100, occupancy::kFree);
+  GlobalMap map;
+  const std::uint32_t submap = map.add_submap("huge");
+  try {
+    add_grid_submap(map, submap, huge);
+    FAIL() << "a 5 km grid at 1 m spacing was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("virtual scans exceed GridSubmapConfig.max_virtual_scans"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(map.submap_scans(submap), 0u);
+}
+
 TEST(GridSubmap, ARobotLocalizesInAMapBuiltOnlyFromGrids) {
   // Every building of the small world as a ROS map: its mapper's scans turned
   // into an occupancy grid, written and read back, then into a submap.

@@ -295,6 +295,24 @@ TEST(MapStore, ASecondWriterIsRefused) {
   }
 }
 
+TEST(MapStore, AMapUnderAppendIsNotReplacedBySave) {
+  const std::string path = test::temp_path(".map");
+  io::save_map(path, *map_of_first(10));
+  {
+    io::MapAppender appender(path);
+    appender.add_scan(0, world().submaps[0].scans[10], world().submaps[0].scans[10].pose);
+    try {
+      io::save_map(path, *map_of_first(5));
+      ADD_FAILURE() << "a map under append was replaced";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("another process is appending to this map"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(io::load_map(path).info.journal_scans, 1u);  // the acknowledged scan is there
+  io::save_map(path, *map_of_first(5));                  // no appender: replaced
+  EXPECT_EQ(io::load_map(path).info.journal_scans, 0u);
+}
+
 class DamagedMap : public ::testing::Test {
  protected:
   void SetUp() override {

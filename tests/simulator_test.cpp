@@ -275,6 +275,20 @@ TEST(Odometry, DriftIsNonzeroButBounded) {
   EXPECT_LT(mean_heading, 0.3);
 }
 
+TEST(Simulator, ARecordingBeyondTheRangeCapIsRefusedBeforeAnythingIsAllocated) {
+  SimulationConfig config;
+  config.scans = 1000000;
+  config.laser.beams = 100000;
+  try {
+    simulate_recording(building_with_seed(4), config);
+    FAIL() << "1e11 ranges were simulated";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("1000000 scans of 100000 beams hold 200000000000 ranges, over the cap"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Simulator, RecordingIsDeterministicAndConsistent) {
   const auto b = building_with_seed(4);
   SimulationConfig config;

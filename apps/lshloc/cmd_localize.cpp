@@ -76,8 +76,9 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
       if (t >= from && t < to) begin = std::min(begin, i), end = i + 1;
     }
     if (begin >= end)
-      throw Error(path + ": no scan lies between --from " + std::to_string(from) + " s and --to " + std::to_string(to) +
-                  " s (the log spans " + std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
+      throw Error(path + ": no scan lies between --from " + std::to_string(from) + " s and " +
+                  (opt.to_s ? "--to " + std::to_string(to) + " s" : std::string("the log's end")) +
+                  " (the log spans " + std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
   } else if (begin >= scans.size()) {
     throw Error(path + ": --start " + std::to_string(begin) + " is past the log's " + std::to_string(scans.size()) +
                 " laser scans");

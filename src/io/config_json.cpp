@@ -131,7 +131,9 @@ std::string type_name(const nlohmann::json& j) {
   if (j.is_boolean()) return "true or false";
   if (j.is_string()) return "a string";
   if (j.is_object()) return "an object";
-  if (j.is_array()) return "an array";
+  // A setting's array has a fixed length (the value's weights): say it, and what its elements are.
+  if (j.is_array())
+    return "an array of " + std::to_string(j.size()) + (j.empty() ? std::string() : " (each " + type_name(j[0]) + ")");
   return "null";
 }
 
@@ -139,6 +141,12 @@ bool fits(const nlohmann::json& given, const nlohmann::json& wanted) {
   if (wanted.is_number_unsigned()) return given.is_number_unsigned();
   if (wanted.is_number_integer()) return given.is_number_integer();
   if (wanted.is_number_float()) return given.is_number();
+  if (wanted.is_array()) {
+    if (!given.is_array() || given.size() != wanted.size()) return false;
+    for (std::size_t i = 0; i < given.size(); ++i)
+      if (!fits(given[i], wanted[i])) return false;
+    return true;
+  }
   return given.type() == wanted.type();
 }
 

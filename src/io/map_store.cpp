@@ -65,7 +65,7 @@ class FileBytes {
 };
 
 std::unique_ptr<FileBytes> read_whole_file(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) throw FileError(system_error(path, "cannot open the map"));
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
@@ -398,7 +398,7 @@ namespace {}  // namespace
 
 void save_map(const std::string& path, const GlobalMap& map, const nlohmann::json& meta) {
   // A map being appended to is never replaced under its appender: its lock is taken, and held over the rename.
-  const int old = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  const int old = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (old >= 0 && ::flock(old, LOCK_EX | LOCK_NB) != 0) {
     ::close(old);
     throw Error(path + ": another process is appending to this map (its lock is held); it was not replaced");
@@ -422,7 +422,7 @@ LoadedMap load_map_bytes(std::span<const std::uint8_t> bytes, const std::string&
 }
 
 bool looks_like_map_file(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) return false;
   std::array<char, 8> head{};
   const ssize_t n = ::read(fd, head.data(), head.size());
