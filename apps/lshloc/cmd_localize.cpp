@@ -77,8 +77,8 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
     }
     if (begin >= end)
       throw Error(path + ": no scan lies between --from " + std::to_string(from) + " s and " +
-                  (opt.to_s ? "--to " + std::to_string(to) + " s" : std::string("the log's end")) +
-                  " (the log spans " + std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
+                  (opt.to_s ? "--to " + std::to_string(to) + " s" : std::string("the log's end")) + " (the log spans " +
+                  std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
   } else if (begin >= scans.size()) {
     throw Error(path + ": --start " + std::to_string(begin) + " is past the log's " + std::to_string(scans.size()) +
                 " laser scans");
