@@ -354,10 +354,11 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
 
 /// The target from stdin ("-"): each scan is localized as it arrives and its
 /// estimate printed at once (a CSV row, or a JSON line with --json); the
-/// answer follows on stderr at the end of the stream.
+/// answer follows on stderr at the end of the stream. Returns whether the
+/// robot is localized at the last scan.
 /// `read_ahead`: records `reader` gave before (up to the first scan, whose
 /// laser a map from ROS grids takes).
-void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const LocalizeOptions& opt,
+bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const LocalizeOptions& opt,
                      std::shared_mutex* map_mutex, io::CarmenReader& reader, std::vector<io::CarmenRecord> read_ahead) {
   io::CarmenLog params;  // the PARAM lines seen before the first scan (the laser offset)
   std::unique_ptr<Localizer> localizer;
@@ -449,6 +450,7 @@ void localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
     std::fprintf(stderr, "Not localized after %zu scans\n", done);
   for (const auto& r : not_confident_reasons(last, config.report.confidence, map))
     std::fprintf(stderr, "  not confident because %s\n", r["text"].get<std::string>().c_str());
+  return last.localized;
 }
 
 void print_answer(const nlohmann::json& j) {
@@ -676,7 +678,6 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   add_localizer_options(*cmd, opt->localizer);
   add_grid_map_options(*cmd, opt->grid, /*laser_of_only=*/true);
   cmd->callback([opt, map_option, target_option, &global] {
-    (void)global;
     if (print_config_if_asked(opt->localizer)) return;
     require_given({map_option, target_option});
     const auto& paths = opt->targets;
@@ -771,7 +772,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     if (follower) follower->start(*map, map_mutex);
     std::shared_mutex* shared = follower ? &map_mutex : nullptr;
     if (stream) {
-      localize_stream(*map, config.localizer, *opt, shared, *stdin_reader, std::move(read_ahead));
+      if (!localize_stream(*map, config.localizer, *opt, shared, *stdin_reader, std::move(read_ahead)))
+        global.exit_code = kExitNotLocalized;
       return;
     }
     const auto t_localize = std::chrono::steady_clock::now();
@@ -802,6 +804,14 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
         if (targets.size() > 1) std::printf("%s%s:\n", k ? "\n" : "", paths[k].c_str());
         print_answer(j);
       }
+    }
+    // Exit status 3: not localized at the end (a script's test), said on stderr too (a JSON answer is on stdout).
+    std::size_t lost = 0;
+    for (const ScenarioRun& run : runs) lost += run.estimates.empty() || !run.estimates.back().localized;
+    if (lost > 0) {
+      global.exit_code = kExitNotLocalized;
+      std::fprintf(stderr, "lshloc: %zu of %zu targets not localized at their last scan (exit status %d)\n", lost,
+                   targets.size(), kExitNotLocalized);
     }
     if (targets.size() > 1 && !opt->json) {
       std::size_t scans = 0;

@@ -7,6 +7,11 @@
 
 namespace lshloc::app {
 
+/// Exit statuses: 0 done (localized, for localize), 1 an error (input, files,
+/// or an internal one), 2 a command line that does not parse, 3 `localize`
+/// ran but the robot is not localized at the end.
+inline constexpr int kExitNotLocalized = 3;
+
 /// Options shared by every subcommand, and the process exit code the chosen
 /// subcommand sets.
 struct GlobalOptions {

@@ -21,6 +21,9 @@ int main(int argc, char** argv) {
   app.set_version_flag(
       "--version", "lshloc " LSHLOC_VERSION " (map file format " + std::to_string(lshloc::io::kMapFormatVersion) + ")");
   app.require_subcommand(1);
+  // Global options (--data) may come after the subcommand too: what a subcommand does not know falls through to
+  // the tool (subcommands inherit this).
+  app.fallthrough();
   lshloc::app::GlobalOptions global;
   app.add_option("--data", global.data_dir,
                  "data directory with the CARMEN logs (default: $LSHLOC_DATA, else ../shared/data)")
@@ -67,7 +70,7 @@ int main(int argc, char** argv) {
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "lshloc: internal error: %s\n", e.what());
-    return 3;
+    return 1;  // an error like any other (3 says "not localized")
   }
   // An answer lost on its way out (a full disk, a closed pipe) is no success.
   if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
