@@ -15,7 +15,7 @@ d=$(mktemp -d)
 port=$(python3 -c "import socket; s=socket.socket(); s.bind(('127.0.0.1', 0)); print(s.getsockname()[1]); s.close()")
 redis-server --port "$port" --bind 127.0.0.1 --save "" --appendonly no --dir "$d" --logfile redis.log &
 server=$!
-trap 'kill $server 2>/dev/null; wait $server 2>/dev/null; rm -rf "$d"' EXIT
+trap 'kill $server 2>/dev/null || true; wait $server 2>/dev/null || true; rm -rf "$d"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 url=redis://127.0.0.1:$port
 for _ in $(seq 50); do redis-cli -p "$port" ping >/dev/null 2>&1 && break; sleep 0.1; done
@@ -91,6 +91,20 @@ wait $mapper || rc=$?
 redis-cli -p "$port" config set maxmemory 0 >/dev/null
 [ "$rc" != 0 ] || fail "a mapper on a server refusing writes exited 0"
 grep -q "OOM" "$d/full.err" && grep -q "gave up" "$d/full.err" || fail "refused writes: $(tail -3 "$d/full.err")"
+
+# A live map lost while a stream localizes (the server stops mid-stream): said, and exit 1, not 0.
+zcat "$d/sim/sim-3-001/sim-3-001.log.gz" >"$d/stream.log"
+sed -n 1,300p "$d/stream.log" >"$d/part1.log"
+sed -n 301,400p "$d/stream.log" >"$d/part2.log"
+{ cat "$d/part1.log"; sleep 6; cat "$d/part2.log"; } | "$LSHLOC" localize --map "$url" --target - >"$d/lost.out" \
+  2>"$d/lost.err" &
+streamer=$!
+# The server stops once the stream's rows come out (the localizer follows the map), within 20 s.
+for _ in $(seq 200); do [ -s "$d/lost.out" ] && break; sleep 0.1; done
+kill $server; wait $server 2>/dev/null || true
+rc=0; wait $streamer || rc=$?
+[ "$rc" = 1 ] || fail "a stream whose live map was lost exited $rc: $(tail -2 "$d/lost.err")"
+grep -q "$url" "$d/lost.err" || fail "lost map message: $(tail -2 "$d/lost.err")"
 
 # A wrong address names it.
 if "$LSHLOC" localize --map redis://127.0.0.1:1 "${target[@]}" >/dev/null 2>"$d/err"; then fail "a dead server was accepted"; fi

@@ -201,6 +201,11 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   Scenario sc = opt.load_map.empty() && opt.map_redis.empty()
                     ? load_eval_scenario(catalog, config, slam_pose_cache(opt.slam_cache))
                     : io::load_scenario_target(catalog, config);
+  if (sc.target_submap < sc.submaps.size() && sc.submaps[sc.target_submap].scans.empty())
+    std::fprintf(stderr,
+                 "lshloc: warning: %s has no map scans outside the window and its %.0f s guard: its own submap is "
+                 "empty, so the robot cannot be localized in it (a shorter --guard or window?)\n",
+                 sc.config.building.c_str(), sc.config.guard_s);
   ScenarioRunConfig run_config = make_run_config(opt.localizer);
   // The trace's whole-map comparison on every scan: it scores a fixed spread
   // of the data-points (no random draw), so the estimates stay those of a run without it.

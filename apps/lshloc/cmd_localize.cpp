@@ -771,22 +771,35 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
 
     if (follower) follower->start(*map, map_mutex);
     std::shared_mutex* shared = follower ? &map_mutex : nullptr;
+    // A live map's following, said when it ends: interruptions warned; a map lost at the end (the server gone,
+    // or following stopped on a damaged entry) is an error, whatever the answer.
+    const auto end_following = [&]() -> std::optional<fleet::MapFollowerStats> {
+      if (!follower) return std::nullopt;
+      follower->stop();
+      const fleet::MapFollowerStats s = follower->stats();
+      if (s.stopped || !s.connected) {
+        std::fprintf(stderr,
+                     "lshloc: error: %s: the live map was lost before the end (%s); the answer stands on the "
+                     "map as it was\n",
+                     opt->maps[0].c_str(), s.last_error.c_str());
+        global.exit_code = 1;
+      } else if (!s.last_error.empty()) {
+        std::fprintf(stderr, "lshloc: warning: %s: the map log was interrupted (%zu reconnects); last: %s\n",
+                     opt->maps[0].c_str(), s.reconnects, s.last_error.c_str());
+      }
+      warn_refused_scans(opt->maps[0], s);
+      return s;
+    };
     if (stream) {
-      if (!localize_stream(*map, config.localizer, *opt, shared, *stdin_reader, std::move(read_ahead)))
-        global.exit_code = kExitNotLocalized;
+      const bool localized =
+          localize_stream(*map, config.localizer, *opt, shared, *stdin_reader, std::move(read_ahead));
+      end_following();
+      if (!localized && global.exit_code == 0) global.exit_code = kExitNotLocalized;
       return;
     }
     const auto t_localize = std::chrono::steady_clock::now();
     std::vector<ScenarioRun> runs = localize_targets(*map, targets, config.localizer, opt->threads, shared);
-    std::optional<fleet::MapFollowerStats> followed;
-    if (follower) {
-      follower->stop();
-      followed = follower->stats();
-      if (!followed->last_error.empty())
-        std::fprintf(stderr, "lshloc: warning: %s: the map log was interrupted (%zu reconnects); last: %s\n",
-                     opt->maps[0].c_str(), followed->reconnects, followed->last_error.c_str());
-      warn_refused_scans(opt->maps[0], *followed);
-    }
+    const std::optional<fleet::MapFollowerStats> followed = end_following();
     const double wall_s = seconds_since(t_localize);
     for (std::size_t k = 0; k < targets.size(); ++k) {
       runs[k].map_build_s = map_s;
@@ -808,7 +821,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     // Exit status 3: not localized at the end (a script's test), said on stderr too (a JSON answer is on stdout).
     std::size_t lost = 0;
     for (const ScenarioRun& run : runs) lost += run.estimates.empty() || !run.estimates.back().localized;
-    if (lost > 0) {
+    if (lost > 0 && global.exit_code == 0) {
       global.exit_code = kExitNotLocalized;
       std::fprintf(stderr, "lshloc: %zu of %zu targets not localized at their last scan (exit status %d)\n", lost,
                    targets.size(), kExitNotLocalized);

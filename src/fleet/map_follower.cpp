@@ -90,6 +90,7 @@ void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
         connected = true;
         std::lock_guard lock(stats_mutex_);
         ++stats_.reconnects;
+        stats_.connected = true;
       }
       const std::vector<MapUpdate> updates = reader_.poll(config_.block_s);
       if (updates.empty()) continue;
@@ -110,6 +111,7 @@ void MapFollower::follow(GlobalMap& map, std::shared_mutex& mutex) {
       {
         std::lock_guard lock(stats_mutex_);
         stats_.last_error = e.what();
+        stats_.connected = false;
       }
       connected = false;
       std::this_thread::sleep_for(std::chrono::duration<double>(config_.retry_s));

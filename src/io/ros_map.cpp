@@ -93,10 +93,22 @@ std::string read_regular_file(const std::string& path, const std::string& what) 
   std::error_code ec;
   if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
     throw FileError(path + ": " + what + " is not a regular file (a directory?)");
+  // Larger than any image of the grid's cell cap (2^28 cells, two bytes each) or any YAML: a wrong file.
+  constexpr std::uintmax_t kMaxBytes = std::uintmax_t{1} << 30;
+  if (const auto bytes = std::filesystem::file_size(path, ec); !ec && bytes > kMaxBytes)
+    throw Error(path + ": " + what + " has " + std::to_string(bytes) + " bytes, over the cap of " +
+                std::to_string(kMaxBytes));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FileError(path + ": cannot open " + what + ": " + std::strerror(errno));
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string data;
+  try {  // a read error (a /proc file) surfaces as an exception from the stream buffer
+    data.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  } catch (const std::exception& e) {
+    throw FileError(path + ": cannot read " + what + ": " + e.what());
+  }
   if (in.bad()) throw FileError(path + ": cannot read " + what);
+  if (data.size() > kMaxBytes)
+    throw Error(path + ": " + what + " holds more than " + std::to_string(kMaxBytes) + " bytes");
   return data;
 }
 

@@ -35,6 +35,7 @@ struct MapFollowerStats {
   std::size_t refused_scans = 0;  ///< updates the map refused (apply_updates()), skipped
   std::string last_refusal;       ///< why the last one was refused (empty: none)
   bool stopped = false;           ///< the thread stopped on a failure it cannot recover from (last_error says which)
+  bool connected = true;          ///< false while the server is lost (the thread retries every retry_s)
 };
 
 class MapFollower {
