@@ -57,25 +57,14 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
   io::LineReader reader(path);
   std::string line;
   if (!reader.next(line)) throw Error(path + ": empty file; expected an `lshloc eval --trace` CSV");
-  const auto header = io::split_csv_row(line, reader.where());
-  const auto column = [&](std::string_view name) {
-    const auto it = std::find(header.begin(), header.end(), name);
-    if (it == header.end())
-      throw Error(reader.where() + ": no column \"" + std::string(name) +
-                  "\"; expected the header of an `lshloc eval --trace` CSV");
-    return static_cast<std::size_t>(it - header.begin());
-  };
-  const std::size_t c_value = column("confidence"), c_has = column("has_estimate"), c_err = column("error_m"),
-                    c_heading = column("heading_error_deg");
+  const io::CsvHeader header(line, reader.where(), "the header of an `lshloc eval --trace` CSV");
+  const std::size_t c_value = header.column("confidence"), c_has = header.column("has_estimate"),
+                    c_err = header.column("error_m"), c_heading = header.column("heading_error_deg");
   // Traces written before every scan was judged have no interpolated truth.
-  const std::size_t c_interpolated =
-      static_cast<std::size_t>(std::find(header.begin(), header.end(), "interpolated_x") - header.begin());
+  const std::size_t c_interpolated = header.find("interpolated_x");
   const std::size_t columns = header.size();
   while (reader.next(line)) {
-    const auto f = io::split_csv_row(line, reader.where());
-    if (f.size() != columns)
-      throw Error(reader.where() + ": " + std::to_string(f.size()) + " fields; expected " + std::to_string(columns) +
-                  " as in the header");
+    const auto f = header.row(line, reader.where());
     if (f[c_err].empty()) continue;  // not judged
     const double value = io::parse_double(f[c_value], reader.where(), c_value, "a confidence value in [0, 1]");
     if (!(value >= 0.0 && value <= 1.0))

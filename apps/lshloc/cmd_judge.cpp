@@ -45,22 +45,13 @@ RunRows read_run(const std::string& path, const std::string& true_submap) {
   io::LineReader reader(path);
   std::string line;
   if (!reader.next(line)) throw Error(path + ": empty file; expected the CSV of `lshloc localize --out`");
-  const std::vector<std::string> header = io::split_csv_row(line, reader.where());
-  const auto column = [&](const char* name) {
-    const auto it = std::find(header.begin(), header.end(), name);
-    if (it == header.end())
-      throw Error(reader.where() + ": no column \"" + name + "\"; expected the CSV of `lshloc localize --out`");
-    return static_cast<std::size_t>(it - header.begin());
-  };
-  const std::size_t c_log_scan = column("log_scan"), c_time = column("time"), c_submap = column("submap"),
-                    c_x = column("x"), c_y = column("y"), c_heading = column("heading_deg"),
-                    c_confident = column("confident");
+  const io::CsvHeader header(line, reader.where(), "the CSV of `lshloc localize --out`");
+  const std::size_t c_log_scan = header.column("log_scan"), c_time = header.column("time"),
+                    c_submap = header.column("submap"), c_x = header.column("x"), c_y = header.column("y"),
+                    c_heading = header.column("heading_deg"), c_confident = header.column("confident");
   RunRows rows;
   while (reader.next(line)) {
-    const std::vector<std::string> f = io::split_csv_row(line, reader.where());
-    if (f.size() != header.size())
-      throw Error(reader.where() + ": " + std::to_string(f.size()) + " fields; expected " +
-                  std::to_string(header.size()) + " as in the header");
+    const std::vector<std::string> f = header.row(line, reader.where());
     const long scan = io::parse_int(f[c_log_scan], reader.where(), c_log_scan, "a scan index");
     if (scan < 0) throw Error(reader.where() + ": log_scan " + f[c_log_scan] + " is negative");
     rows.log_scan.push_back(static_cast<std::size_t>(scan));

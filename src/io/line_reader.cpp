@@ -276,6 +276,27 @@ std::vector<std::string> split_csv_row(std::string_view line, const std::string&
   return fields;
 }
 
+CsvHeader::CsvHeader(std::string_view line, const std::string& where, std::string expected)
+    : names_(split_csv_row(line, where)), where_(where), expected_(std::move(expected)) {}
+
+std::size_t CsvHeader::find(std::string_view name) const {
+  return static_cast<std::size_t>(std::find(names_.begin(), names_.end(), name) - names_.begin());
+}
+
+std::size_t CsvHeader::column(std::string_view name) const {
+  const std::size_t at = find(name);
+  if (at == names_.size()) throw Error(where_ + ": no column \"" + std::string(name) + "\"; expected " + expected_);
+  return at;
+}
+
+std::vector<std::string> CsvHeader::row(std::string_view line, const std::string& where) const {
+  std::vector<std::string> fields = split_csv_row(line, where);
+  if (fields.size() != names_.size())
+    throw Error(where + ": " + std::to_string(fields.size()) + " fields; expected " + std::to_string(names_.size()) +
+                " as in the header");
+  return fields;
+}
+
 double parse_double(std::string_view field, const std::string& where, std::size_t index, const char* what) {
   double v = 0.0;
   const char* first = field.data();

@@ -71,6 +71,26 @@ void split_fields(std::string_view line, std::vector<std::string_view>& fields);
 /// text after a closing one throws lshloc::Error naming `where`.
 std::vector<std::string> split_csv_row(std::string_view line, const std::string& where);
 
+/// A CSV file's header row: its columns by name, and its rows checked
+/// against it. `expected` says what the file should be, for errors (e.g.
+/// "the CSV of `lshloc localize --out`").
+class CsvHeader {
+ public:
+  CsvHeader(std::string_view line, const std::string& where, std::string expected);
+  /// The index of column `name`; throws lshloc::Error naming the header's
+  /// file:line, the column and what was expected when there is none.
+  std::size_t column(std::string_view name) const;
+  /// The index of column `name`, or size() where there is none (a column older files lack).
+  std::size_t find(std::string_view name) const;
+  std::size_t size() const { return names_.size(); }
+  /// A row's fields; throws lshloc::Error naming `where` when their count is not the header's.
+  std::vector<std::string> row(std::string_view line, const std::string& where) const;
+
+ private:
+  std::vector<std::string> names_;
+  std::string where_, expected_;
+};
+
 /// Parses a field as a number or throws lshloc::Error naming `where`, the
 /// field's index and what was expected. Accepts "nan"/"inf" (the caller
 /// decides whether they are valid).
