@@ -81,6 +81,10 @@ assert len([r for r in rows if r["interpolated_x"]]) > len([r for r in rows if r
 assert all(r["error_m"] != "" for r in judged)
 PY
   "$LSHLOC" calibration "$d/tr.csv" >/dev/null || fail "calibration of an eval trace"
+  # A guard that leaves the target's own submap empty is warned.
+  "$LSHLOC" eval --building intel --start 5004 --length 30 --submaps 1 --guard 1e7 >/dev/null 2>"$d/guard.err" ||
+    fail "eval with a long guard"
+  grep -q "warning: intel has no map scans outside the window" "$d/guard.err" || fail "guard: $(cat "$d/guard.err")"
 else
   echo "cli_calibration: no real logs at $data: the eval --trace check is skipped"
 fi

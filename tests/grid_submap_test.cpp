@@ -91,6 +91,21 @@ TEST(RosMap, ClassifiesPixelsAsMapServerDoes) {
   EXPECT_EQ(w.cells, (std::vector<std::int8_t>{occupancy::kFree, occupancy::kOccupied}));
 }
 
+TEST(RosMap, AnImageThatCannotBeReadIsNamedNotAnInternalError) {
+  // /proc/self/mem stats as a regular file of 0 bytes and fails to read (EIO).
+  const std::string yaml = test::temp_path(".yaml");
+  test::write_file(yaml,
+                   "image: /proc/self/mem\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n"
+                   "occupied_thresh: 0.65\nfree_thresh: 0.196\n");
+  try {
+    io::read_ros_map(yaml);
+    FAIL() << "/proc/self/mem was read as an image";
+  } catch (const Error& e) {
+    // (Where the kernel lets it read as empty, it is refused as no image instead: named all the same.)
+    EXPECT_NE(std::string(e.what()).find("/proc/self/mem"), std::string::npos) << e.what();
+  }
+}
+
 TEST(RosMap, BadFilesNameTheFileTheKeyAndWhatWasExpected) {
   const std::string pgm = write_text(".pgm", "P5\n2 2\n255\n\x01\x02\x03\x04");
   const std::string name = std::filesystem::path(pgm).filename().string();
