@@ -57,9 +57,12 @@ def load(trace_dir):
         with open(path) as f:
             for r in csv.DictReader(f):
                 has = r["has_estimate"] == "1"
-                truth = r["error_m"] != ""
-                err = float(r["error_m"]) if truth else math.nan
-                head = float(r["heading_error_deg"]) if truth and r["heading_error_deg"] != "" else math.nan
+                # Every judged scan's errors (judged_*); older traces have them at truth scans only.
+                e_col, h_col = ("judged_error_m", "judged_heading_error_deg") if "judged_error_m" in r else \
+                    ("error_m", "heading_error_deg")
+                truth = r[e_col] != ""
+                err = float(r[e_col]) if truth else math.nan
+                head = float(r[h_col]) if truth and r[h_col] != "" else math.nan
                 # Between truth scans the heading is judged to 45 degrees (docs/design.md section 6).
                 head_limit = 45.0 if r.get("interpolated_x") else 10.0
                 # rise_margin: the margin the rise read (a rival dropped within

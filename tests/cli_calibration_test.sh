@@ -32,11 +32,11 @@ echo "not a trace" >"$d/dir/b.csv.truth.csv"
 # (12 deg off is right, 50 deg wrong); a row estimated in another submap is
 # judged (wrong) without any truth.
 cat >"$d/c.csv" <<CSV
-$header,interpolated_x,interpolated_y,interpolated_theta
-0,0.0,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,0.10,12.0,0,0,0
-1,0.1,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,0.10,50.0,0,0,0
-2,0.2,1,1,0,0,0,1,0.95,0.5,100,0.3,,,,inf,,,,
-3,0.3,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,,,,,
+$header,interpolated_x,interpolated_y,interpolated_theta,judged_error_m,judged_heading_error_deg
+0,0.0,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,,,0,0,0,0.10,12.0
+1,0.1,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,,,0,0,0,0.10,50.0
+2,0.2,1,1,0,0,0,1,0.95,0.5,100,0.3,,,,,,,,,inf,
+3,0.3,1,0,0,0,0,1,0.95,0.5,100,0.3,,,,,,,,,,
 CSV
 "$LSHLOC" calibration "$d/c.csv" >"$d/jc.json"
 python3 - "$d/jc.json" <<'PY' || fail "calibration with interpolated truth: $(cat "$d/jc.json")"
@@ -74,11 +74,14 @@ none = [r for r in rows if r["has_estimate"] == "0"]
 assert none and all(r["x"] == r["submap"] == r["theta"] == "" for r in none), none[:1]
 assert all(r["heading_error_deg"] == "" for r in rows if r["error_m"] == "inf")
 assert all(r["heading_error_deg"] != "" for r in rows if r["error_m"] not in ("", "inf"))
-# Every scan between two truth scans is judged: measured truth or interpolated, never both.
+# Every scan between two truth scans is judged: measured truth or interpolated, never both; error_m stays at
+# the measured truth scans (as before), judged_error_m covers every judged scan.
 assert all(not (r["truth_x"] and r["interpolated_x"]) for r in rows)
 judged = [r for r in rows if r["truth_x"] or r["interpolated_x"]]
 assert len([r for r in rows if r["interpolated_x"]]) > len([r for r in rows if r["truth_x"]]), "no interpolated truth"
-assert all(r["error_m"] != "" for r in judged)
+assert all(r["judged_error_m"] != "" for r in judged)
+assert all((r["error_m"] != "") == (r["truth_x"] != "") for r in rows)
+assert all(r["error_m"] == r["judged_error_m"] for r in rows if r["truth_x"])
 PY
   "$LSHLOC" calibration "$d/tr.csv" >/dev/null || fail "calibration of an eval trace"
   # A guard that leaves the target's own submap empty is warned.

@@ -58,9 +58,12 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
   std::string line;
   if (!reader.next(line)) throw Error(path + ": empty file; expected an `lshloc eval --trace` CSV");
   const io::CsvHeader header(line, reader.where(), "the header of an `lshloc eval --trace` CSV");
+  // Every judged scan's errors (judged_*); traces written before every scan was judged have them at truth
+  // scans only (error_m, heading_error_deg), and no interpolated truth.
+  const bool dense = header.find("judged_error_m") < header.size();
   const std::size_t c_value = header.column("confidence"), c_has = header.column("has_estimate"),
-                    c_err = header.column("error_m"), c_heading = header.column("heading_error_deg");
-  // Traces written before every scan was judged have no interpolated truth.
+                    c_err = header.column(dense ? "judged_error_m" : "error_m"),
+                    c_heading = header.column(dense ? "judged_heading_error_deg" : "heading_error_deg");
   const std::size_t c_interpolated = header.find("interpolated_x");
   const std::size_t columns = header.size();
   while (reader.next(line)) {

@@ -152,7 +152,8 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
       "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
       "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,rise_margin,"
       "rival_submap,rival_x,rival_y,rival_theta,rival_mean_score,rival_scored,newest_lead,flag_down_because,"
-      "truth_x,truth_y,truth_theta,error_m,heading_error_deg,interpolated_x,interpolated_y,interpolated_theta\n");
+      "truth_x,truth_y,truth_theta,error_m,heading_error_deg,interpolated_x,interpolated_y,interpolated_theta,"
+      "judged_error_m,judged_heading_error_deg\n");
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = truth.pose[i];
@@ -177,16 +178,23 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
       io::append_format(f, "%.4f,%.4f,%.5f,", t->x, t->y, t->theta);
     else
       f += ",,,";
-    // An error wherever the scan is judged: at a truth, measured or interpolated, and in another submap anywhere.
-    if (!std::isnan(m.error_per_scan_m[i])) io::append_format(f, "%.4f", m.error_per_scan_m[i]);
-    f += ',';
+    // error_m and heading_error_deg at measured truth only (as traces always had them); judged_* wherever
+    // the scan is judged: at a truth, measured or interpolated, and in another submap anywhere.
+    const double err = m.error_per_scan_m[i];
     // A heading error only where the estimate is in the true submap (finite error): other frames do not compare.
-    if (std::isfinite(m.error_per_scan_m[i]))
-      io::append_format(f, "%.3f", angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);
+    const auto errors = [&](bool write) {
+      if (write && !std::isnan(err)) io::append_format(f, "%.4f", err);
+      f += ',';
+      if (write && std::isfinite(err))
+        io::append_format(f, "%.3f", angle_distance(e.pose.theta, t->theta) * 180.0 / std::numbers::pi);
+    };
+    errors(measured);
     if (t && !measured)
-      io::append_format(f, ",%.4f,%.4f,%.5f\n", t->x, t->y, t->theta);
+      io::append_format(f, ",%.4f,%.4f,%.5f,", t->x, t->y, t->theta);
     else
-      f += ",,,\n";
+      f += ",,,,";
+    errors(true);
+    f += '\n';
   }
   io::write_file_atomically(path, f);
 }
