@@ -25,7 +25,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(carmen_reader pose_table config_json map_loader ros_map)
+[ ${#targets[@]} -eq 0 ] && targets=(carmen_reader pose_table config_json map_loader ros_map map_log_record)
 if [ ! -f "$build/CMakeCache.txt" ]; then
   [ "$build" = build-fuzz ] || { echo "fuzz.sh: $build is not a configured build" >&2; exit 2; }
   cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLSHLOC_BUILD_FUZZERS=ON -DLSHLOC_BUILD_TESTS=OFF \
