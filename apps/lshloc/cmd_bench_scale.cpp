@@ -62,7 +62,7 @@ void localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
     LocalizerObserver observer;
     if (!trace_dir.empty()) observer = truth_rank_observer(targets[t], target_submaps[t], ranks);
     const ScenarioRun run = localize_target(map, targets[t], config, {}, observer);
-    const JudgedTruth truth = interpolate_truth(targets[t].scans, targets[t].truth, targets[t].laser_offset);
+    const JudgedTruth truth = interpolate_truth(targets[t]);
     const auto m = evaluate_localization(run.scan_estimates(), truth, target_submaps[t]);
     if (!trace_dir.empty()) {
       const std::string path =

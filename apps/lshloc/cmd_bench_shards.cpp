@@ -104,8 +104,7 @@ nlohmann::json run_sharded(const ShardsOptions& opt, std::size_t k, bool tty) {
     merge_s += seconds_since(t2);
     scans += static_cast<double>(target.scans.size());
     const std::size_t target_global = static_cast<std::size_t>(&target - targets.data());
-    const auto m = evaluate_localization(merged, interpolate_truth(target.scans, target.truth, target.laser_offset),
-                                         static_cast<std::uint32_t>(target_global));
+    const auto m = evaluate_localization(merged, interpolate_truth(target), static_cast<std::uint32_t>(target_global));
     localized += m.success, wrong += m.confident_wrong;
     if (m.success && m.localized_at) localized_at.push_back(static_cast<double>(*m.localized_at));
     per_target.push_back(target_outcome_json(target.building, m));

@@ -81,7 +81,7 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
       if (tty && (done % 10 == 0 || done == total)) std::fprintf(stderr, "\r  localizing: scan %zu/%zu", done, total);
       if (done == total && tty) std::fprintf(stderr, "\n");
     });
-    const JudgedTruth truth = interpolate_truth(sc.target.scans, sc.target.truth, sc.target.laser_offset);
+    const JudgedTruth truth = interpolate_truth(sc.target);
     const auto m = evaluate_localization(run.scan_estimates(), truth, static_cast<std::uint32_t>(sc.target_submap));
     for (std::size_t i = 0; i < run.estimates.size() && !announced; ++i) {
       if (run.estimates[i].localized) announced = i;

@@ -234,7 +234,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     batch = run_eval(sc, run_config, opt, progress, observer, map_store);
   }
   const ScenarioRun& run = live ? live->run : batch;
-  const JudgedTruth truth = interpolate_truth(sc.target.scans, sc.target.truth, sc.target.laser_offset);
+  const JudgedTruth truth = interpolate_truth(sc.target);
   const LocalizationMetrics m =
       evaluate_localization(run.scan_estimates(), truth, static_cast<std::uint32_t>(sc.target_submap));
   nlohmann::json j = scenario_json(sc, run, m);

@@ -75,7 +75,7 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
   LiveRun out;
   const std::vector<std::uint32_t> ids = open_replay(scenario, events.size(), map, out);
   const TargetRun& target = scenario.target;
-  const JudgedTruth judged = interpolate_truth(target.scans, target.truth, target.laser_offset);
+  const JudgedTruth judged = interpolate_truth(target);
   const double start = target.scans.empty() ? 0.0 : target.scans.front().timestamp;
   std::size_t next = 0;
   std::vector<Pose2> target_building_in_map;  // poses of the target building's scans fed so far
@@ -107,7 +107,7 @@ LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& con
   LiveRun out;
   const std::vector<std::uint32_t> ids = open_replay(scenario, events.size(), map, out);
   const TargetRun& target = scenario.target;
-  const JudgedTruth judged = interpolate_truth(target.scans, target.truth, target.laser_offset);
+  const JudgedTruth judged = interpolate_truth(target);
 
   std::shared_mutex map_mutex;
   std::vector<Pose2> target_building_in_map;  // guarded by map_mutex

@@ -7,7 +7,6 @@
 #include <utility>
 
 #include "lshloc/common/error.hpp"
-#include "lshloc/eval/scenario.hpp"
 
 namespace lshloc {
 
@@ -74,6 +73,10 @@ JudgedTruth interpolate_truth(std::span<const LaserScan> scans, const std::vecto
     }
   }
   return out;
+}
+
+JudgedTruth interpolate_truth(const TargetRun& target, const TruthInterpolationConfig& config) {
+  return interpolate_truth(target.scans, target.truth, target.laser_offset, config);
 }
 
 LocalizationMetrics evaluate_localization(const std::vector<ScanEstimate>& estimates,

@@ -8,6 +8,7 @@
 #include <span>
 #include <vector>
 
+#include "lshloc/eval/scenario.hpp"
 #include "lshloc/geometry/laser_scan.hpp"
 #include "lshloc/geometry/pose2.hpp"
 
@@ -55,6 +56,9 @@ struct JudgedTruth {
 /// Throws lshloc::Error when the sizes differ.
 JudgedTruth interpolate_truth(std::span<const LaserScan> scans, const std::vector<std::optional<Pose2>>& truth,
                               const Pose2& laser_offset, const TruthInterpolationConfig& config = {});
+
+/// interpolate_truth() over a target's own scans, truth and laser mount.
+JudgedTruth interpolate_truth(const TargetRun& target, const TruthInterpolationConfig& config = {});
 
 struct LocalizationMetricsConfig {
   double success_error_m = 1.0;       ///< [m] "correct" threshold (docs/design.md section 6)
