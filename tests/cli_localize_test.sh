@@ -104,7 +104,7 @@ python3 - "$d/n.tum.csv" "$d/n.tum" <<'PY' || fail "CSV fields or TUM robot pose
 import csv, math, sys
 text = open(sys.argv[1]).read().splitlines()
 rows = list(csv.reader(text))
-assert all(len(r) == len(rows[0]) == 22 for r in rows), {len(r) for r in rows}
+assert all(len(r) == len(rows[0]) == 32 for r in rows), {len(r) for r in rows}
 head = rows[0]
 confident = [dict(zip(head, r)) for r in rows[1:] if r[head.index("confident")] == "1"]
 assert confident and {r["submap"] for r in confident} <= {'west, "A"', 'east, "B"'}, confident[:1]

@@ -429,10 +429,24 @@ TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnCo
   for (std::size_t i = 0; i < stable; ++i) {
     EXPECT_EQ(step(silence_passes, {scored(place, 0.6, 1000)}, sample).localized, i + 1 == stable) << "scan " << i;
   }
+  // ... but not where the little the map says about them contradicts the place (a building the map
+  // lacks, where a wall or two agree by chance).
+  {
+    FakeSample contradicted;
+    contradicted.score_of = [](const Hypothesis&) { return 0.3; };
+    contradicted.newest_score_of = [](const Hypothesis&) { return -0.02; };
+    ReportPolicy policy(config, kPreference);
+    for (std::size_t i = 0; i < stable + 3; ++i) {
+      const LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000)}, contradicted);
+      EXPECT_FALSE(e.localized) << "scan " << i;
+      EXPECT_LE(e.newest_evidence, config.confidence.silent_newest_evidence);
+    }
+  }
   // With a newest fit of 0.5 it rises ...
   ReportPolicy policy(config, kPreference);
   double newest = 0.5;
-  sample.score_of = [&](const Hypothesis&) { return newest; };
+  sample.score_of = [&](const Hypothesis&) { return 0.3; };  // the whole local map fits the place
+  sample.newest_score_of = [&](const Hypothesis&) { return newest; };
   LocalizationEstimate e;
   for (std::size_t i = 0; i < stable; ++i) e = step(policy, {scored(place, 0.6, 1000)}, sample);
   EXPECT_TRUE(e.localized);
@@ -468,8 +482,18 @@ TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnCo
   e = step(policy, {scored(rival, 0.9, 5000)}, sample);
   EXPECT_EQ(e.submap, rival.submap);
   EXPECT_FALSE(e.localized);
-  sample.score_of = [&](const Hypothesis&) { return newest; };
-  // So does a scan without any hypothesis.
+  sample.score_of = [&](const Hypothesis&) { return 0.3; };
+  // So does a whole local map that contradicts the kept place on balance (its fit there < 0) ...
+  ReportPolicy balance(config, kPreference);
+  for (std::size_t i = 0; i < stable; ++i) e = step(balance, {scored(place, 0.6, 1000)}, sample);
+  ASSERT_TRUE(e.localized);
+  sample.score_of = [&](const Hypothesis&) { return -0.05; };
+  e = step(balance, {scored(place, 0.6, 1000), scored(rival, 0.55, 1000)}, sample);  // no rise anew: a look-alike
+  EXPECT_FALSE(e.localized);
+  EXPECT_TRUE(e.flag_down_because.contradicted);
+  EXPECT_LT(e.whole_map_fit, 0.0);
+  sample.score_of = [&](const Hypothesis&) { return 0.3; };
+  // ... and a scan without any hypothesis.
   ReportPolicy lost(config, kPreference);
   for (std::size_t i = 0; i < stable; ++i) e = step(lost, {scored(place, 0.6, 1000)}, sample);
   EXPECT_TRUE(e.localized);
@@ -593,6 +617,16 @@ TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
   EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
   EXPECT_FALSE(e.localized);
   EXPECT_TRUE(flag_after(plain(), 0.25, young).localized);
+  // A lead over a rival the map contradicts, at a place that itself fits the whole local map under
+  // min_margin, passes nothing (aces' mirror corridor): a lead of 0.3 at a fit of 0.1.
+  {
+    const std::vector<ScoredHypothesis> active{scored(place, 0.5, 1000), scored(rival, 0.45, 1000)};
+    const LocalizationEstimate low = after_steady_scans(plain(), active, place.submap, 0.1, -0.2);
+    EXPECT_NEAR(low.whole_map_lead, 0.3, 1e-12);
+    EXPECT_NEAR(low.whole_map_fit, 0.1, 1e-12);
+    EXPECT_FALSE(low.localized);
+    EXPECT_TRUE(low.flag_down_because.look_alike);
+  }
   ReportPolicyConfig never = plain();
   never.confidence.rise_margin_whole_map_lead = 3.0;
   never.confidence.rise_paired_newest_lead = 3.0;  // the newest points here lead as the whole map does

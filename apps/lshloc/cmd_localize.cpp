@@ -32,6 +32,7 @@
 #include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/config_json.hpp"
+#include "lshloc/io/estimate_csv.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
 #include "map_source.hpp"
 #include "option_checks.hpp"
@@ -119,10 +120,13 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
 /// poses: OUT holds those in the final answer's submap, OUT.<submap>.tum
 /// those in any other.
 /// The per-scan CSV's header and rows, the same for --out and a stdin stream.
-constexpr const char* kCsvHeader =
-    "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,confidence,score,scored,margin,stable,supported,"
-    "place_supported,"
-    "kept_scans,newest_fit,newest_evidence,localized,stamp_clash,flag_down_because\n";
+std::string csv_header() {
+  return std::string(
+             "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,confidence,score,scored,margin,stable,"
+             "supported,place_supported,kept_scans,newest_fit,newest_evidence,localized,stamp_clash,"
+             "flag_down_because,") +
+         io::kEstimateEvidenceColumns + "\n";
+}
 /// A CSV field as RFC 4180 quotes it: submap names may hold commas or quotes.
 std::string csv_field(const std::string& text) {
   if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
@@ -134,14 +138,16 @@ std::string csv_field(const std::string& text) {
 void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, double time, const GlobalMap& map,
                     const LocalizationEstimate& e) {
   if (e.has_estimate) {
-    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%d,%d,%s\n",
+    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%d,%d,%s,",
                       scan, log_scan, time, csv_field(map.submap_name(e.submap)).c_str(), e.submap, e.pose.x, e.pose.y,
                       degrees(e.pose.theta), e.confident() ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin,
                       e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit,
                       e.newest_evidence, e.localized ? 1 : 0, e.stamp_clash ? 1 : 0,
                       e.flag_down_because.joined().c_str());
+    io::append_estimate_evidence(csv, e);
+    csv += '\n';
   } else {
-    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,,0,0,\n", scan, log_scan, time);
+    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,,0,0,,,,,,,,,,,\n", scan, log_scan, time);
   }
 }
 
@@ -202,7 +208,7 @@ nlohmann::json pose_json(const Pose2& p) { return nlohmann::json::array({p.x, p.
 /// laser poses, as every other output; the TUM files hold robot poses (the
 /// target's laser mount taken off), in time order, as TUM tools expect.
 void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun& target, const ScenarioRun& run) {
-  std::string csv = kCsvHeader;
+  std::string csv = csv_header();
   ConfidentPoses confident;
   const Pose2 robot_from_laser = target.laser_offset.inverse();
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
@@ -369,7 +375,7 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   if (!opt.out.empty()) {
     csv_file.reset(std::fopen(out.csv.c_str(), "w"));
     if (!csv_file) throw Error(out.csv + ": cannot write the per-scan CSV");
-    std::fputs(kCsvHeader, csv_file.get());
+    std::fputs(csv_header().c_str(), csv_file.get());
   }
   ConfidentPoses confident_poses;
   Pose2 robot_from_laser;
@@ -377,7 +383,7 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   std::size_t index = 0, done = 0, confident = 0, ahead = 0;
   std::optional<std::size_t> first_confident;
   LocalizationEstimate last;
-  if (!opt.json) std::printf("%s", kCsvHeader);
+  if (!opt.json) std::printf("%s", csv_header().c_str());
   const auto next = [&] {
     if (ahead < read_ahead.size()) return rec = std::move(read_ahead[ahead++]), true;
     return reader.next(rec);

@@ -8,6 +8,7 @@
 #include "lshloc/common/error.hpp"
 #include "lshloc/eval/live_replay.hpp"
 #include "lshloc/io/atomic_file.hpp"
+#include "lshloc/io/estimate_csv.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/figures/figures.hpp"
 
@@ -147,13 +148,12 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
 void write_scenario_trace(const std::string& path, const TargetRun& target, const JudgedTruth& truth,
                           const ScenarioRun& run, const LocalizationMetrics& m) {
   std::string f;
-  io::append_format(
-      f,
-      "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,stable,supported,"
-      "place_supported,kept_scans,newest_fit,newest_evidence,whole_map_fit,whole_map_lead,rise_margin,"
-      "rival_submap,rival_x,rival_y,rival_theta,rival_mean_score,rival_scored,newest_lead,flag_down_because,"
-      "truth_x,truth_y,truth_theta,error_m,heading_error_deg,interpolated_x,interpolated_y,interpolated_theta,"
-      "judged_error_m,judged_heading_error_deg\n");
+  io::append_format(f,
+                    "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,"
+                    "stable,supported,place_supported,kept_scans,newest_fit,newest_evidence,%s,flag_down_because,"
+                    "truth_x,truth_y,truth_theta,error_m,heading_error_deg,interpolated_x,interpolated_y,"
+                    "interpolated_theta,judged_error_m,judged_heading_error_deg\n",
+                    io::kEstimateEvidenceColumns);
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = truth.pose[i];
@@ -163,16 +163,11 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
       io::append_format(f, "%u,%.4f,%.4f,%.5f,", e.submap, e.pose.x, e.pose.y, e.pose.theta);
     else
       f += ",,,,";
-    io::append_format(f, "%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%.4f,%.4f,%.4f,", e.localized ? 1 : 0,
-                      e.confidence, e.mean_score, e.scored, e.margin, e.stable ? 1 : 0, e.supported ? 1 : 0,
-                      e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit, e.newest_evidence, e.whole_map_fit,
-                      e.whole_map_lead, e.rise_margin);
-    if (e.has_rival)
-      io::append_format(f, "%u,%.4f,%.4f,%.5f,%.4f,%u,", e.rival_submap, e.rival_pose.x, e.rival_pose.y,
-                        e.rival_pose.theta, e.rival_mean_score, e.rival_scored);
-    else
-      f += ",,,,,,";
-    io::append_format(f, "%.4f,%s,", e.newest_lead, e.flag_down_because.joined().c_str());
+    io::append_format(f, "%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,", e.localized ? 1 : 0, e.confidence, e.mean_score,
+                      e.scored, e.margin, e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0,
+                      e.kept_scans, e.newest_fit, e.newest_evidence);
+    io::append_estimate_evidence(f, e);
+    io::append_format(f, ",%s,", e.flag_down_because.joined().c_str());
     const bool measured = t && truth.measured[i];
     if (measured)
       io::append_format(f, "%.4f,%.4f,%.5f,", t->x, t->y, t->theta);

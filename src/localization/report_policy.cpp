@@ -383,9 +383,14 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       e.mean_score >= cc.relative_support_min_mean_score && e.rise_margin >= cc.relative_support_min_margin &&
       sample_has_newest && e.newest_lead >= cc.relative_support_min_newest_lead && cc.whole_map_points > 0;
   if (weak_candidate || relative_candidate) score_whole_map();
+  // A lead stands for support, or passes the margin, only over a place that itself explains the whole
+  // local map (its fit there at least min_margin): a lead over a rival the map contradicts is no evidence
+  // for the place (aces' mirror corridor rose so, its own fit 0.05-0.10).
+  const auto fits_whole_map = [&] { return whole_map_known && e.whole_map_fit >= cc.min_margin; };
   const bool weakly_supported =
-      whole_map_known && ((weak_candidate && e.whole_map_lead >= cc.weak_support_min_whole_map_lead) ||
-                          (relative_candidate && e.whole_map_lead >= cc.relative_support_min_whole_map_lead));
+      whole_map_known &&
+      ((weak_candidate && e.whole_map_lead >= cc.weak_support_min_whole_map_lead) ||
+       (relative_candidate && e.whole_map_lead >= cc.relative_support_min_whole_map_lead && fits_whole_map()));
   weakly_supported_place_ = kept && (weakly_supported_place_ || weakly_supported);
   const bool counts_supported = e.supported || weakly_supported;
   if (!kept) place_qualified_ = false;
@@ -420,10 +425,16 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   mean_contradiction_ =
       flag_ ? (1.0 - cc.contradiction_smoothing) * mean_contradiction_ + cc.contradiction_smoothing * contradiction
             : contradiction;
+  // The hold also needs the whole local map not to contradict the place on balance (its fit there >= 0).
+  if (flag_ && !whole_map_known && cc.whole_map_points > 0) score_whole_map();
+  const bool whole_map_agrees = !whole_map_known || e.whole_map_fit >= 0.0;
   const bool held = flag_ && kept && (reported_supported_ || weakly_supported_place_) &&
-                    contradiction <= cc.hold_max_contradiction && mean_contradiction_ <= cc.hold_max_mean_contradiction;
+                    contradiction <= cc.hold_max_contradiction &&
+                    mean_contradiction_ <= cc.hold_max_mean_contradiction && whole_map_agrees;
+  // A map silent about the newest points is no evidence against the place; one that contradicts the
+  // little it says is (a robot in a building the map lacks, where a wall or two agree by chance).
   const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit ||
-                           (cc.weak_support && e.newest_evidence <= cc.silent_newest_evidence);
+                           (cc.weak_support && e.newest_evidence <= cc.silent_newest_evidence && e.newest_fit >= 0.0);
   const bool rise_but_support = stable && e.rise_margin >= cc.min_margin && newest_fits;
   const bool support_holds = counts_supported && supported_run_ >= run_needs_;
   const bool paired_rule =
@@ -442,7 +453,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool paired_leads = paired_rule && !young_rival && e.whole_map_lead >= cc.rise_paired_whole_map_lead &&
                             e.newest_lead >= cc.rise_paired_newest_lead;
   const bool leads_pass_margin =
-      lead_decides_margin && whole_map_known && (e.whole_map_lead >= margin_lead || paired_leads);
+      lead_decides_margin && fits_whole_map() && (e.whole_map_lead >= margin_lead || paired_leads);
   const bool rises = (rise_but_support && margin_confirmed && support_holds) || leads_pass_margin;
   // A hypothesis much younger than the place it stands for rises only once it has caught up.
   const bool seasoned = static_cast<double>(best->scored) >=
@@ -459,9 +470,9 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     why.look_alike = !leads_pass_margin && (e.rise_margin < cc.min_margin || (margin_needs_lead && !margin_confirmed));
     why.newest_misfit = !newest_fits;
     why.young_hypothesis = rises && !seasoned;
-    why.contradicted =
-        was_up && kept &&
-        (contradiction > cc.hold_max_contradiction || mean_contradiction_ > cc.hold_max_mean_contradiction);
+    why.contradicted = was_up && kept &&
+                       (contradiction > cc.hold_max_contradiction ||
+                        mean_contradiction_ > cc.hold_max_mean_contradiction || !whole_map_agrees);
   }
   e.confidence = flag_ ? std::max(e.confidence, cc.flag_threshold)
                        : std::min(e.confidence, cc.flag_threshold - kUnflaggedValueGap);
