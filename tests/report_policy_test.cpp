@@ -589,6 +589,16 @@ TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTh
   ReportPolicyConfig off = plain();
   off.confidence.relative_support = false;
   EXPECT_FALSE(flag_after(off, 0.3, 1000, 0.0).localized);
+  // With no rival at all (none in iRANSAC, none remembered) there is no lead to stand for support.
+  {
+    ReportPolicyConfig alone = plain();
+    alone.confidence.rival_memory_scans = 0;
+    const LocalizationEstimate lone =
+        after_steady_scans(alone, {scored(place, 0.3, 1000)}, place.submap, 0.3, 0.0, std::nullopt);
+    EXPECT_FALSE(lone.has_rival);
+    EXPECT_FALSE(lone.localized);
+    EXPECT_TRUE(lone.flag_down_because.weak_support);
+  }
 }
 
 TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
@@ -695,6 +705,25 @@ TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {
   EXPECT_TRUE(e.supported);
   EXPECT_TRUE(e.place_supported);
   EXPECT_NEAR(e.confidence, 1.0 / (1.0 + std::exp(-(-2.0 + 3.0 * 0.6 + 4.0 * -0.25))), 1e-12);
+  // While the flag is up the value takes the flagged weights.
+  {
+    ReportPolicyConfig up = plain();
+    up.confidence.value_weights.fill(0.0);
+    up.confidence.flagged_value_weights = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0};
+    up.confidence.flag_threshold = 0.5;
+    ReportPolicy policy(up, kPreference);
+    FakeSample fits;
+    fits.score_of = [](const Hypothesis&) { return 0.5; };
+    LocalizationEstimate last;
+    for (int i = 0; i < 10; ++i) last = step(policy, {scored(place, 0.6, 1000)}, fits);
+    ASSERT_TRUE(last.localized);
+    EXPECT_NEAR(last.confidence, 1.0 / (1.0 + std::exp(-(1.0 + 2.0 * 0.5))), 1e-12);
+  }
+  // The compiled-in weights are src/localization/confidence_value.json's, over the features report() computes.
+  EXPECT_STREQ(value_feature_names()[3], "log1p:scored");
+  EXPECT_EQ(ConfidenceConfig{}.value_weights, default_value_weights(false));
+  EXPECT_EQ(ConfidenceConfig{}.flagged_value_weights, default_value_weights(true));
+  EXPECT_NE(default_value_weights(false), default_value_weights(true));
   // The default weights: strong, stable, unrivalled support that the newest
   // scans confirm is worth more than the same support with the newest scans
   // contradicting it.
@@ -719,6 +748,7 @@ TEST(ReportPolicy, TheFlagIsTheValueAtOrAboveTheFlagThreshold) {
   for (const double bias : {20.0, -20.0}) {
     ReportPolicyConfig config = plain();
     config.confidence.value_weights = {bias, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    config.confidence.flagged_value_weights = config.confidence.value_weights;
     config.confidence.flag_threshold = 0.9;
     ReportPolicy policy(config, kPreference);
     FakeSample fits, breaks;

@@ -107,7 +107,8 @@ LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, riv
                    weak_support_min_margin, weak_support_min_whole_map_lead, weak_support_max_newest_evidence,
                    silent_newest_evidence, relative_support, relative_support_min_scored,
                    relative_support_min_mean_score, relative_support_min_margin, relative_support_min_whole_map_lead,
-                   relative_support_min_newest_lead, always_score_whole_map, value_weights, flag_threshold)
+                   relative_support_min_newest_lead, always_score_whole_map, value_weights, flagged_value_weights,
+                   flag_threshold)
 LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
                    refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
 LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_heading_rad, window_scans)

@@ -17,7 +17,36 @@ double radians(double deg) { return deg * std::numbers::pi / 180.0; }
 // An unflagged value stays this far under the flag threshold: the CSVs print 4 decimals.
 constexpr double kUnflaggedValueGap = 0.001;
 
+#include "confidence_value.inc"
+
+constexpr bool same_name(const char* a, const char* b) {
+  for (; *a != '\0' && *a == *b; ++a, ++b) {
+  }
+  return *a == *b;
+}
+constexpr std::array<const char*, kValueFeatures> kComputedFeatures{
+    "bias",   "mean_score", "margin",     "log1p:scored",   "log1p:kept_scans", "place_supported",
+    "stable", "supported",  "newest_fit", "newest_evidence"};
+static_assert(std::size(kValueFeatureNames) == kValueFeatures && std::size(kValueWeights_flag_down) == kValueFeatures &&
+                  std::size(kValueWeights_flag_up) == kValueFeatures,
+              "confidence_value.json: expected 10 features and 10 weights for each flag state");
+static_assert(
+    [] {
+      for (std::size_t i = 0; i < kValueFeatures; ++i)
+        if (!same_name(kValueFeatureNames[i], kComputedFeatures[i])) return false;
+      return true;
+    }(),
+    "confidence_value.json: its features are not the ones report() computes, in that order");
+
 }  // namespace
+
+std::array<double, kValueFeatures> default_value_weights(bool flag_up) {
+  std::array<double, kValueFeatures> w{};
+  std::copy_n(flag_up ? kValueWeights_flag_up : kValueWeights_flag_down, kValueFeatures, w.begin());
+  return w;
+}
+
+std::array<const char*, kValueFeatures> value_feature_names() { return kComputedFeatures; }
 
 bool same_place(const Hypothesis& a, const RobotPlace& b, const Pose2& local, double dist_m, double angle_rad) {
   if (a.submap != b.submap) return false;
@@ -103,6 +132,8 @@ void ReportPolicyConfig::validate() const {
           "ReportPolicyConfig.confidence.flag_threshold", "in (0.001, 1]", confidence.flag_threshold);
   for (double w : confidence.value_weights)
     require(std::isfinite(w), "ReportPolicyConfig.confidence.value_weights", "finite numbers", w);
+  for (double w : confidence.flagged_value_weights)
+    require(std::isfinite(w), "ReportPolicyConfig.confidence.flagged_value_weights", "finite numbers", w);
   // Tracking and the same-place test move by and compare with these steps: 0 or NaN would never move or match.
   for (const auto& [name, v] : {std::pair{"confidence.same_place_m", confidence.same_place_m},
                                 {"confidence.same_place_deg", confidence.same_place_deg},
@@ -378,10 +409,13 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   // a margin over it needs the whole-map lead, a lead alone must be larger, and the paired leads and
   // relative support do not count.
   const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
-  const bool relative_candidate =
-      cc.relative_support && !e.supported && !young_rival && best->scored >= cc.relative_support_min_scored &&
-      e.mean_score >= cc.relative_support_min_mean_score && e.rise_margin >= cc.relative_support_min_margin &&
-      sample_has_newest && e.newest_lead >= cc.relative_support_min_newest_lead && cc.whole_map_points > 0;
+  // Relative support is a lead over a rival: with none standing, the absolute or the weak test decides
+  // (a robot outside the map rose the scan its rival went missing, on a "lead" over nothing).
+  const bool relative_candidate = cc.relative_support && !e.supported && standing != nullptr && !young_rival &&
+                                  best->scored >= cc.relative_support_min_scored &&
+                                  e.mean_score >= cc.relative_support_min_mean_score &&
+                                  e.rise_margin >= cc.relative_support_min_margin && sample_has_newest &&
+                                  e.newest_lead >= cc.relative_support_min_newest_lead && cc.whole_map_points > 0;
   if (weak_candidate || relative_candidate) score_whole_map();
   // A lead stands for support, or passes the margin, only over a place that itself explains the whole
   // local map (its fit there at least min_margin): a lead over a rival the map contradicts is no evidence
@@ -406,19 +440,6 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   }
   e.place_supported = reported_supported_;
   e.kept_scans = kept_scans_;
-  const std::array<double, 10> f{1.0,
-                                 e.mean_score,
-                                 e.margin,
-                                 std::log1p(static_cast<double>(e.scored)),
-                                 std::log1p(static_cast<double>(e.kept_scans)),
-                                 e.place_supported ? 1.0 : 0.0,
-                                 e.stable ? 1.0 : 0.0,
-                                 e.supported ? 1.0 : 0.0,
-                                 e.newest_fit,
-                                 e.newest_evidence};
-  double z = 0.0;
-  for (std::size_t i = 0; i < f.size(); ++i) z += cc.value_weights[i] * f[i];
-  e.confidence = 1.0 / (1.0 + std::exp(-z));
   const bool newest_known = cc.newest_points > 0 && sample_has_newest;
   // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
   const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;
@@ -474,8 +495,22 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
                        (contradiction > cc.hold_max_contradiction ||
                         mean_contradiction_ > cc.hold_max_mean_contradiction || !whole_map_agrees);
   }
-  e.confidence = flag_ ? std::max(e.confidence, cc.flag_threshold)
-                       : std::min(e.confidence, cc.flag_threshold - kUnflaggedValueGap);
+  // The value, in the order of kComputedFeatures, with the weights of the flag's state.
+  const std::array<double, kValueFeatures> f{1.0,
+                                             e.mean_score,
+                                             e.margin,
+                                             std::log1p(static_cast<double>(e.scored)),
+                                             std::log1p(static_cast<double>(e.kept_scans)),
+                                             e.place_supported ? 1.0 : 0.0,
+                                             e.stable ? 1.0 : 0.0,
+                                             e.supported ? 1.0 : 0.0,
+                                             e.newest_fit,
+                                             e.newest_evidence};
+  const auto& w = flag_ ? cc.flagged_value_weights : cc.value_weights;
+  double z = 0.0;
+  for (std::size_t i = 0; i < f.size(); ++i) z += w[i] * f[i];
+  const double value = 1.0 / (1.0 + std::exp(-z));
+  e.confidence = flag_ ? std::max(value, cc.flag_threshold) : std::min(value, cc.flag_threshold - kUnflaggedValueGap);
   return e;
 }
 

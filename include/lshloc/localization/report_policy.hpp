@@ -19,6 +19,14 @@
 
 namespace lshloc {
 
+/// The confidence value's features, in the order of its weights.
+inline constexpr std::size_t kValueFeatures = 10;
+/// The weights of src/localization/confidence_value.json (compiled in): while the flag is down, or up.
+std::array<double, kValueFeatures> default_value_weights(bool flag_up);
+/// That file's names of the features ("log1p:scored" is ln(1 + N)); the library refuses to build
+/// when they are not the features it computes.
+std::array<const char*, kValueFeatures> value_feature_names();
+
 /// When the localizer says "localized" (docs/design.md section 2.3: say it only when the
 /// evidence is strong; a confident answer should never be wrong).
 struct ConfidenceConfig {
@@ -226,20 +234,20 @@ struct ConfidenceConfig {
   /// the rise hinges on it (it costs about 0.2 ms per scan).
   bool always_score_whole_map = false;
   /// Weights w of the confidence value, P(the estimate is right: true
-  /// submap, within 2 m and 10 deg) = 1 / (1 + exp(-w . f)), over the 10
-  /// dimensionless features f = (1, C/N, margin, ln(1 + N), ln(1 + kept_scans),
-  /// place_supported, stable, supported, newest_fit, newest_evidence) of the
-  /// estimate. Fitted by logistic regression, with runs in buildings the map
-  /// lacks as negatives (scripts/confidence_fit.py; docs/results/confidence.md,
-  /// "The value"). The flag then sets which side of flag_threshold it lies on.
-  std::array<double, 10> value_weights = {-11.3181, 4.9535,  27.2398, 0.9719,  0.4055,
-                                          1.8083,   -2.4212, -1.7399, 12.3096, -5.0433};
+  /// submap, within 2 m and 10 deg) = 1 / (1 + exp(-w . f)), over the
+  /// kValueFeatures dimensionless features f = (1, C/N, margin, ln(1 + N),
+  /// ln(1 + kept_scans), place_supported, stable, supported, newest_fit,
+  /// newest_evidence) of the estimate: one vector while the flag is down,
+  /// one while it is up (the flag is evidence too). Fitted by logistic
+  /// regression (scripts/confidence_fit.py), which writes them to
+  /// src/localization/confidence_value.json; the defaults are that file's.
+  std::array<double, kValueFeatures> value_weights = default_value_weights(false);
+  std::array<double, kValueFeatures> flagged_value_weights = default_value_weights(true);
   /// The flag is the value at or above this: a flagged estimate's value is
   /// raised to it, an unflagged one's held at least 0.001 below it (the CSVs
-  /// print 4 decimals). Flagged estimates are right far more often than
-  /// this, so the raise costs no calibration (docs/results/confidence.md,
-  /// "The flag is the value above 0.95"). In (0.001, 1].
-  double flag_threshold = 0.95;
+  /// print 4 decimals), so that a value of 0.9 or more always comes with the
+  /// flag. In (0.001, 1].
+  double flag_threshold = 0.9;
 };
 
 /// Settings of the report policy: the confidence test and how the reported
