@@ -718,7 +718,7 @@ PYBIND11_MODULE(lshloc, m) {
           },
           py::arg("scan"),
           "Localizes one target scan (odometry in scan.odometry); returns a dict: has_estimate, localized "
-          "(the confidence flag), confidence (the calibrated value in [0, 1]; at least flag_threshold, 0.95 by "
+          "(the confidence flag), confidence (the calibrated value in [0, 1]; at least flag_threshold, 0.9 by "
           "default, exactly when localized), stamp_clash (an earlier scan stamped "
           "within 5 ms is estimated elsewhere), confident (localized and no stamp clash: the pose can be used by "
           "its time stamp), submap, submap_name, pose (x, y, theta of the laser in the submap), robot_pose (the "
@@ -726,7 +726,7 @@ PYBIND11_MODULE(lshloc, m) {
           "laser_offset taken off), mean_score (C/N of the best hypothesis), margin (its C/N lead over the best "
           "place elsewhere), "
           "not_confident_because (the parts of the flag's test that keep it down, by name: unstable, weak_support, "
-          "few_points, support_too_short, look_alike, newest_misfit, young_hypothesis, contradicted; empty while it "
+          "few_points, look_alike, newest_misfit, young_hypothesis, contradicted; empty while it "
           "is up, and without an estimate)")
       .def(
           "stats",

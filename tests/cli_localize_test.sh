@@ -65,7 +65,7 @@ last = list(csv.DictReader(open(sys.argv[2])))[-1]
 text = open(sys.argv[3]).read()
 reasons = j["not_confident_because"]
 assert not j["localized"] and reasons, j
-known = {"unstable", "weak_support", "few_points", "support_too_short", "look_alike", "newest_misfit",
+known = {"unstable", "weak_support", "few_points", "look_alike", "newest_misfit",
          "young_hypothesis", "contradicted"}
 assert all(r["reason"] in known for r in reasons), reasons
 assert [r["reason"] for r in reasons] == last["flag_down_because"].split(";"), (reasons, last)

@@ -28,23 +28,20 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.map.occupancy.cell_size = 0.3;
   c.map.database.bucket_capacity = 32;
   c.localizer.ransac.order_rule = DataPointOrderRule::kUniform;
-  c.localizer.report.confidence.duel_z = 2.5;
-  c.localizer.report.confidence.young_place_scans = 7;  // was once left out of the JSON
-  c.localizer.report.confidence.young_refined_margin = 0.2;
-  c.localizer.report.confidence.rival_memory_scans = 9;
-  c.localizer.report.confidence.rival_twin_turn_deg = 75.0;
-  c.localizer.report.confidence.rise_rival_min_scored = 120;
-  c.localizer.report.confidence.rise_paired_newest_lead = 0.35;
-  c.localizer.report.confidence.rise_scored_per_kept_scan = 7.5;
-  c.localizer.report.confidence.rise_max_scored = 600;
-  c.localizer.report.confidence.flag_threshold = 0.9;
-  c.localizer.report.confidence.weak_support = false;
-  c.localizer.report.confidence.weak_support_min_scored = 2000;
-  c.localizer.report.confidence.weak_support_max_newest_evidence = 0.02;
-  c.localizer.report.confidence.relative_support = false;
-  c.localizer.report.confidence.relative_support_min_scored = 450;
-  c.localizer.report.confidence.relative_support_min_newest_lead = 0.2;
-  c.localizer.report.confidence.rise_young_rival_whole_map_lead = 0.3;
+  c.localizer.place.duel_z = 2.5;
+  c.localizer.place.young_place_scans = 7;  // was once left out of the JSON
+  c.localizer.place.young_refined_margin = 0.2;
+  c.localizer.place.refine_rounds = 3;
+  c.localizer.report.stable_scans = 9;
+  c.localizer.report.rival_twin_turn_deg = 75.0;
+  c.localizer.report.strong_lead = 0.35;
+  c.localizer.report.min_whole_map_lead = 0.3;
+  c.localizer.report.flag_threshold = 0.8;
+  c.localizer.report.weak_support_min_scored = 2000;
+  c.localizer.report.weak_support_max_newest_evidence = 0.02;
+  c.localizer.report.relative_support_min_scored = 450;
+  c.localizer.report.relative_support_min_margin = 0.07;
+  c.localizer.trace_evidence = true;
   c.localizer.scan_matcher.match_stalled_odometry = false;
   c.localizer.scan_matcher.laser_offset = Pose2(-0.04, 0.01, 0.02);
   c.localizer.hypothesis_source = HypothesisSource::kRandomMapFeatures;
@@ -57,23 +54,20 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   EXPECT_EQ(back.map.occupancy.cell_size, 0.3);
   EXPECT_EQ(back.map.database.bucket_capacity, 32u);
   EXPECT_EQ(back.localizer.ransac.order_rule, DataPointOrderRule::kUniform);
-  EXPECT_EQ(back.localizer.report.confidence.duel_z, 2.5);
-  EXPECT_EQ(back.localizer.report.confidence.young_place_scans, 7u);
-  EXPECT_EQ(back.localizer.report.confidence.young_refined_margin, 0.2);
-  EXPECT_EQ(back.localizer.report.confidence.rival_memory_scans, 9u);
-  EXPECT_EQ(back.localizer.report.confidence.rival_twin_turn_deg, 75.0);
-  EXPECT_EQ(back.localizer.report.confidence.rise_rival_min_scored, 120u);
-  EXPECT_EQ(back.localizer.report.confidence.rise_paired_newest_lead, 0.35);
-  EXPECT_EQ(back.localizer.report.confidence.rise_scored_per_kept_scan, 7.5);
-  EXPECT_EQ(back.localizer.report.confidence.rise_max_scored, 600u);
-  EXPECT_EQ(back.localizer.report.confidence.flag_threshold, 0.9);
-  EXPECT_FALSE(back.localizer.report.confidence.weak_support);
-  EXPECT_EQ(back.localizer.report.confidence.weak_support_min_scored, 2000u);
-  EXPECT_EQ(back.localizer.report.confidence.weak_support_max_newest_evidence, 0.02);
-  EXPECT_FALSE(back.localizer.report.confidence.relative_support);
-  EXPECT_EQ(back.localizer.report.confidence.relative_support_min_scored, 450u);
-  EXPECT_EQ(back.localizer.report.confidence.relative_support_min_newest_lead, 0.2);
-  EXPECT_EQ(back.localizer.report.confidence.rise_young_rival_whole_map_lead, 0.3);
+  EXPECT_EQ(back.localizer.place.duel_z, 2.5);
+  EXPECT_EQ(back.localizer.place.young_place_scans, 7u);
+  EXPECT_EQ(back.localizer.place.young_refined_margin, 0.2);
+  EXPECT_EQ(back.localizer.place.refine_rounds, 3u);
+  EXPECT_EQ(back.localizer.report.stable_scans, 9u);
+  EXPECT_EQ(back.localizer.report.rival_twin_turn_deg, 75.0);
+  EXPECT_EQ(back.localizer.report.strong_lead, 0.35);
+  EXPECT_EQ(back.localizer.report.min_whole_map_lead, 0.3);
+  EXPECT_EQ(back.localizer.report.flag_threshold, 0.8);
+  EXPECT_EQ(back.localizer.report.weak_support_min_scored, 2000u);
+  EXPECT_EQ(back.localizer.report.weak_support_max_newest_evidence, 0.02);
+  EXPECT_EQ(back.localizer.report.relative_support_min_scored, 450u);
+  EXPECT_EQ(back.localizer.report.relative_support_min_margin, 0.07);
+  EXPECT_TRUE(back.localizer.trace_evidence);
   EXPECT_FALSE(back.localizer.scan_matcher.match_stalled_odometry);
   EXPECT_EQ(back.localizer.scan_matcher.laser_offset.y, 0.01);
   EXPECT_EQ(back.localizer.hypothesis_source, HypothesisSource::kRandomMapFeatures);
@@ -136,12 +130,11 @@ TEST(ConfigJson, MistakesNameTheSourceAndTheKey) {
   const std::string bad_enum = error_of({{"localizer", {{"ransac", {{"order_rule", "newest"}}}}}});
   EXPECT_NE(bad_enum.find("cfg.json"), std::string::npos);
   EXPECT_NE(bad_enum.find("\"uniform\", \"recent\", \"fresh\""), std::string::npos) << bad_enum;
-  // An array setting of fixed length: the key, the length and the element type, not the JSON library's words.
-  EXPECT_NE(error_of({{"localizer", {{"report", {{"confidence", {{"value_weights", {1, 2, 3}}}}}}}}})
-                .find("cfg.json: localizer.report.confidence.value_weights: expected an array of 10 (each a number), "
-                      "got [1,2,3]"),
+  // An array for a number: the key and what it wants, not the JSON library's words.
+  EXPECT_NE(error_of({{"localizer", {{"report", {{"min_margin", {1, 2, 3}}}}}}})
+                .find("cfg.json: localizer.report.min_margin: expected a number, got [1,2,3]"),
             std::string::npos)
-      << error_of({{"localizer", {{"report", {{"confidence", {{"value_weights", {1, 2, 3}}}}}}}}});
+      << error_of({{"localizer", {{"report", {{"min_margin", {1, 2, 3}}}}}}});
   // A float where an integer is expected is a mistake too, not a silent cut.
   EXPECT_NE(error_of({{"localizer", {{"candidates_per_feature", 2.5}}}}).find("expected a non-negative integer"),
             std::string::npos);
@@ -173,10 +166,9 @@ TEST(ConfigJson, AFileTooDeepOrTooLargeIsRefusedBeforeItIsBuilt) {
 
 TEST(ConfigJson, CountsThatOnlyExhaustMemoryOrTimeAreRefused) {
   for (const auto& [patch, field] :
-       {std::pair{nlohmann::json{{"localizer", {{"report", {{"confidence", {{"duel_points", 4294967296u}}}}}}}},
-                  "confidence.duel_points"},
-        std::pair{nlohmann::json{{"localizer", {{"report", {{"refine_points", 4294967296u}}}}}}, "refine_points"},
-        std::pair{nlohmann::json{{"localizer", {{"report", {{"refine_rounds", 4294967296u}}}}}}, "refine_rounds"},
+       {std::pair{nlohmann::json{{"localizer", {{"place", {{"duel_points", 4294967296u}}}}}}, "duel_points"},
+        std::pair{nlohmann::json{{"localizer", {{"place", {{"refine_points", 4294967296u}}}}}}, "refine_points"},
+        std::pair{nlohmann::json{{"localizer", {{"place", {{"refine_rounds", 4294967296u}}}}}}, "refine_rounds"},
         std::pair{nlohmann::json{{"localizer", {{"scan_matcher", {{"max_iterations", 4294967296u}}}}}},
                   "max_iterations"},
         std::pair{nlohmann::json{{"map", {{"occupancy", {{"initial_capacity", 4294967296u}}}}}}, "initial_capacity"}}) {
@@ -220,16 +212,14 @@ TEST(ConfigJson, TheManyBuildingsExampleSetsOnlyAQueryTimeSetting) {
   EXPECT_EQ(nlohmann::json(with_query_settings(LshConfig{}, c.map.database)), nlohmann::json(c.map.database));
 }
 
-TEST(ConfigJson, TheOpenWorldExampleSetsOnlyTheRivalMemory) {
-  // A localizer setting alone: any map, saved or built, takes it.
-  ScenarioRunConfig c;
-  const std::string path = std::string(LSHLOC_SOURCE_DIR) + "/examples/config/open-world.json";
-  io::apply_config_patch(io::read_json_file(path), c, path);
-  EXPECT_EQ(c.localizer.report.confidence.rival_memory_scans, 50u);
-  EXPECT_NO_THROW(c.localizer.validate());
-  nlohmann::json expected = ScenarioRunConfig{};
-  expected["localizer"]["report"]["confidence"]["rival_memory_scans"] = 50;
-  EXPECT_EQ(nlohmann::json(c), expected);
+TEST(ConfigJson, TheReportPolicyHoldsTheFlagsTwentySettingsAndNoPlaceSetting) {
+  // The flag's settings are "report"; which place is reported is "place"; the value's weights are not
+  // settings (src/localization/confidence_value.json).
+  const nlohmann::json j = ScenarioRunConfig{};
+  EXPECT_EQ(j["localizer"]["report"].size(), 20u) << j["localizer"]["report"].dump();
+  for (const auto& [key, value] : j["localizer"]["report"].items()) EXPECT_FALSE(value.is_object()) << key;
+  EXPECT_TRUE(j["localizer"]["place"].contains("duel_z"));
+  EXPECT_FALSE(j["localizer"]["report"].contains("value_weights"));
 }
 
 TEST(ConfigJson, ReadingAFileNamesItOnSyntaxErrors) {

@@ -143,11 +143,11 @@ TEST(Localizer, SettingsThatCannotWorkAreRefusedByName) {
   refused([](LocalizerConfig& c) { c.ransac.max_data_points = std::size_t{1} << 33; }, "max_data_points");
   refused([](LocalizerConfig& c) { c.scan_matcher.degeneracy_threshold = 0.0; }, "degeneracy_threshold");
   refused([](LocalizerConfig& c) { c.free_space_penalty = HUGE_VAL; }, "free_space_penalty");
-  refused([](LocalizerConfig& c) { c.report.track_step_m = std::nan(""); }, "track_step_m");
-  refused([](LocalizerConfig& c) { c.report.confidence.same_place_deg = 0.0; }, "same_place_deg");
-  refused([](LocalizerConfig& c) { c.report.confidence.duel_z = std::nan(""); }, "duel_z");
-  refused([](LocalizerConfig& c) { c.report.confidence.min_margin = -HUGE_VAL; }, "min_margin");
-  refused([](LocalizerConfig& c) { c.report.refine_step_deg = HUGE_VAL; }, "refine_step_deg");
+  refused([](LocalizerConfig& c) { c.place.track_step_m = std::nan(""); }, "track_step_m");
+  refused([](LocalizerConfig& c) { c.place.same_place_deg = 0.0; }, "same_place_deg");
+  refused([](LocalizerConfig& c) { c.place.duel_z = std::nan(""); }, "duel_z");
+  refused([](LocalizerConfig& c) { c.report.min_margin = -HUGE_VAL; }, "min_margin");
+  refused([](LocalizerConfig& c) { c.place.refine_step_deg = HUGE_VAL; }, "refine_step_deg");
   PoseGridScorerConfig scores;
   EXPECT_NO_THROW(scores.validate());
   scores.surface_on_return = std::nanf("");
@@ -263,7 +263,7 @@ TEST(Localizer, RecoversWhenCarriedToAnotherBuilding) {
   feeder.feed_until(1.0);
   const auto run = [&](double recent_margin) {
     LocalizerConfig config;
-    config.report.confidence.duel_recent_margin = recent_margin;
+    config.place.duel_recent_margin = recent_margin;
     config.scan_matcher.laser_offset = first.target.laser_offset;
     Localizer localizer(map, config);
     std::vector<LocalizationEstimate> out;
@@ -345,8 +345,8 @@ TEST(Localizer, GivesUpAWellSupportedPlaceOnlyForASupportedChallenger) {
   // onto an estimate it does not support (N, C/N of the confidence test).
   const auto unsupported_moves = [&](bool challenger_needs_support) {
     ScenarioRunConfig config;
-    config.localizer.report.confidence.challenger_needs_support = challenger_needs_support;
-    const ConfidenceConfig& cc = config.localizer.report.confidence;
+    config.localizer.place.challenger_needs_support = challenger_needs_support;
+    const ConfidenceConfig& cc = config.localizer.report;
     const ScenarioRun run = run_scenario(sc, config);
     const auto supported = [&](const LocalizationEstimate& e) {
       return e.scored >= cc.min_scored && e.mean_score >= cc.min_mean_score;

@@ -73,8 +73,8 @@ ScoredHypothesis scored(const Hypothesis& h, double mean, std::uint32_t n) { ret
 
 ReportPolicyConfig plain() {
   ReportPolicyConfig c;
-  c.refine_points = 0;  // report iRANSAC's hypothesis as it is
-  c.track_reported = false;
+  c.place.refine_points = 0;  // report iRANSAC's hypothesis as it is
+  c.place.track_reported = false;
   return c;
 }
 
@@ -120,10 +120,8 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
     EXPECT_EQ(e.localized, i + 1 == stable) << "scan " << i;
   }
   // Too few data-points (N below min_scored): not confident (relative
-  // support, which asks for fewer, off: its own test is below).
-  ReportPolicyConfig absolute = plain();
-  absolute.confidence.relative_support = false;
-  ReportPolicy young(absolute, kPreference);
+  // support, which asks for fewer, needs a rival to lead: its own test is below).
+  ReportPolicy young(plain(), kPreference);
   for (std::size_t i = 0; i < stable + 2; ++i) EXPECT_FALSE(step(young, {scored(place, 0.6, 400)}, sample).localized);
   // A rival elsewhere within min_margin of C/N: not confident.
   ReportPolicy rivalled(plain(), kPreference);
@@ -136,11 +134,11 @@ TEST(ReportPolicy, ConfidentOnlyAfterStableStrongUnrivalledSupport) {
 
 TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
   // iRANSAC drops a rival for a few scans and proposes it again: the rise
-  // reads the lead over its C/N when last seen for rival_memory_scans scans.
+  // reads the lead over its C/N when last seen for stable_scans scans.
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
-  const auto replay = [&](std::uint32_t memory, double rival_whole_map_score) {
+  const auto replay = [&](std::size_t memory, double rival_whole_map_score) {
     ReportPolicyConfig config = plain();
-    config.confidence.rival_memory_scans = memory;
+    config.confidence.stable_scans = memory;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     double rival_score = 0.5;  // as the place while iRANSAC holds the rival
@@ -163,8 +161,9 @@ TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
     EXPECT_NEAR(remembered[i].rise_margin, i < 5 ? 0.1 : 0.6, 1e-9) << "scan " << i;
     EXPECT_EQ(remembered[i].localized, i >= 5) << "scan " << i;
   }
-  // Without memory it rises the scan the rival vanishes.
-  EXPECT_TRUE(replay(0, 0.5).front().localized);
+  // With stable_scans 2 it stands 2 scans.
+  const std::vector<LocalizationEstimate> brief = replay(2, 0.5);
+  for (std::size_t i = 0; i < brief.size(); ++i) EXPECT_EQ(brief[i].localized, i >= 2) << "scan " << i;
   // A weaker rival that iRANSAC holds once the first is dropped does not
   // stand for it: the dropped one still does, for its rival_memory_scans.
   {
@@ -188,7 +187,7 @@ TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
     EXPECT_NEAR(e.rise_margin, 0.4, 1e-9);
     EXPECT_TRUE(e.localized);
   }
-  // A whole-map lead over the remembered rival of rise_margin_whole_map_lead
+  // A whole-map lead over the remembered rival of min_whole_map_lead
   // (0.3 >= 0.25 on the same points) passes the margin test at once.
   const std::vector<LocalizationEstimate> beaten = replay(5, 0.2);
   EXPECT_TRUE(beaten.front().localized);
@@ -221,7 +220,7 @@ TEST(ReportPolicy, ARivalThatMergesAsThePlacesMirrorImageStandsUntilTheyPart) {
     return out;
   };
   const std::vector<LocalizationEstimate> mirrored = replay(90.0);
-  const std::uint32_t memory = plain().confidence.rival_memory_scans;
+  const std::size_t memory = plain().confidence.stable_scans;
   for (std::size_t i = 0; i < mirrored.size(); ++i) {
     EXPECT_NEAR(mirrored[i].margin, 0.6, 1e-9) << "scan " << i << ": iRANSAC holds no rival by position";
     // The mirror stands while merged, then ages like any remembered rival.
@@ -241,7 +240,7 @@ TEST(ReportPolicy, AMarginOverARivalScoredOnFewPointsNeedsTheWholeMapLeadToo) {
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   const auto replay = [&](double rival_whole_map_score, std::uint32_t rival_n) {
     ReportPolicyConfig config = plain();
-    ASSERT_EQ(config.confidence.rise_rival_min_scored, 250u);
+    ASSERT_EQ(config.confidence.min_scored / 2, 250u);  // a rival scored on fewer is young
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? rival_whole_map_score : 0.5; };
@@ -270,12 +269,12 @@ TEST(ReportPolicy, AMarginOverARivalScoredOnFewPointsNeedsTheWholeMapLeadToo) {
 
 TEST(ReportPolicy, AWholeMapLeadPairedWithALeadOnTheNewestPointsPassesTheMargin) {
   // iRANSAC's margin is 0.1 (< min_margin); on the whole-map points the
-  // place leads the rival by 0.17 (< rise_margin_whole_map_lead alone).
+  // place leads the rival by 0.17 (< min_whole_map_lead alone).
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   const auto replay = [&](double rival_newest_score, double paired_newest_lead, std::uint32_t rival_n = 1000) {
     ReportPolicyConfig config = plain();
-    EXPECT_EQ(config.confidence.rise_paired_whole_map_lead, 0.15);
-    config.confidence.rise_paired_newest_lead = paired_newest_lead;
+    EXPECT_EQ(config.confidence.min_margin, 0.15);  // the paired whole-map lead
+    config.confidence.strong_lead = paired_newest_lead;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? 0.33 : 0.5; };
@@ -300,82 +299,52 @@ TEST(ReportPolicy, AWholeMapLeadPairedWithALeadOnTheNewestPointsPassesTheMargin)
 }
 
 TEST(ReportPolicy, AtALongKeptPlaceANewHypothesisRisesOnlyOnceScoredOnEnoughPoints) {
-  ReportPolicyConfig config = plain();
-  config.confidence.rival_memory_scans = 0;
-  ASSERT_EQ(config.confidence.rise_scored_per_kept_scan, 12.5);
-  ASSERT_EQ(config.confidence.rise_max_scored, 750u);
+  // It must be scored on a quarter of iRANSAC's points per scan (50) for each kept scan, up to 1.5
+  // min_scored (750).
+  const ReportPolicyConfig config = plain();
+  ASSERT_EQ(kPreference.iterations_per_scan, 50u);
+  ASSERT_EQ(config.confidence.min_scored, 500u);
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   FakeSample sample;
   sample.score_of = [](const Hypothesis&) { return 0.5; };
-  ReportPolicy policy(config, kPreference);
-  // 80 scans at the place, its rival within min_margin: no rise.
-  for (std::uint32_t i = 0; i < 80; ++i) {
-    EXPECT_FALSE(step(policy, {scored(place, 0.6, 1000 + 50 * i), scored(rival, 0.5, 1000)}, sample).localized);
-  }
+  const auto after_80_rivalled = [&](const RansacPreference& preference) {
+    auto policy = std::make_unique<ReportPolicy>(config, preference);
+    // 80 scans at the place, its rival within min_margin: no rise.
+    for (std::uint32_t i = 0; i < 80; ++i) {
+      EXPECT_FALSE(step(*policy, {scored(place, 0.6, 1000 + 50 * i), scored(rival, 0.5, 1000)}, sample).localized);
+    }
+    return policy;
+  };
   // Preemption cut the place's hypothesis; a new one there, scored on 550
-  // data-points, leads alone: 550 < min(12.5 * 80, 750), no rise ...
-  LocalizationEstimate e = step(policy, {scored(place, 0.6, 550)}, sample);
-  EXPECT_EQ(e.kept_scans, 80u);
+  // data-points, leads alone once the dropped rival no longer stands
+  // (stable_scans): 550 < min(12.5 * 85, 750), no rise ...
+  auto policy = after_80_rivalled(kPreference);
+  for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) step(*policy, {scored(place, 0.6, 550)}, sample);
+  LocalizationEstimate e = step(*policy, {scored(place, 0.6, 550)}, sample);
+  EXPECT_EQ(e.kept_scans, 85u);
+  EXPECT_FALSE(e.has_rival);
   EXPECT_TRUE(e.supported);
   EXPECT_FALSE(e.localized);
   EXPECT_EQ(names(e), Names{"young_hypothesis"});
   // ... until it has been scored on 750.
-  EXPECT_FALSE(step(policy, {scored(place, 0.6, 749)}, sample).localized);
-  EXPECT_TRUE(step(policy, {scored(place, 0.6, 750)}, sample).localized);
-  // Off (0 per kept scan): the new hypothesis rises at once.
-  config.confidence.rise_scored_per_kept_scan = 0.0;
-  ReportPolicy off(config, kPreference);
-  for (std::uint32_t i = 0; i < 80; ++i)
-    step(off, {scored(place, 0.6, 1000 + 50 * i), scored(rival, 0.5, 1000)}, sample);
-  EXPECT_TRUE(step(off, {scored(place, 0.6, 550)}, sample).localized);
-}
-
-TEST(ReportPolicy, AtALongUnsupportedPlaceTheFlagRisesOnlyOnSupportThatLasts) {
-  // A place held long without support (C/N 0.29, as a look-alike whose own
-  // building is not mapped yet) whose best hypothesis crosses the support
-  // test for fewer scans than rise_supported_scans: the flag stays down.
-  // (A place found fresh rises at once: the test above.) Relative support
-  // off: the look-alike here has no rival, so its whole-map fit is its lead.
-  ReportPolicyConfig config = plain();
-  config.confidence.relative_support = false;
-  const std::size_t run = config.confidence.rise_supported_scans;
-  ASSERT_GE(run, 2u);
-  const Hypothesis place = at(1, 7.0, 2.0, 0.1);
-  FakeSample sample;
-  sample.score_of = [](const Hypothesis&) { return 0.4; };  // the newest points fit the place
-  const auto replay = [&](std::size_t supported_scans) {
-    ReportPolicy policy(config, kPreference);
-    std::vector<bool> flags;
-    for (std::size_t i = 0; i < config.confidence.unsupported_hold_scans + 5; ++i)
-      flags.push_back(step(policy, {scored(place, 0.29, 2500)}, sample).localized);
-    for (std::size_t i = 0; i < supported_scans; ++i) {
-      const LocalizationEstimate e = step(policy, {scored(place, 0.37, 500)}, sample);
-      flags.push_back(e.localized);
-      // Waiting for the run of support: that is the one reason the flag is down.
-      if (i + 1 < run) {
-        EXPECT_EQ(names(e), Names{"support_too_short"});
-      }
-    }
-    for (std::size_t i = 0; i < 5; ++i) flags.push_back(step(policy, {scored(place, 0.33, 700)}, sample).localized);
-    return flags;
-  };
-  const std::vector<bool> brief = replay(run - 1);
-  EXPECT_EQ(std::count(brief.begin(), brief.end(), true), 0);
-  // Support for rise_supported_scans scans in a row: up on the last of them,
-  // and held after it while the place is kept.
-  const std::vector<bool> lasting = replay(run);
-  const std::size_t first = config.confidence.unsupported_hold_scans + 5 + run - 1;
-  for (std::size_t i = 0; i < lasting.size(); ++i) EXPECT_EQ(lasting[i], i >= first) << "scan " << i;
+  EXPECT_FALSE(step(*policy, {scored(place, 0.6, 749)}, sample).localized);
+  EXPECT_TRUE(step(*policy, {scored(place, 0.6, 750)}, sample).localized);
+  // Where iRANSAC scores nothing per scan, the new hypothesis rises at once.
+  RansacPreference none = kPreference;
+  none.iterations_per_scan = 0;
+  auto off = after_80_rivalled(none);
+  for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) step(*off, {scored(place, 0.6, 550)}, sample);
+  EXPECT_TRUE(step(*off, {scored(place, 0.6, 550)}, sample).localized);
 }
 
 TEST(ReportPolicy, WeakSupportRaisesTheFlagWhereTheMapScoresEveryPlaceLow) {
   // A thin map: the true place scores C/N 0.25 (under min_mean_score) on
   // 3500 data-points, its rival elsewhere 0.04. Relative support, which
-  // would pass at C/N 0.25 without the newest-evidence cap, off.
+  // would pass at C/N 0.25 without the newest-evidence cap, off (a C/N
+  // margin it can never reach).
   ReportPolicyConfig config = plain();
-  config.confidence.relative_support = false;
+  config.confidence.relative_support_min_margin = 2.0;
   const ConfidenceConfig& cc = config.confidence;
-  ASSERT_TRUE(cc.weak_support);
   ASSERT_LT(0.25, cc.min_mean_score);
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   const std::size_t stable = cc.stable_scans;
@@ -393,38 +362,27 @@ TEST(ReportPolicy, WeakSupportRaisesTheFlagWhereTheMapScoresEveryPlaceLow) {
       out.push_back(step(policy, {scored(place, 0.25, n), scored(rival, 0.04, 3500)}, sample).localized);
     return out;
   };
-  // A whole-map lead of 0.2 (>= weak_support_min_whole_map_lead): up once
+  // A whole-map lead of 0.2 (>= min_margin): up once
   // stable, and held on.
   const std::vector<bool> up = flags(config, 0.3, 0.1, 3500);
   for (std::size_t i = 0; i < up.size(); ++i) EXPECT_EQ(up[i], i + 1 >= stable) << "scan " << i;
-  // A lead of 0.1, N under weak_support_min_scored, or a map that knows
+  // A lead of 0.1 (< min_margin), N under weak_support_min_scored, or a map that knows
   // 30% of the newest points (> weak_support_max_newest_evidence: a
   // look-alike in a well-mapped building): never.
   ASSERT_LT(cc.weak_support_max_newest_evidence, 0.3);
   for (const auto& f : {flags(config, 0.3, 0.2, 3500), flags(config, 0.3, 0.1, cc.weak_support_min_scored - 100),
                         flags(config, 0.3, 0.1, 3500, 0.3)})
     EXPECT_EQ(std::count(f.begin(), f.end(), true), 0);
-  // Off: C/N 0.25 never supports.
-  ReportPolicyConfig off = config;
-  off.confidence.weak_support = false;
-  const std::vector<bool> never = flags(off, 0.3, 0.1, 3500);
-  EXPECT_EQ(std::count(never.begin(), never.end(), true), 0);
 }
 
 TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnContradiction) {
-  ReportPolicyConfig config = plain();
-  config.confidence.rival_memory_scans = 0;  // the held flag's rival does not stand against the later rises
+  const ReportPolicyConfig config = plain();
   const std::size_t stable = config.confidence.stable_scans;
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   FakeSample sample;
   // Stable, strong, unrivalled support but the newest points score nothing
-  // at the place (newest fit 0 < rise_min_newest_fit): without weak support
-  // the flag stays down ...
-  config.confidence.weak_support = false;
-  ReportPolicy silent(config, kPreference);
-  for (std::size_t i = 0; i < stable + 3; ++i) EXPECT_FALSE(step(silent, {scored(place, 0.6, 1000)}, sample).localized);
-  // ... with it, a map silent about the newest points is no evidence against the place.
-  config.confidence.weak_support = true;
+  // at the place (newest fit 0 < min_newest_fit): a map silent about the
+  // newest points is no evidence against the place ...
   ReportPolicy silence_passes(config, kPreference);
   for (std::size_t i = 0; i < stable; ++i) {
     EXPECT_EQ(step(silence_passes, {scored(place, 0.6, 1000)}, sample).localized, i + 1 == stable) << "scan " << i;
@@ -445,7 +403,9 @@ TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnCo
   // With a newest fit of 0.5 it rises ...
   ReportPolicy policy(config, kPreference);
   double newest = 0.5;
-  sample.score_of = [&](const Hypothesis&) { return 0.3; };  // the whole local map fits the place
+  // The whole local map fits the place, not its rival: the rival (kept standing by its memory) is no
+  // look-alike there.
+  sample.score_of = [&](const Hypothesis& h) { return h.submap == rival.submap ? 0.0 : 0.3; };
   sample.newest_score_of = [&](const Hypothesis&) { return newest; };
   LocalizationEstimate e;
   for (std::size_t i = 0; i < stable; ++i) e = step(policy, {scored(place, 0.6, 1000)}, sample);
@@ -507,15 +467,15 @@ TEST(ReportPolicy, TheWholeMapLeadComparesTheReportedPlaceAndItsRivalOnTheSamePo
   sample.score_of = [&](const Hypothesis& h) { return h.submap == place.submap ? 0.5 : 0.2; };
   ReportPolicyConfig config = plain();
   config.confidence.whole_map_points = 500;
-  config.confidence.always_score_whole_map = true;
+  config.always_score_whole_map = true;
   ReportPolicy policy(config, kPreference);
   LocalizationEstimate e = step(policy, {scored(place, 0.6, 1000), scored(rival, 0.4, 1000)}, sample);
   EXPECT_NEAR(e.whole_map_fit, 0.5, 1e-12);
   EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12);
   EXPECT_NEAR(e.margin, 0.2, 1e-12);  // iRANSAC's C/N lead, on whatever points each was scored
   // Without a rival the lead is the reported place's own fit, once the
-  // last rival no longer stands (rival_memory_scans) ...
-  for (std::uint32_t i = 0; i < config.confidence.rival_memory_scans; ++i) {
+  // last rival no longer stands (stable_scans) ...
+  for (std::size_t i = 0; i < config.confidence.stable_scans; ++i) {
     e = step(policy, {scored(place, 0.6, 1000)}, sample);
     EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12) << "scan " << i;
   }
@@ -566,11 +526,10 @@ TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTh
     return e;
   };
   const ConfidenceConfig& cc = plain().confidence;
-  ASSERT_TRUE(cc.relative_support);
   LocalizationEstimate e = flag_after(plain(), 0.3, 1000, 0.0);
   EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12);
   EXPECT_TRUE(e.localized);
-  e = flag_after(plain(), 0.3, 1000, 0.15);  // a lead of 0.15 < relative_support_min_whole_map_lead
+  e = flag_after(plain(), 0.3, 1000, 0.15);  // a lead of 0.15 < min_whole_map_lead
   EXPECT_NEAR(e.whole_map_lead, 0.15, 1e-12);
   EXPECT_FALSE(e.localized);
   // C/N under relative_support_min_mean_score, or N under relative_support_min_scored: no rise on any lead.
@@ -580,21 +539,21 @@ TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTh
   e = flag_after(plain(), 0.3, 1000, 0.0, 0.25);
   EXPECT_NEAR(e.newest_lead, 0.05, 1e-12);
   EXPECT_FALSE(e.localized);
-  // Over a rival scored on 200 points (< rise_rival_min_scored), C/N 0.2: no rise on any lead.
-  ASSERT_GT(cc.rise_rival_min_scored, 200u);
+  // Over a rival scored on 200 points (< min_scored / 2), C/N 0.2: no rise on any lead.
+  ASSERT_GT(cc.min_scored / 2, 200u);
   e = flag_after(plain(), 0.3, 1000, 0.0, std::nullopt, 200, 0.2);
   EXPECT_EQ(e.rival_scored, 200u);
   EXPECT_NEAR(e.rise_margin, 0.1, 1e-9);
   EXPECT_FALSE(e.localized);
-  ReportPolicyConfig off = plain();
-  off.confidence.relative_support = false;
-  EXPECT_FALSE(flag_after(off, 0.3, 1000, 0.0).localized);
+  // A place that does not itself fit the whole local map by min_margin: its lead stands for nothing.
+  e = after_steady_scans(plain(), {scored(place, 0.3, 1000), scored(rival, 0.1, 1000)}, place.submap, 0.1, -0.2);
+  EXPECT_NEAR(e.whole_map_lead, 0.3, 1e-12);
+  EXPECT_NEAR(e.whole_map_fit, 0.1, 1e-12);
+  EXPECT_FALSE(e.localized);
   // With no rival at all (none in iRANSAC, none remembered) there is no lead to stand for support.
   {
-    ReportPolicyConfig alone = plain();
-    alone.confidence.rival_memory_scans = 0;
     const LocalizationEstimate lone =
-        after_steady_scans(alone, {scored(place, 0.3, 1000)}, place.submap, 0.3, 0.0, std::nullopt);
+        after_steady_scans(plain(), {scored(place, 0.3, 1000)}, place.submap, 0.3, 0.0, std::nullopt);
     EXPECT_FALSE(lone.has_rival);
     EXPECT_FALSE(lone.localized);
     EXPECT_TRUE(lone.flag_down_because.weak_support);
@@ -604,8 +563,8 @@ TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTh
 TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
   // A supported place whose C/N leads a rival elsewhere by 0.05 only (under
   // min_margin, 0.15): the flag rises once the place leads the rival by
-  // rise_margin_whole_map_lead (0.2) on the same whole-map points, or by
-  // rise_young_rival_whole_map_lead (0.25) over a rival scored on few points.
+  // min_whole_map_lead (0.2) on the same whole-map points, or by
+  // strong_lead (0.25) over a rival scored on few points.
   const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
   const auto flag_after = [&](const ReportPolicyConfig& config, double rival_score, std::uint32_t rival_n = 1000) {
     const std::vector<ScoredHypothesis> active{scored(place, 0.5, 1000), scored(rival, 0.45, rival_n)};
@@ -615,14 +574,14 @@ TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
     return e;
   };
   const ConfidenceConfig& cc = plain().confidence;
-  ASSERT_EQ(cc.rise_margin_whole_map_lead, 0.2);
+  ASSERT_EQ(cc.min_whole_map_lead, 0.2);
   // Risen on the lead, then held (the hold does not need the comparison).
   EXPECT_TRUE(flag_after(plain(), 0.3).localized);
   LocalizationEstimate e = flag_after(plain(), 0.35);  // a lead of 0.15, compared on every scan
   EXPECT_NEAR(e.whole_map_lead, 0.15, 1e-12);
   EXPECT_FALSE(e.localized);
   // A rival scored on fewer than rise_rival_min_scored: a lead of 0.2 is not enough, 0.25 is.
-  const std::uint32_t young = cc.rise_rival_min_scored - 150;
+  const std::uint32_t young = cc.min_scored / 2 - 150;
   e = flag_after(plain(), 0.3, young);
   EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);
   EXPECT_FALSE(e.localized);
@@ -638,16 +597,13 @@ TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
     EXPECT_TRUE(low.flag_down_because.look_alike);
   }
   ReportPolicyConfig never = plain();
-  never.confidence.rise_margin_whole_map_lead = 3.0;
-  never.confidence.rise_paired_newest_lead = 3.0;  // the newest points here lead as the whole map does
+  never.confidence.min_whole_map_lead = 3.0;
+  never.confidence.strong_lead = 3.0;  // the newest points here lead as the whole map does
   EXPECT_FALSE(flag_after(never, 0.2).localized);
 }
 
 TEST(ReportPolicy, TheEstimateSaysWhichPartsOfTheTestKeepTheFlagDown) {
-  ReportPolicyConfig config = plain();
-  config.confidence.relative_support = false;  // the absolute support test alone
-  config.confidence.weak_support = false;
-  config.confidence.rival_memory_scans = 0;
+  const ReportPolicyConfig config = plain();
   const std::size_t stable = config.confidence.stable_scans;
   const Hypothesis place = at(2, 10.0, 5.0, 0.3), rival = at(0, 3.0);
   FakeSample sample;
@@ -692,7 +648,7 @@ TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {
   // Weights on the bias, C/N and the newest-scan fit only: the value is
   // 1 / (1 + exp(-(w0 + w1 C/N + w8 newest_fit))).
   ReportPolicyConfig config = plain();
-  config.confidence.value_weights = {-2.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0, 0.0};
+  config.value_weights = {-2.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0, 0.0};
   ReportPolicy policy(config, kPreference);
   FakeSample sample;
   sample.score_of = [](const Hypothesis&) { return -0.25; };
@@ -708,8 +664,8 @@ TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {
   // While the flag is up the value takes the flagged weights.
   {
     ReportPolicyConfig up = plain();
-    up.confidence.value_weights.fill(0.0);
-    up.confidence.flagged_value_weights = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0};
+    up.value_weights.fill(0.0);
+    up.flagged_value_weights = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0};
     up.confidence.flag_threshold = 0.5;
     ReportPolicy policy(up, kPreference);
     FakeSample fits;
@@ -721,8 +677,8 @@ TEST(ReportPolicy, ConfidenceValueIsTheLogisticModelOfTheReportsEvidence) {
   }
   // The compiled-in weights are src/localization/confidence_value.json's, over the features report() computes.
   EXPECT_STREQ(value_feature_names()[3], "log1p:scored");
-  EXPECT_EQ(ConfidenceConfig{}.value_weights, default_value_weights(false));
-  EXPECT_EQ(ConfidenceConfig{}.flagged_value_weights, default_value_weights(true));
+  EXPECT_EQ(ReportPolicyConfig{}.value_weights, default_value_weights(false));
+  EXPECT_EQ(ReportPolicyConfig{}.flagged_value_weights, default_value_weights(true));
   EXPECT_NE(default_value_weights(false), default_value_weights(true));
   // The default weights: strong, stable, unrivalled support that the newest
   // scans confirm is worth more than the same support with the newest scans
@@ -747,8 +703,8 @@ TEST(ReportPolicy, TheFlagIsTheValueAtOrAboveTheFlagThreshold) {
   // (bias -20) in the other; the flag alone decides the side of the threshold.
   for (const double bias : {20.0, -20.0}) {
     ReportPolicyConfig config = plain();
-    config.confidence.value_weights = {bias, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    config.confidence.flagged_value_weights = config.confidence.value_weights;
+    config.value_weights = {bias, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    config.flagged_value_weights = config.value_weights;
     config.confidence.flag_threshold = 0.9;
     ReportPolicy policy(config, kPreference);
     FakeSample fits, breaks;
@@ -819,8 +775,8 @@ TEST(ReportPolicy, AWellSupportedPlaceYieldsToAnUnsupportedChallengerOnlyOnALarg
       FakeSample sample;
       sample.score_of = [&](const Hypothesis& h) { return h.submap == 1 ? 0.2 + lead : 0.2; };
       ReportPolicyConfig config = plain();
-      config.confidence.challenger_needs_support = rule;
-      ASSERT_EQ(config.confidence.unsupported_challenger_margin, 0.1);
+      config.place.challenger_needs_support = rule;
+      ASSERT_EQ(config.place.unsupported_challenger_margin, 0.1);
       ReportPolicy policy(config, kPreference);
       step(policy, {scored(a, 0.5, 1000)}, sample);  // a is well supported
       const LocalizationEstimate e = step(policy, {scored(b, 0.9, 100)}, sample);
@@ -837,7 +793,7 @@ TEST(ReportPolicy, AOnceSupportedPlaceWhoseMapIsSilentYieldsOnlyToALargeRecentLe
   const Hypothesis a = at(0, 0.0), b = at(1, 0.0);
   const auto moves = [&](double recent, double silent_margin) {
     ReportPolicyConfig config = plain();
-    config.confidence.duel_recent_silent_margin = silent_margin;
+    config.place.duel_recent_silent_margin = silent_margin;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     sample.score_of = [](const Hypothesis&) { return 0.3; };
@@ -845,7 +801,7 @@ TEST(ReportPolicy, AOnceSupportedPlaceWhoseMapIsSilentYieldsOnlyToALargeRecentLe
     step(policy, {scored(a, 0.5, 1000)}, sample);
     return step(policy, {scored(b, 0.5, 1000)}, sample).submap == 1;
   };
-  ASSERT_EQ(plain().confidence.duel_recent_silent_margin, 0.4);
+  ASSERT_EQ(plain().place.duel_recent_silent_margin, 0.4);
   EXPECT_TRUE(moves(0.45, 0.4));
   // A lead over duel_recent_margin but under the silent margin: a's silence is no evidence against it.
   EXPECT_FALSE(moves(0.3, 0.4));
@@ -862,7 +818,7 @@ TEST(ReportPolicy, APlaceNeverSupportedIsChallengedByTheRivalPlaceThatFitsTheWho
                                              scored(c_near, 0.27, 200)};
   for (const std::size_t rivals : {std::size_t{3}, std::size_t{0}}) {
     ReportPolicyConfig config = plain();
-    config.confidence.young_place_rivals = rivals;
+    config.place.young_place_rivals = rivals;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     step(policy, {scored(a, 0.30, 200)}, sample);
@@ -878,7 +834,7 @@ TEST(ReportPolicy, APlaceNeverSupportedIsChallengedByTheRivalPlaceThatFitsTheWho
   // Only one rival place allowed: b, whose fit is no better than a's, loses.
   {
     ReportPolicyConfig config = plain();
-    config.confidence.young_place_rivals = 1;
+    config.place.young_place_rivals = 1;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     step(policy, {scored(a, 0.30, 200)}, sample);
@@ -889,7 +845,7 @@ TEST(ReportPolicy, APlaceNeverSupportedIsChallengedByTheRivalPlaceThatFitsTheWho
   // A place kept young_place_scans scans is no longer young: the hysteresis holds it.
   {
     ReportPolicyConfig config = plain();
-    config.confidence.young_place_scans = 2;
+    config.place.young_place_scans = 2;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     for (int i = 0; i < 3; ++i) step(policy, {scored(a, 0.30, 200)}, sample);
@@ -923,8 +879,8 @@ TEST(ReportPolicy, AYoungPlacesRivalThatLosesAsProposedIsRefinedAndMustThenLeadC
   };
   const auto run = [&](const Case& k) {
     ReportPolicyConfig config = plain();
-    config.refine_points = 400;
-    config.confidence.young_refined_margin = k.refined_margin;
+    config.place.refine_points = 400;
+    config.place.young_refined_margin = k.refined_margin;
     ReportPolicy policy(config, kPreference);
     FakeSample sample;
     sample.score_of = [&](const Hypothesis& h) {
@@ -952,7 +908,7 @@ TEST(ReportPolicy, AYoungPlacesRivalThatLosesAsProposedIsRefinedAndMustThenLeadC
 
 TEST(ReportPolicy, TrackingChildrenSurroundTheReportAtTheRobot) {
   ReportPolicyConfig config = plain();
-  config.track_reported = true;
+  config.place.track_reported = true;
   ReportPolicy policy(config, kPreference);
   FakeSample sample;
   const Hypothesis a = at(3, 4.0, -2.0, 0.5);
@@ -974,7 +930,7 @@ TEST(ReportPolicy, TrackingChildrenSurroundTheReportAtTheRobot) {
 
 TEST(ReportPolicy, RefinementMovesTheReportTowardsWhatTheSampleFits) {
   ReportPolicyConfig config = plain();
-  config.refine_points = 400;
+  config.place.refine_points = 400;
   ReportPolicy policy(config, kPreference);
   FakeSample sample;
   // The sample fits best with the robot 0.15 m further along x than iRANSAC's hypothesis.

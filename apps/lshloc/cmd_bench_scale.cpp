@@ -139,7 +139,7 @@ nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) 
   ScenarioRunConfig config = make_run_config(opt.localizer);
   // Traces carry the whole-map comparison on every scan, as eval's do: it
   // draws nothing at random, so the estimates stay those of a run without it.
-  if (!opt.trace_dir.empty()) config.localizer.report.confidence.always_score_whole_map = true;
+  if (!opt.trace_dir.empty()) config.localizer.trace_evidence = true;
   const std::size_t per_map = std::min(opt.targets, submaps);
   const std::size_t maps = (opt.targets + per_map - 1) / per_map;
   MapTotals totals;

@@ -99,8 +99,7 @@ nlohmann::json run_sharded(const ShardsOptions& opt, std::size_t k, bool tty) {
     wall_s += seconds_since(t1);
     for (const auto& r : runs) cpu_s += r.localize_cpu_s;
     const auto t2 = std::chrono::steady_clock::now();
-    const std::vector<ScanEstimate> merged =
-        merge_reports(runs, global_ids, config.localizer.report.confidence.min_margin);
+    const std::vector<ScanEstimate> merged = merge_reports(runs, global_ids, config.localizer.report.min_margin);
     merge_s += seconds_since(t2);
     scans += static_cast<double>(target.scans.size());
     const std::size_t target_global = static_cast<std::size_t>(&target - targets.data());

@@ -209,7 +209,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   ScenarioRunConfig run_config = make_run_config(opt.localizer);
   // The trace's whole-map comparison on every scan: it scores a fixed spread
   // of the data-points (no random draw), so the estimates stay those of a run without it.
-  if (!opt.trace.empty()) run_config.localizer.report.confidence.always_score_whole_map = true;
+  if (!opt.trace.empty()) run_config.localizer.trace_evidence = true;
   const bool tty = isatty(fileno(stderr));
   // With --trace: where the true hypothesis stands among the active ones.
   std::vector<TruthRank> ranks;

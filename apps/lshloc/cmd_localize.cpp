@@ -300,13 +300,6 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
                       e.scored, c.min_scored);
     reason("few_points", {{"scored", e.scored}});
   }
-  if (why.support_too_short) {
-    io::append_format(text,
-                      "the place has been supported only on the last few scans (after a long stretch without "
-                      "support the test wants %zu scans in a row)",
-                      c.rise_supported_scans);
-    reason("support_too_short");
-  }
   if (why.look_alike && e.has_rival) {
     std::string where;
     if (e.rival_submap == e.submap)
@@ -336,24 +329,25 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
                       "the newest scans do not fit the map there: mean score %.2f on the newest points (the test "
                       "wants %.2f; the local map may have broken in a fast turn, or the robot sees what the map "
                       "lacks)",
-                      e.newest_fit, c.rise_min_newest_fit);
+                      e.newest_fit, c.min_newest_fit);
     reason("newest_misfit", {{"newest_fit", e.newest_fit}});
   }
   if (why.young_hypothesis) {
     io::append_format(text,
                       "a new hypothesis at a place kept %u scans is checked on %u points so far (it rises once "
-                      "checked on %.1f per kept scan, up to %u)",
-                      e.kept_scans, e.scored, c.rise_scored_per_kept_scan, c.rise_max_scored);
+                      "checked on a quarter of iRANSAC's points per scan for each kept scan, up to %.0f)",
+                      e.kept_scans, e.scored, 1.5 * c.min_scored);
     reason("young_hypothesis", {{"scored", e.scored}, {"kept_scans", e.kept_scans}});
   }
   if (why.contradicted) {
     // The hold's penalty is the newest points' mean max(-score, 0).
     const double penalty = 0.5 * (e.newest_evidence - e.newest_fit);
     io::append_format(text,
-                      "the flag was up and dropped: the map contradicts the newest scans there (penalty %.2f on the "
-                      "newest points; the hold allows %.2f on one scan, %.2f on average)",
-                      penalty, c.hold_max_contradiction, c.hold_max_mean_contradiction);
-    reason("contradicted", {{"penalty", penalty}});
+                      "the flag was up and dropped: the map contradicts the place (penalty %.2f on the newest "
+                      "points, the hold allows %.2f on one scan and %.2f on average; whole-map fit %.2f, the hold "
+                      "wants it >= 0)",
+                      penalty, c.hold_max_contradiction, c.hold_max_mean_contradiction, e.whole_map_fit);
+    reason("contradicted", {{"penalty", penalty}, {"whole_map_fit", e.whole_map_fit}});
   }
   return reasons;
 }
@@ -454,7 +448,7 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                  map.submap_name(last.submap).c_str(), last.pose.x, last.pose.y, degrees(last.pose.theta));
   else
     std::fprintf(stderr, "Not localized after %zu scans\n", done);
-  for (const auto& r : not_confident_reasons(last, config.report.confidence, map))
+  for (const auto& r : not_confident_reasons(last, config.report, map))
     std::fprintf(stderr, "  not confident because %s\n", r["text"].get<std::string>().c_str());
   return last.localized;
 }
@@ -811,8 +805,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       runs[k].map_build_s = map_s;
       if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
       if (!opt->plot_dir.empty())
-        write_plots(opt->plot_dir, paths[k], *map, sources, runs[k], config.localizer.report.confidence.flag_threshold);
-      nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s, config.localizer.report.confidence);
+        write_plots(opt->plot_dir, paths[k], *map, sources, runs[k], config.localizer.report.flag_threshold);
+      nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s, config.localizer.report);
       j["stamp_clash_tolerance_s"] = config.localizer.stamp_clash.tolerance_s;
       if (follower) {
         j["map_log"] = fleet_map_json(fleet_map, *map);

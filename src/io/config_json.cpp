@@ -95,29 +95,23 @@ LSHLOC_JSON_FIELDS(PoseGraphSlamConfig, matcher, graph, correlative, refinement,
 LSHLOC_JSON_FIELDS(GlobalMapConfig, features, database, occupancy, free_space, endpoint_spacing, free_ray_stride,
                    free_ray_margin, free_ray_max_range, free_ray_no_return_range, context_scans, context_spacing,
                    recent_keys)
-LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, rival_memory_scans, rival_twin_turn_deg,
-                   rise_rival_min_scored, rise_scored_per_kept_scan, rise_max_scored, stable_scans,
-                   rise_supported_scans, unsupported_hold_scans, switch_margin, duel_points, duel_margin, duel_z,
+LSHLOC_JSON_FIELDS(PlaceConfig, same_place_m, same_place_deg, switch_margin, duel_points, duel_margin, duel_z,
                    duel_recent_margin, duel_recent_min_evidence, duel_recent_silent_margin, challenger_needs_support,
                    unsupported_challenger_margin, young_place_rivals, young_place_scans, young_refined_margin,
-                   same_place_m, same_place_deg, newest_points, rise_min_newest_fit, hold_max_contradiction,
-                   hold_max_mean_contradiction, contradiction_smoothing, rise_margin_whole_map_lead,
-                   rise_young_rival_whole_map_lead, rise_paired_whole_map_lead, rise_paired_newest_lead,
-                   whole_map_points, weak_support, weak_support_min_scored, weak_support_min_mean_score,
-                   weak_support_min_margin, weak_support_min_whole_map_lead, weak_support_max_newest_evidence,
-                   silent_newest_evidence, relative_support, relative_support_min_scored,
-                   relative_support_min_mean_score, relative_support_min_margin, relative_support_min_whole_map_lead,
-                   relative_support_min_newest_lead, always_score_whole_map, value_weights, flagged_value_weights,
-                   flag_threshold)
-LSHLOC_JSON_FIELDS(ReportPolicyConfig, confidence, track_reported, track_step_m, track_step_deg, refine_points,
-                   refine_window, refine_rounds, refine_step_m, refine_step_deg, refine_min_gain)
+                   track_reported, track_step_m, track_step_deg, refine_points, refine_window, refine_rounds,
+                   refine_step_m, refine_step_deg, refine_min_gain)
+LSHLOC_JSON_FIELDS(ConfidenceConfig, min_scored, min_mean_score, min_margin, min_whole_map_lead, strong_lead,
+                   stable_scans, rival_twin_turn_deg, newest_points, min_newest_fit, silent_newest_evidence,
+                   hold_max_contradiction, hold_max_mean_contradiction, contradiction_smoothing, whole_map_points,
+                   weak_support_min_scored, weak_support_max_newest_evidence, relative_support_min_scored,
+                   relative_support_min_mean_score, relative_support_min_margin, flag_threshold)
 LSHLOC_JSON_FIELDS(StampClashConfig, enabled, tolerance_s, max_position_m, max_heading_rad, window_scans)
 LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_per_feature, free_space_penalty,
                    return_support, contested_penalty, context_scans, context_spacing, data_point_spacing,
                    free_points_per_surface_point, free_point_fraction, free_point_margin, hypothesis_source,
                    newly_mapped_candidates, newly_mapped_per_scan, newly_mapped_touched, newly_mapped_share,
                    newly_mapped_scan_window, newly_mapped_points, newly_mapped_halvings, newly_mapped_reach_scans,
-                   seen_features_kept, report, stamp_clash, seed)
+                   seen_features_kept, place, report, trace_evidence, stamp_clash, seed)
 
 }  // namespace lshloc
 
@@ -132,9 +126,7 @@ std::string type_name(const nlohmann::json& j) {
   if (j.is_boolean()) return "true or false";
   if (j.is_string()) return "a string";
   if (j.is_object()) return "an object";
-  // A setting's array has a fixed length (the value's weights): say it, and what its elements are.
-  if (j.is_array())
-    return "an array of " + std::to_string(j.size()) + (j.empty() ? std::string() : " (each " + type_name(j[0]) + ")");
+  if (j.is_array()) return "an array";
   return "null";
 }
 
@@ -142,12 +134,6 @@ bool fits(const nlohmann::json& given, const nlohmann::json& wanted) {
   if (wanted.is_number_unsigned()) return given.is_number_unsigned();
   if (wanted.is_number_integer()) return given.is_number_integer();
   if (wanted.is_number_float()) return given.is_number();
-  if (wanted.is_array()) {
-    if (!given.is_array() || given.size() != wanted.size()) return false;
-    for (std::size_t i = 0; i < given.size(); ++i)
-      if (!fits(given[i], wanted[i])) return false;
-    return true;
-  }
   return given.type() == wanted.type();
 }
 

@@ -88,6 +88,7 @@ void LocalizerConfig::validate() const {
   scan_matcher.validate();
   features.validate();
   ransac.validate();
+  place.validate();
   report.validate();
   stamp_clash.validate();
   require(candidates_per_feature >= 1, "LocalizerConfig.candidates_per_feature", ">= 1", candidates_per_feature);
@@ -148,9 +149,11 @@ Localizer::Localizer(const GlobalMap& map, LocalizerConfig config)
       ransac_(config_.ransac),
       query_(map.database()),
       scorer_(map.occupancy(), map.free_space(), scorer_config()),
-      policy_(config_.report, {.preference_z = config_.ransac.preference_z,
-                               .min_score = config_.ransac.min_score,
-                               .recent_window = config_.ransac.recent_window}),
+      policy_({.place = config_.place, .confidence = config_.report, .always_score_whole_map = config_.trace_evidence},
+              {.preference_z = config_.ransac.preference_z,
+               .min_score = config_.ransac.min_score,
+               .recent_window = config_.ransac.recent_window,
+               .iterations_per_scan = config_.ransac.iterations_per_scan}),
       stamp_clash_(config_.stamp_clash),
       context_(config_.context_scans, config_.context_spacing),
       rng_(config_.seed),

@@ -38,6 +38,19 @@ static_assert(
     }(),
     "confidence_value.json: its features are not the ones report() computes, in that order");
 
+// The failed tests, as the operator reads them: support split into its two parts.
+FlagDownReasons reasons_of(const FlagTests& t, const LocalizationEstimate& e, const ConfidenceConfig& cc, bool was_up) {
+  FlagDownReasons why;
+  why.unstable = !t.stable;
+  why.weak_support = !t.supported && e.mean_score < cc.min_mean_score;
+  why.few_points = !t.supported && !why.weak_support;
+  why.look_alike = !t.unrivalled;
+  why.newest_misfit = !t.newest_fits;
+  why.young_hypothesis = t.stable && t.supported && t.newest_fits && t.unrivalled && !t.seasoned;
+  why.contradicted = was_up && t.kept && !t.not_contradicted;
+  return why;
+}
+
 }  // namespace
 
 std::array<double, kValueFeatures> default_value_weights(bool flag_up) {
@@ -68,85 +81,72 @@ std::array<Hypothesis, 6> moves_about_robot(const Hypothesis& h, const Pose2& P,
   return out;
 }
 
-void ReportPolicyConfig::validate() const {
-  require(confidence.stable_scans >= 1, "ReportPolicyConfig.confidence.stable_scans", ">= 1", confidence.stable_scans);
-  require(confidence.rise_supported_scans >= 1, "ReportPolicyConfig.confidence.rise_supported_scans", ">= 1",
-          confidence.rise_supported_scans);
-  // Counts of points scored per scan or per duel, and refinement rounds: beyond these caps a run only
-  // exhausts memory or time (each point costs a score, a few ns, per round).
-  require(confidence.newest_points <= 1000000, "ReportPolicyConfig.confidence.newest_points", "<= 1e6",
-          confidence.newest_points);
-  require(confidence.duel_points <= 1000000, "ReportPolicyConfig.confidence.duel_points", "<= 1e6",
-          confidence.duel_points);
-  require(confidence.whole_map_points <= 1000000, "ReportPolicyConfig.confidence.whole_map_points", "<= 1e6",
-          confidence.whole_map_points);
-  require(refine_points <= 1000000, "ReportPolicyConfig.refine_points", "<= 1e6", refine_points);
-  require(refine_window <= 100000000, "ReportPolicyConfig.refine_window", "<= 1e8", refine_window);
-  require(refine_rounds <= 1000, "ReportPolicyConfig.refine_rounds", "<= 1000", refine_rounds);
-  require(confidence.unsupported_challenger_margin >= 0.0 && std::isfinite(confidence.unsupported_challenger_margin),
-          "ReportPolicyConfig.confidence.unsupported_challenger_margin", ">= 0 and finite",
-          confidence.unsupported_challenger_margin);
-  require(confidence.rival_twin_turn_deg >= 0.0 && std::isfinite(confidence.rival_twin_turn_deg),
-          "ReportPolicyConfig.confidence.rival_twin_turn_deg", ">= 0 and finite", confidence.rival_twin_turn_deg);
-  require(confidence.rise_scored_per_kept_scan >= 0.0 && std::isfinite(confidence.rise_scored_per_kept_scan),
-          "ReportPolicyConfig.confidence.rise_scored_per_kept_scan", ">= 0 and finite",
-          confidence.rise_scored_per_kept_scan);
-  require(confidence.young_refined_margin >= 0.0 && std::isfinite(confidence.young_refined_margin),
-          "ReportPolicyConfig.confidence.young_refined_margin", ">= 0 and finite", confidence.young_refined_margin);
-  require(confidence.young_place_rivals <= 64, "ReportPolicyConfig.confidence.young_place_rivals", "<= 64",
-          confidence.young_place_rivals);
-  require(std::isfinite(confidence.rise_margin_whole_map_lead),
-          "ReportPolicyConfig.confidence.rise_margin_whole_map_lead", "a finite number",
-          confidence.rise_margin_whole_map_lead);
-  require(std::isfinite(confidence.rise_paired_whole_map_lead),
-          "ReportPolicyConfig.confidence.rise_paired_whole_map_lead", "a finite number",
-          confidence.rise_paired_whole_map_lead);
-  require(std::isfinite(confidence.rise_paired_newest_lead), "ReportPolicyConfig.confidence.rise_paired_newest_lead",
-          "a finite number", confidence.rise_paired_newest_lead);
-  for (const auto& [name, v] : {std::pair{"min_mean_score", confidence.min_mean_score},
-                                {"min_margin", confidence.min_margin},
-                                {"switch_margin", confidence.switch_margin},
-                                {"duel_margin", confidence.duel_margin},
-                                {"duel_z", confidence.duel_z},
-                                {"duel_recent_margin", confidence.duel_recent_margin},
-                                {"duel_recent_min_evidence", confidence.duel_recent_min_evidence},
-                                {"duel_recent_silent_margin", confidence.duel_recent_silent_margin},
-                                {"rise_min_newest_fit", confidence.rise_min_newest_fit},
-                                {"hold_max_contradiction", confidence.hold_max_contradiction},
-                                {"hold_max_mean_contradiction", confidence.hold_max_mean_contradiction},
-                                {"weak_support_min_mean_score", confidence.weak_support_min_mean_score},
-                                {"weak_support_min_margin", confidence.weak_support_min_margin},
-                                {"weak_support_min_whole_map_lead", confidence.weak_support_min_whole_map_lead},
-                                {"weak_support_max_newest_evidence", confidence.weak_support_max_newest_evidence},
-                                {"silent_newest_evidence", confidence.silent_newest_evidence},
-                                {"rise_young_rival_whole_map_lead", confidence.rise_young_rival_whole_map_lead},
-                                {"relative_support_min_mean_score", confidence.relative_support_min_mean_score},
-                                {"relative_support_min_margin", confidence.relative_support_min_margin},
-                                {"relative_support_min_whole_map_lead", confidence.relative_support_min_whole_map_lead},
-                                {"relative_support_min_newest_lead", confidence.relative_support_min_newest_lead}}) {
-    require(std::isfinite(v), std::string("ReportPolicyConfig.confidence.") + name, "a finite number", v);
+void PlaceConfig::validate() const {
+  // Counts of points scored per duel and refinement rounds: beyond these caps a run only exhausts memory
+  // or time (each point costs a score, a few ns, per round).
+  require(duel_points <= 1000000, "PlaceConfig.duel_points", "<= 1e6", duel_points);
+  require(refine_points <= 1000000, "PlaceConfig.refine_points", "<= 1e6", refine_points);
+  require(refine_window <= 100000000, "PlaceConfig.refine_window", "<= 1e8", refine_window);
+  require(refine_rounds <= 1000, "PlaceConfig.refine_rounds", "<= 1000", refine_rounds);
+  require(young_place_rivals <= 64, "PlaceConfig.young_place_rivals", "<= 64", young_place_rivals);
+  for (const auto& [name, v] : {std::pair{"unsupported_challenger_margin", unsupported_challenger_margin},
+                                {"young_refined_margin", young_refined_margin}}) {
+    require(v >= 0.0 && std::isfinite(v), std::string("PlaceConfig.") + name, ">= 0 and finite", v);
   }
-  require(confidence.contradiction_smoothing > 0.0 && confidence.contradiction_smoothing <= 1.0,
-          "ReportPolicyConfig.confidence.contradiction_smoothing", "in (0, 1]", confidence.contradiction_smoothing);
-  require(confidence.flag_threshold > kUnflaggedValueGap && confidence.flag_threshold <= 1.0,
-          "ReportPolicyConfig.confidence.flag_threshold", "in (0.001, 1]", confidence.flag_threshold);
-  for (double w : confidence.value_weights)
-    require(std::isfinite(w), "ReportPolicyConfig.confidence.value_weights", "finite numbers", w);
-  for (double w : confidence.flagged_value_weights)
-    require(std::isfinite(w), "ReportPolicyConfig.confidence.flagged_value_weights", "finite numbers", w);
+  for (const auto& [name, v] : {std::pair{"switch_margin", switch_margin},
+                                {"duel_margin", duel_margin},
+                                {"duel_z", duel_z},
+                                {"duel_recent_margin", duel_recent_margin},
+                                {"duel_recent_min_evidence", duel_recent_min_evidence},
+                                {"duel_recent_silent_margin", duel_recent_silent_margin},
+                                {"refine_min_gain", refine_min_gain}}) {
+    require(std::isfinite(v), std::string("PlaceConfig.") + name, "a finite number", v);
+  }
   // Tracking and the same-place test move by and compare with these steps: 0 or NaN would never move or match.
-  for (const auto& [name, v] : {std::pair{"confidence.same_place_m", confidence.same_place_m},
-                                {"confidence.same_place_deg", confidence.same_place_deg},
+  for (const auto& [name, v] : {std::pair{"same_place_m", same_place_m},
+                                {"same_place_deg", same_place_deg},
                                 {"track_step_m", track_step_m},
                                 {"track_step_deg", track_step_deg}}) {
-    require(v > 0.0 && std::isfinite(v), std::string("ReportPolicyConfig.") + name, "> 0 and finite", v);
+    require(v > 0.0 && std::isfinite(v), std::string("PlaceConfig.") + name, "> 0 and finite", v);
   }
-  require(std::isfinite(refine_min_gain), "ReportPolicyConfig.refine_min_gain", "a finite number", refine_min_gain);
   if (refine_points == 0) return;
-  require(refine_step_m > 0.0 && std::isfinite(refine_step_m), "ReportPolicyConfig.refine_step_m",
+  require(refine_step_m > 0.0 && std::isfinite(refine_step_m), "PlaceConfig.refine_step_m",
           "> 0 m and finite when refine_points > 0", refine_step_m);
-  require(refine_step_deg > 0.0 && std::isfinite(refine_step_deg), "ReportPolicyConfig.refine_step_deg",
+  require(refine_step_deg > 0.0 && std::isfinite(refine_step_deg), "PlaceConfig.refine_step_deg",
           "> 0 deg and finite when refine_points > 0", refine_step_deg);
+}
+
+void ConfidenceConfig::validate() const {
+  require(stable_scans >= 1, "ConfidenceConfig.stable_scans", ">= 1", stable_scans);
+  require(newest_points <= 1000000, "ConfidenceConfig.newest_points", "<= 1e6", newest_points);
+  require(whole_map_points <= 1000000, "ConfidenceConfig.whole_map_points", "<= 1e6", whole_map_points);
+  require(rival_twin_turn_deg >= 0.0 && std::isfinite(rival_twin_turn_deg), "ConfidenceConfig.rival_twin_turn_deg",
+          ">= 0 and finite", rival_twin_turn_deg);
+  for (const auto& [name, v] : {std::pair{"min_mean_score", min_mean_score},
+                                {"min_margin", min_margin},
+                                {"min_whole_map_lead", min_whole_map_lead},
+                                {"strong_lead", strong_lead},
+                                {"min_newest_fit", min_newest_fit},
+                                {"silent_newest_evidence", silent_newest_evidence},
+                                {"hold_max_contradiction", hold_max_contradiction},
+                                {"hold_max_mean_contradiction", hold_max_mean_contradiction},
+                                {"weak_support_max_newest_evidence", weak_support_max_newest_evidence},
+                                {"relative_support_min_mean_score", relative_support_min_mean_score},
+                                {"relative_support_min_margin", relative_support_min_margin}}) {
+    require(std::isfinite(v), std::string("ConfidenceConfig.") + name, "a finite number", v);
+  }
+  require(contradiction_smoothing > 0.0 && contradiction_smoothing <= 1.0, "ConfidenceConfig.contradiction_smoothing",
+          "in (0, 1]", contradiction_smoothing);
+  require(flag_threshold > kUnflaggedValueGap && flag_threshold <= 1.0, "ConfidenceConfig.flag_threshold",
+          "in (0.001, 1]", flag_threshold);
+}
+
+void ReportPolicyConfig::validate() const {
+  place.validate();
+  confidence.validate();
+  for (double w : value_weights) require(std::isfinite(w), "ReportPolicyConfig.value_weights", "finite numbers", w);
+  for (double w : flagged_value_weights)
+    require(std::isfinite(w), "ReportPolicyConfig.flagged_value_weights", "finite numbers", w);
 }
 
 ReportPolicy::ReportPolicy(ReportPolicyConfig config, RansacPreference ransac)
@@ -154,13 +154,9 @@ ReportPolicy::ReportPolicy(ReportPolicyConfig config, RansacPreference ransac)
 
 std::vector<const char*> FlagDownReasons::names() const {
   std::vector<const char*> out;
-  const std::pair<bool, const char*> all[] = {{unstable, "unstable"},
-                                              {weak_support, "weak_support"},
-                                              {few_points, "few_points"},
-                                              {support_too_short, "support_too_short"},
-                                              {look_alike, "look_alike"},
-                                              {newest_misfit, "newest_misfit"},
-                                              {young_hypothesis, "young_hypothesis"},
+  const std::pair<bool, const char*> all[] = {{unstable, "unstable"},           {weak_support, "weak_support"},
+                                              {few_points, "few_points"},       {look_alike, "look_alike"},
+                                              {newest_misfit, "newest_misfit"}, {young_hypothesis, "young_hypothesis"},
                                               {contradicted, "contradicted"}};
   for (const auto& [set, name] : all)
     if (set) out.push_back(name);
@@ -180,16 +176,17 @@ bool ReportPolicy::supported(const ScoredHypothesis& h) const {
 }
 
 std::span<const Hypothesis> ReportPolicy::tracking_children(const Pose2& local_pose) {
-  if (!config_.track_reported || !reported_) return {};
-  children_ = moves_about_robot(*reported_, local_pose, config_.track_step_m, radians(config_.track_step_deg));
+  if (!config_.place.track_reported || !reported_) return {};
+  children_ =
+      moves_about_robot(*reported_, local_pose, config_.place.track_step_m, radians(config_.place.track_step_deg));
   return children_;
 }
 
 std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredHypothesis> best,
                                                            std::span<const ScoredHypothesis> active,
                                                            const Pose2& local_pose, SampleScorer& sample) {
-  const ConfidenceConfig& cc = config_.confidence;
-  const double same_angle = radians(cc.same_place_deg);
+  const PlaceConfig& pc = config_.place;
+  const double same_angle = radians(pc.same_place_deg);
   const double z = ransac_.preference_z;
   if (!best || !reported_) return best;
   // Hysteresis: keep reporting the place of the last estimate while its best
@@ -198,13 +195,13 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
   const RobotPlace reported_place(*reported_, local_pose);
   for (const ScoredHypothesis& h : active) {
     if (h.score_sum < ransac_.min_score || h.scored == 0) continue;
-    if (!same_place(h.hypothesis, reported_place, local_pose, cc.same_place_m, same_angle)) continue;
+    if (!same_place(h.hypothesis, reported_place, local_pose, pc.same_place_m, same_angle)) continue;
     if (incumbent == nullptr || h.preference(z) > incumbent->preference(z)) incumbent = &h;
   }
   if (incumbent != nullptr) anchor_ = incumbent->hypothesis;
   // A place never supported is challenged by the leading rival places, past the hysteresis.
   const bool young =
-      !reported_supported_ && kept_scans_ < cc.young_place_scans && cc.young_place_rivals > 0 && cc.duel_points > 0;
+      !reported_supported_ && kept_scans_ < pc.young_place_scans && pc.young_place_rivals > 0 && pc.duel_points > 0;
   if (young) {
     // The most preferred hypothesis of each of the young_place_rivals most preferred other places.
     ranked_.clear();
@@ -216,11 +213,11 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
     });
     rivals_.clear();
     for (const ScoredHypothesis* h : ranked_) {
-      if (rivals_.size() == cc.young_place_rivals) break;
-      if (same_place(h->hypothesis, reported_place, local_pose, cc.same_place_m, same_angle)) continue;
+      if (rivals_.size() == pc.young_place_rivals) break;
+      if (same_place(h->hypothesis, reported_place, local_pose, pc.same_place_m, same_angle)) continue;
       const RobotPlace place(h->hypothesis, local_pose);
       const bool taken = std::any_of(rivals_.begin(), rivals_.end(), [&](const ScoredHypothesis* r) {
-        return same_place(r->hypothesis, place, local_pose, cc.same_place_m, same_angle);
+        return same_place(r->hypothesis, place, local_pose, pc.same_place_m, same_angle);
       });
       if (!taken) rivals_.push_back(h);
     }
@@ -230,51 +227,51 @@ std::optional<ScoredHypothesis> ReportPolicy::hold_or_move(std::optional<ScoredH
     if (rivals_.size() > 1) {
       rival_hypotheses_.clear();
       for (const ScoredHypothesis* r : rivals_) rival_hypotheses_.push_back(r->hypothesis);
-      if (sample.draw(0, cc.duel_points) > 0) {
+      if (sample.draw(0, pc.duel_points) > 0) {
         sample.score(rival_hypotheses_, sums_);
         chosen = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());
       }
     }
     best = *rivals_[chosen];
   } else {
-    if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= cc.switch_margin) return *incumbent;
-    if (cc.duel_points == 0 || same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle)) {
+    if (incumbent != nullptr && best->preference(z) - incumbent->preference(z) <= pc.switch_margin) return *incumbent;
+    if (pc.duel_points == 0 || same_place(best->hypothesis, *reported_, local_pose, pc.same_place_m, same_angle)) {
       return best;
     }
   }
   ++stats_.duels;
   std::array<Hypothesis, 2> held{*reported_, {}};
   std::size_t held_count = 1;
-  if (anchor_ && same_place(*anchor_, *reported_, local_pose, cc.same_place_m, same_angle)) {
+  if (anchor_ && same_place(*anchor_, *reported_, local_pose, pc.same_place_m, same_angle)) {
     held[held_count++] = *anchor_;
   }
   const std::span<const Hypothesis> incumbents(held.data(), held_count);
   const auto wins = [&](const Duel& duel_result, double margin) {
     const double lead = duel_result.challenger_mean - duel_result.incumbent_mean;
-    return lead > margin && lead > cc.duel_z * duel_result.lead_stderr;
+    return lead > margin && lead > pc.duel_z * duel_result.lead_stderr;
   };
-  const bool may_win = !reported_supported_ || !cc.challenger_needs_support || supported(*best);
+  const bool may_win = !reported_supported_ || !pc.challenger_needs_support || supported(*best);
   const Duel d = duel(best->hypothesis, incumbents, 0, sample);
-  bool won = wins(d, may_win ? cc.duel_margin : std::max(cc.duel_margin, cc.unsupported_challenger_margin));
-  if (!won && may_win && incumbent == nullptr && cc.duel_recent_margin > 0.0) {
+  bool won = wins(d, may_win ? pc.duel_margin : std::max(pc.duel_margin, pc.unsupported_challenger_margin));
+  if (!won && may_win && incumbent == nullptr && pc.duel_recent_margin > 0.0) {
     // iRANSAC dropped every hypothesis at the reported place: only the duel
     // holds it there, on old scans that the local map's drift may have bent.
     // A clear lead on the recent data-points then suffices, unless the place
     // was once well supported and its map knows almost nothing about them.
     const Duel recent = duel(best->hypothesis, incumbents, ransac_.recent_window, sample);
-    won = wins(recent, cc.duel_recent_margin) &&
-          (!reported_supported_ || recent.incumbent_evidence >= cc.duel_recent_min_evidence ||
-           wins(recent, cc.duel_recent_silent_margin));
+    won = wins(recent, pc.duel_recent_margin) &&
+          (!reported_supported_ || recent.incumbent_evidence >= pc.duel_recent_min_evidence ||
+           wins(recent, pc.duel_recent_silent_margin));
   }
   // The fallback below stands for the incumbent on the duels' sample size, not the refined retry's.
   const auto n = static_cast<std::uint32_t>(last_drawn_);
-  if (!won && young && cc.young_refined_margin <= 2.0 && config_.refine_points > 0) {
+  if (!won && young && pc.young_refined_margin <= 2.0 && pc.refine_points > 0) {
     // The challenger as iRANSAC proposed it may sit half a metre off its
     // place. Spread points, not drawn: a refined challenger that loses leaves
     // the later draws, and so the estimates, as they were.
     const Hypothesis refined = refine(best->hypothesis, std::nullopt, local_pose, sample, Points::spread);
     const Duel second = duel(refined, incumbents, 0, sample, Points::spread);
-    if (wins(second, cc.young_refined_margin)) {
+    if (wins(second, pc.young_refined_margin)) {
       best->hypothesis = refined;
       won = true;
       ++stats_.refined_duels_won;
@@ -293,7 +290,8 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
                                           std::span<const ScoredHypothesis> active, const Pose2& local_pose,
                                           SampleScorer& sample) {
   const ConfidenceConfig& cc = config_.confidence;
-  const double same_angle = radians(cc.same_place_deg);
+  const PlaceConfig& pc = config_.place;
+  const double same_angle = radians(pc.same_place_deg);
   LocalizationEstimate e;
   e.local_pose = local_pose;
   best = hold_or_move(best, active, local_pose, sample);
@@ -301,8 +299,6 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   if (recent_best_.size() > cc.stable_scans) recent_best_.pop_front();
   if (!best) {
     flag_ = false;
-    supported_run_ = 0;
-    place_qualified_ = false;
     weakly_supported_place_ = false;
     last_rival_.reset();
     dropped_rival_.reset();
@@ -311,8 +307,8 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   // Tracking: the reported place follows the local map's drift by a small
   // search on recent data-points, from the last report when the place is
   // kept (or iRANSAC's hypothesis there, whichever fits better).
-  const bool kept = reported_ && same_place(best->hypothesis, *reported_, local_pose, cc.same_place_m, same_angle);
-  if (config_.refine_points > 0) {
+  const bool kept = reported_ && same_place(best->hypothesis, *reported_, local_pose, pc.same_place_m, same_angle);
+  if (pc.refine_points > 0) {
     reported_ = kept ? refine(*reported_, best->hypothesis, local_pose, sample)
                      : refine(best->hypothesis, std::nullopt, local_pose, sample);
   } else {
@@ -339,19 +335,19 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   e.margin = e.mean_score - (rival ? rival->mean_score() : 0.0);
   e.rise_margin = e.margin;
   // The rise reads the stronger of iRANSAC's rival and the one it last
-  // dropped, for rival_memory_scans scans after that one was last seen.
+  // dropped, for stable_scans scans after that one was last seen.
   ++reports_;
   std::optional<SeenRival> current;
   if (rival != nullptr) {
     current = SeenRival{rival->hypothesis, rival->mean_score(), rival->scored, reports_};
     last_rival_ = current;
   } else if (last_rival_ && (!dropped_rival_ || (last_rival_->seen_at > dropped_rival_->seen_at &&
-                                                 (reports_ - dropped_rival_->seen_at > cc.rival_memory_scans ||
+                                                 (reports_ - dropped_rival_->seen_at > cc.stable_scans ||
                                                   last_rival_->mean >= dropped_rival_->mean)))) {
     dropped_rival_ = last_rival_;
   }
   const SeenRival* standing = current ? &*current : nullptr;
-  if (dropped_rival_ && reports_ - dropped_rival_->seen_at <= cc.rival_memory_scans) {
+  if (dropped_rival_ && reports_ - dropped_rival_->seen_at <= cc.stable_scans) {
     const bool near = same_place(dropped_rival_->hypothesis, best_place, local_pose, 2.0, std::numbers::pi);
     const bool mirror =
         near && !same_place(dropped_rival_->hypothesis, best_place, local_pose, 2.0, radians(cc.rival_twin_turn_deg));
@@ -368,15 +364,14 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     e.rival_mean_score = standing->mean;
     e.rival_scored = standing->scored;
   }
-
   bool stable = recent_best_.size() >= cc.stable_scans;
   for (const auto& h : recent_best_) {
-    stable = stable && h && same_place(*h, best->hypothesis, local_pose, cc.same_place_m, same_angle);
+    stable = stable && h && same_place(*h, best->hypothesis, local_pose, pc.same_place_m, same_angle);
   }
-  bool sample_has_newest = false;
+  bool newest_known = false;
   if (cc.newest_points > 0) {
     const std::size_t taken = sample.take_newest(cc.newest_points);
-    sample_has_newest = taken > 0;
+    newest_known = taken > 0;
     if (taken > 0) {
       // The place twice (its evidence comes as the pair's second), then the rival.
       const std::array<Hypothesis, 3> newest{*reported_, *reported_, standing ? standing->hypothesis : *reported_};
@@ -391,6 +386,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   e.supported = supported(*best);
   bool whole_map_known = false;
   const auto score_whole_map = [&] {
+    if (whole_map_known || cc.whole_map_points == 0) return;
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
     whole_map_known = taken > 0;
     if (taken > 0) {
@@ -400,101 +396,66 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       e.whole_map_lead = standing ? (sums_[0] - sums_[1]) / static_cast<double>(taken) : e.whole_map_fit;
     }
   };
-  // Weak and relative support need the whole-map lead on every scan that meets their other parts.
-  const bool weak_candidate = cc.weak_support && !e.supported && best->scored >= cc.weak_support_min_scored &&
-                              e.mean_score >= cc.weak_support_min_mean_score &&
-                              e.rise_margin >= cc.weak_support_min_margin && sample_has_newest &&
-                              e.newest_evidence <= cc.weak_support_max_newest_evidence && cc.whole_map_points > 0;
-  // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N:
-  // a margin over it needs the whole-map lead, a lead alone must be larger, and the paired leads and
-  // relative support do not count.
-  const bool young_rival = standing != nullptr && standing->scored < cc.rise_rival_min_scored;
-  // Relative support is a lead over a rival: with none standing, the absolute or the weak test decides
-  // (a robot outside the map rose the scan its rival went missing, on a "lead" over nothing).
-  const bool relative_candidate = cc.relative_support && !e.supported && standing != nullptr && !young_rival &&
-                                  best->scored >= cc.relative_support_min_scored &&
-                                  e.mean_score >= cc.relative_support_min_mean_score &&
-                                  e.rise_margin >= cc.relative_support_min_margin && sample_has_newest &&
-                                  e.newest_lead >= cc.relative_support_min_newest_lead && cc.whole_map_points > 0;
+  if (config_.always_score_whole_map || flag_) score_whole_map();  // the hold reads the whole-map fit
+  // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N: a
+  // margin over it needs the whole-map lead too, a lead alone must be strong, and no lead stands for support.
+  const bool young_rival = standing != nullptr && standing->scored < cc.min_scored / 2;
+  // The evidence tests, each named for what it asks of the place.
+  FlagTests t;
+  // Weak support (a thin map: it scores few of the newest points) and relative support (a clear lead
+  // over a standing rival) stand in for the absolute test on their whole-map lead; scored only then.
+  const bool weak_candidate = !e.supported && best->scored >= cc.weak_support_min_scored && newest_known &&
+                              e.newest_evidence <= cc.weak_support_max_newest_evidence;
+  const bool relative_candidate =
+      !e.supported && standing != nullptr && !young_rival && best->scored >= cc.relative_support_min_scored &&
+      e.mean_score >= cc.relative_support_min_mean_score && e.rise_margin >= cc.relative_support_min_margin &&
+      newest_known && e.newest_lead >= cc.min_newest_fit;
   if (weak_candidate || relative_candidate) score_whole_map();
-  // A lead stands for support, or passes the margin, only over a place that itself explains the whole
-  // local map (its fit there at least min_margin): a lead over a rival the map contradicts is no evidence
-  // for the place (aces' mirror corridor rose so, its own fit 0.05-0.10).
+  // A lead is evidence for the place only where the place itself explains the whole local map.
   const auto fits_whole_map = [&] { return whole_map_known && e.whole_map_fit >= cc.min_margin; };
   const bool weakly_supported =
-      whole_map_known &&
-      ((weak_candidate && e.whole_map_lead >= cc.weak_support_min_whole_map_lead) ||
-       (relative_candidate && e.whole_map_lead >= cc.relative_support_min_whole_map_lead && fits_whole_map()));
+      whole_map_known && ((weak_candidate && e.whole_map_lead >= cc.min_margin) ||
+                          (relative_candidate && e.whole_map_lead >= cc.min_whole_map_lead && fits_whole_map()));
   weakly_supported_place_ = kept && (weakly_supported_place_ || weakly_supported);
-  const bool counts_supported = e.supported || weakly_supported;
-  if (!kept) place_qualified_ = false;
-  if (counts_supported) {
-    if (supported_run_ == 0) {
-      const bool long_unsupported = kept_scans_ >= cc.unsupported_hold_scans && !place_qualified_;
-      run_needs_ = long_unsupported ? static_cast<std::uint32_t>(cc.rise_supported_scans) : 1;
-    }
-    ++supported_run_;
-    place_qualified_ = place_qualified_ || supported_run_ >= run_needs_;
+  t.supported = e.supported || weakly_supported;
+  t.stable = stable;
+  // A silent map is no evidence against the place; one that contradicts the little it says is.
+  t.newest_fits = !newest_known || e.newest_fit >= cc.min_newest_fit ||
+                  (e.newest_evidence <= cc.silent_newest_evidence && e.newest_fit >= 0.0);
+  // Unrivalled: the C/N margin (confirmed on the same whole-map points over a young rival), or a lead on
+  // the whole-map points (strong over a young rival, or paired with a strong lead on the newest ones).
+  const bool margin_passes = e.rise_margin >= cc.min_margin;
+  const bool lead_decides = t.stable && t.newest_fits && t.supported;
+  if (lead_decides && (!margin_passes || young_rival)) score_whole_map();
+  if (margin_passes) {
+    t.unrivalled = !young_rival || !lead_decides || (whole_map_known && e.whole_map_lead >= cc.min_margin);
   } else {
-    supported_run_ = 0;
+    const double lead = young_rival ? cc.strong_lead : cc.min_whole_map_lead;
+    const bool paired =
+        newest_known && !young_rival && e.whole_map_lead >= cc.min_margin && e.newest_lead >= cc.strong_lead;
+    t.unrivalled = lead_decides && fits_whole_map() && (e.whole_map_lead >= lead || paired);
   }
-  e.place_supported = reported_supported_;
-  e.kept_scans = kept_scans_;
-  const bool newest_known = cc.newest_points > 0 && sample_has_newest;
-  // The newest points' mean penalty: mean(max(-score, 0)) = (mean |score| - mean score) / 2.
+  // A hypothesis much younger than the place it stands for is judged once it has caught up: a quarter
+  // of the points iRANSAC scores a hypothesis on per scan, per kept scan, up to 1.5 min_scored.
+  t.seasoned = static_cast<double>(best->scored) >=
+               std::min(0.25 * static_cast<double>(ransac_.iterations_per_scan) * kept_scans_, 1.5 * cc.min_scored);
+  // The hold: kept, once supported, the newest points not contradicted (one scan and on average), and the
+  // whole local map not contradicting the place on balance.
   const double contradiction = newest_known ? 0.5 * (e.newest_evidence - e.newest_fit) : 0.0;
   mean_contradiction_ =
       flag_ ? (1.0 - cc.contradiction_smoothing) * mean_contradiction_ + cc.contradiction_smoothing * contradiction
             : contradiction;
-  // The hold also needs the whole local map not to contradict the place on balance (its fit there >= 0).
-  if (flag_ && !whole_map_known && cc.whole_map_points > 0) score_whole_map();
-  const bool whole_map_agrees = !whole_map_known || e.whole_map_fit >= 0.0;
-  const bool held = flag_ && kept && (reported_supported_ || weakly_supported_place_) &&
-                    contradiction <= cc.hold_max_contradiction &&
-                    mean_contradiction_ <= cc.hold_max_mean_contradiction && whole_map_agrees;
-  // A map silent about the newest points is no evidence against the place; one that contradicts the
-  // little it says is (a robot in a building the map lacks, where a wall or two agree by chance).
-  const bool newest_fits = !newest_known || e.newest_fit >= cc.rise_min_newest_fit ||
-                           (cc.weak_support && e.newest_evidence <= cc.silent_newest_evidence && e.newest_fit >= 0.0);
-  const bool rise_but_support = stable && e.rise_margin >= cc.min_margin && newest_fits;
-  const bool support_holds = counts_supported && supported_run_ >= run_needs_;
-  const bool paired_rule =
-      sample_has_newest && cc.rise_paired_whole_map_lead <= 2.0 && cc.rise_paired_newest_lead <= 2.0;
-  const double margin_lead = young_rival ? cc.rise_young_rival_whole_map_lead : cc.rise_margin_whole_map_lead;
-  // Only where it decides the flag: a held flag needs no rise.
-  const bool lead_decides_margin = !held && stable && newest_fits && support_holds && e.rise_margin < cc.min_margin &&
-                                   cc.whole_map_points > 0 && (margin_lead <= 2.0 || paired_rule);
-  // Only where it decides the flag, as above: a margin over a young rival, confirmed on the same points.
-  const bool margin_needs_lead = !held && rise_but_support && support_holds && young_rival && cc.whole_map_points > 0;
-  if (!whole_map_known && cc.whole_map_points > 0 &&
-      (cc.always_score_whole_map || lead_decides_margin || margin_needs_lead)) {
-    score_whole_map();
-  }
-  const bool margin_confirmed = !margin_needs_lead || (whole_map_known && e.whole_map_lead >= cc.min_margin);
-  const bool paired_leads = paired_rule && !young_rival && e.whole_map_lead >= cc.rise_paired_whole_map_lead &&
-                            e.newest_lead >= cc.rise_paired_newest_lead;
-  const bool leads_pass_margin =
-      lead_decides_margin && fits_whole_map() && (e.whole_map_lead >= margin_lead || paired_leads);
-  const bool rises = (rise_but_support && margin_confirmed && support_holds) || leads_pass_margin;
-  // A hypothesis much younger than the place it stands for rises only once it has caught up.
-  const bool seasoned = static_cast<double>(best->scored) >=
-                        std::min(cc.rise_scored_per_kept_scan * kept_scans_, static_cast<double>(cc.rise_max_scored));
+  t.kept = kept;
+  t.once_supported = reported_supported_ || weakly_supported_place_;
+  t.not_contradicted = contradiction <= cc.hold_max_contradiction &&
+                       mean_contradiction_ <= cc.hold_max_mean_contradiction &&
+                       (!whole_map_known || e.whole_map_fit >= 0.0);
   const bool was_up = flag_;
-  flag_ = (rises && seasoned) || held;
+  flag_ = t.rises() || (was_up && t.holds());
   e.localized = flag_;
-  if (!flag_) {
-    FlagDownReasons& why = e.flag_down_because;
-    why.unstable = !stable;
-    why.weak_support = !counts_supported && e.mean_score < cc.min_mean_score;
-    why.few_points = !counts_supported && !why.weak_support && best->scored < cc.min_scored;
-    why.support_too_short = counts_supported && !support_holds;
-    why.look_alike = !leads_pass_margin && (e.rise_margin < cc.min_margin || (margin_needs_lead && !margin_confirmed));
-    why.newest_misfit = !newest_fits;
-    why.young_hypothesis = rises && !seasoned;
-    why.contradicted = was_up && kept &&
-                       (contradiction > cc.hold_max_contradiction ||
-                        mean_contradiction_ > cc.hold_max_mean_contradiction || !whole_map_agrees);
-  }
+  e.place_supported = reported_supported_;
+  e.kept_scans = kept_scans_;
+  if (!flag_) e.flag_down_because = reasons_of(t, e, cc, was_up);
   // The value, in the order of kComputedFeatures, with the weights of the flag's state.
   const std::array<double, kValueFeatures> f{1.0,
                                              e.mean_score,
@@ -506,7 +467,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
                                              e.supported ? 1.0 : 0.0,
                                              e.newest_fit,
                                              e.newest_evidence};
-  const auto& w = flag_ ? cc.flagged_value_weights : cc.value_weights;
+  const auto& w = flag_ ? config_.flagged_value_weights : config_.value_weights;
   double z = 0.0;
   for (std::size_t i = 0; i < f.size(); ++i) z += w[i] * f[i];
   const double value = 1.0 / (1.0 + std::exp(-z));
@@ -516,7 +477,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
 
 ReportPolicy::Duel ReportPolicy::duel(const Hypothesis& challenger, std::span<const Hypothesis> incumbents,
                                       std::size_t window, SampleScorer& sample, Points points) {
-  const std::size_t wanted = config_.confidence.duel_points;
+  const std::size_t wanted = config_.place.duel_points;
   last_drawn_ = points == Points::spread ? sample.take_spread(wanted) : sample.draw(window, wanted);
   if (last_drawn_ == 0 || incumbents.empty()) return {};
   // The incumbent place is represented by whichever of its hypotheses fits
@@ -544,10 +505,10 @@ ReportPolicy::Duel ReportPolicy::duel(const Hypothesis& challenger, std::span<co
 
 Hypothesis ReportPolicy::refine(Hypothesis h, const std::optional<Hypothesis>& alternative, const Pose2& local_pose,
                                 SampleScorer& sample, Points points) {
-  last_drawn_ = points == Points::spread ? sample.take_spread(config_.refine_points)
-                                         : sample.draw(config_.refine_window, config_.refine_points);
+  last_drawn_ = points == Points::spread ? sample.take_spread(config_.place.refine_points)
+                                         : sample.draw(config_.place.refine_window, config_.place.refine_points);
   if (last_drawn_ == 0) return h;
-  const double min_gain = config_.refine_min_gain * static_cast<double>(last_drawn_);
+  const double min_gain = config_.place.refine_min_gain * static_cast<double>(last_drawn_);
   // h's sum over the sample carries from one step to the next: scores do
   // not depend on which other hypotheses share a batch.
   double h_sum = 0.0;
@@ -563,8 +524,8 @@ Hypothesis ReportPolicy::refine(Hypothesis h, const std::optional<Hypothesis>& a
     sample.score(std::span<const Hypothesis>(&h, 1), sums_);
     h_sum = sums_[0];
   }
-  double m = config_.refine_step_m, a = radians(config_.refine_step_deg);
-  for (std::size_t round = 0; round < config_.refine_rounds; ++round) {
+  double m = config_.place.refine_step_m, a = radians(config_.place.refine_step_deg);
+  for (std::size_t round = 0; round < config_.place.refine_rounds; ++round) {
     const auto moves = moves_about_robot(h, local_pose, m, a);
     sample.score(moves, sums_);
     const auto best = static_cast<std::size_t>(std::max_element(sums_.begin(), sums_.end()) - sums_.begin());

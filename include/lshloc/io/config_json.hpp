@@ -64,8 +64,8 @@ void to_json(nlohmann::json& j, const GlobalMapConfig& c);
 void from_json(const nlohmann::json& j, GlobalMapConfig& c);
 void to_json(nlohmann::json& j, const ConfidenceConfig& c);
 void from_json(const nlohmann::json& j, ConfidenceConfig& c);
-void to_json(nlohmann::json& j, const ReportPolicyConfig& c);
-void from_json(const nlohmann::json& j, ReportPolicyConfig& c);
+void to_json(nlohmann::json& j, const PlaceConfig& c);
+void from_json(const nlohmann::json& j, PlaceConfig& c);
 void to_json(nlohmann::json& j, const LocalizerConfig& c);
 void from_json(const nlohmann::json& j, LocalizerConfig& c);
 

@@ -111,9 +111,15 @@ struct LocalizerConfig {
   /// The target's newest features kept for those lookups, in two halves (the
   /// older half is dropped whole when the newer one is full).
   std::size_t seen_features_kept = 20000;
-  /// What is reported: the confidence test, the hysteresis and duels, and
-  /// how the reported place follows the local map's drift.
-  ReportPolicyConfig report;
+  /// Which place is reported: the hysteresis and duels, and how it follows
+  /// the local map's drift.
+  PlaceConfig place;
+  /// Whether to trust it: the confidence flag's tests (the value's weights
+  /// are src/localization/confidence_value.json's).
+  ConfidenceConfig report;
+  /// Score the flag's whole-map evidence on every scan, not only where a
+  /// test reads it (eval --trace; about 0.2 ms per scan). No estimate changes.
+  bool trace_evidence = false;
   /// Not confident() where scans stamped together disagree (bunched driver stamps).
   StampClashConfig stamp_clash;
   std::uint64_t seed = 0x10ca112e;  ///< the random control's choices

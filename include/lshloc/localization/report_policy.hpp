@@ -19,58 +19,16 @@
 
 namespace lshloc {
 
-/// The confidence value's features, in the order of its weights.
-inline constexpr std::size_t kValueFeatures = 10;
-/// The weights of src/localization/confidence_value.json (compiled in): while the flag is down, or up.
-std::array<double, kValueFeatures> default_value_weights(bool flag_up);
-/// That file's names of the features ("log1p:scored" is ln(1 + N)); the library refuses to build
-/// when they are not the features it computes.
-std::array<const char*, kValueFeatures> value_feature_names();
-
-/// When the localizer says "localized" (docs/design.md section 2.3: say it only when the
-/// evidence is strong; a confident answer should never be wrong).
-struct ConfidenceConfig {
-  std::uint32_t min_scored = 500;  ///< N of the best hypothesis at least this (about 10 scans of support)
-  double min_mean_score = 0.35;    ///< C/N of the best hypothesis at least this
-  double min_margin = 0.15;        ///< C/N lead over the best hypothesis elsewhere (other submap or > 2 m away)
-  /// [scans] For the rise, a rival elsewhere that iRANSAC dropped still stands
-  /// this long after it was last seen (its C/N then, and the whole-map lead
-  /// over it now), against no rival or a weaker one: iRANSAC's active set
-  /// flickers, and look-alikes rose the scan their rival was missing
-  /// (docs/results/confidence.md, "A rival iRANSAC drops for a few scans still
-  /// stands"). 0: only the rivals iRANSAC holds.
-  std::uint32_t rival_memory_scans = 5;
-  /// [deg] A remembered rival that has come within 2 m of the reported place
-  /// but is turned more than this from it is the place's mirror image, not
-  /// the place: it stands and does not age while it stays so, else a flip
-  /// rises the scan the two merge (docs/results/confidence.md, "The place's
-  /// mirror image, and rivals scored on few points"). >= 180: off.
-  double rival_twin_turn_deg = 90.0;
-  /// A rival iRANSAC has scored on fewer data-points than this (five scans'
-  /// worth) has a C/N too uncertain for the margin over it: the rise then
-  /// also needs the whole-map lead over it, on the same spread points, to
-  /// reach min_margin. 0: off.
-  std::uint32_t rise_rival_min_scored = 250;
-  /// At a place kept k scans the rise also needs N >= min(k *
-  /// rise_scored_per_kept_scan, rise_max_scored): a quarter of the 50
-  /// data-points a scan iRANSAC scores a hypothesis on. When preemption cut
-  /// the place's old hypothesis, a new one there leads its rivals on its few
-  /// points as the old one did not (docs/results/confidence.md, "A rival
-  /// iRANSAC drops for a few scans still stands").
-  double rise_scored_per_kept_scan = 12.5;
-  std::uint32_t rise_max_scored = 750;
-  std::size_t stable_scans = 5;  ///< the best stayed in one place (1 m, 10 deg) this many scans
-  /// At a place held `unsupported_hold_scans` scans or more that never
-  /// passed the support test (min_scored, min_mean_score), the flag rises
-  /// only on support that lasts `rise_supported_scans` scans in a row: there
-  /// a young hypothesis that has just crossed the test slips back under it
-  /// within a scan or two. A place found fresh rises at once
-  /// (docs/results/confidence.md, "Support that lasts three scans").
-  std::size_t rise_supported_scans = 3;
-  std::size_t unsupported_hold_scans = 20;
+/// How the reported place is chosen and follows the local map (docs/design.md
+/// section 2.3): the hysteresis and the duels that hold it against
+/// look-alikes, and the tracking that follows the local map's drift. Which
+/// place is reported; whether to trust it is ConfidenceConfig's.
+struct PlaceConfig {
+  double same_place_m = 1.0;     ///< [m] two hypotheses closer than this at the robot are one place ...
+  double same_place_deg = 10.0;  ///< [deg] ... and turned less than this
   /// Hysteresis of the reported estimate: the best hypothesis near the last
-  /// reported one (within `same_place_m`, `same_place_deg`) stays reported
-  /// unless a hypothesis elsewhere beats its C/N by more than this.
+  /// reported one stays reported unless a hypothesis elsewhere beats its C/N
+  /// by more than this.
   double switch_margin = 0.02;
   /// Before the estimate moves elsewhere, the challenger and the incumbent
   /// are scored on the same `duel_points` data-points drawn uniformly from
@@ -86,174 +44,40 @@ struct ConfidenceConfig {
   /// When iRANSAC holds no hypothesis at the reported place any more (only
   /// the duel keeps it), the challenger also wins by leading on the newest
   /// ransac.recent_window data-points by this much (and duel_z standard
-  /// errors). Over a long history the local map bends, and a true place
+  /// errors): over a long history the local map bends, and a true place
   /// whose older scans the drift has moved loses the whole-map duel to a
   /// stale report; a kidnapped robot, too. 0: off.
   double duel_recent_margin = 0.15;
-  /// ... but a reported place that was once well supported (iRANSAC gave
-  /// it min_scored data-points at a mean of min_mean_score) loses so only
-  /// where the map knows its surroundings: on at least this share of the
-  /// recent data-points, its map scores them (hit, or local walls in space
-  /// the map saw free, local rays through map walls). Where the map holds
-  /// almost nothing about the reported place, the recent scans are no
-  /// evidence against it (a robot driving into a corridor the mappers saw
-  /// only from far away: a fully mapped look-alike fits those scans better).
+  /// ... but a reported place that was once well supported loses so only
+  /// where its map scores at least this share of the recent data-points:
+  /// where the map holds almost nothing about the reported place, the recent
+  /// scans are no evidence against it ...
   double duel_recent_min_evidence = 0.1;
   /// ... unless the challenger leads it there by this much: a wrong place
-  /// the robot drove out of, whose map is silent about where it is now, must
-  /// yield to a supported true place that fits the recent scans outright; a
-  /// lower lead moved a robot in an unmapped building to a look-alike
-  /// (docs/results/confidence.md, "What the last confident-but-wrong scans
-  /// were, and three changes"). Above 2: never.
+  /// the robot drove out of, silent about where it is now, must yield to a
+  /// supported true place that fits the recent scans outright. Above 2: never.
   double duel_recent_silent_margin = 0.4;
   /// A reported place that was once well supported is given up, by either
-  /// duel, only for a challenger that iRANSAC supports as well (min_scored
-  /// data-points at a mean of min_mean_score). A look-alike that fits the
-  /// local map only where the true place's map is thin (the robot drives
-  /// where the mappers barely went) otherwise takes over on a small lead
-  /// without ever being well supported itself (docs/design.md section 2.3).
+  /// duel, only for a challenger that iRANSAC supports as well (the
+  /// confidence test's min_scored and min_mean_score) ...
   bool challenger_needs_support = true;
-  /// ... or for one that leads it by this much in the whole-map duel (same
-  /// points): a place whose fit has decayed (a 180-degree look-alike the
-  /// robot drove out of) otherwise holds against a true place that scores
-  /// below min_mean_score in a thinly mapped building. It lies well above
-  /// the small leads that challenger_needs_support stops. Above 2 (scores lie
-  /// in [-1, 1]): never.
+  /// ... or for one that leads it by this much in the whole-map duel (a
+  /// place whose fit has decayed otherwise holds against a true place in a
+  /// thinly mapped building). Above 2 (scores lie in [-1, 1]): never.
   double unsupported_challenger_margin = 0.1;
   /// While the reported place is young (never supported, and kept fewer
   /// than `young_place_scans` scans), iRANSAC's best hypotheses at up to
-  /// `young_place_rivals` other places challenge it each scan, not only its
-  /// overall best, and the hysteresis (switch_margin) does not shield it: on
-  /// the few data-points each was scored on, C/N ranks a look-alike over the
-  /// true place as often as not, while the whole local map tells them apart.
-  /// The rival that fits one sample best is then dueled on a fresh one. A
-  /// place held longer is left to the hysteresis: where the map scores even
-  /// the true place under the support test, look-alikes would win it away by
-  /// chance (docs/results/confidence.md, "Young places challenged by their
-  /// rivals"). 0 rivals: only the overall best challenges, through the hysteresis.
+  /// `young_place_rivals` other places challenge it each scan, past the
+  /// hysteresis: on the few data-points each was scored on, C/N ranks a
+  /// look-alike over the true place as often as not, while the whole local
+  /// map tells them apart. 0 rivals: only the overall best challenges.
+  /// A place older than young_place_scans that was never supported also
+  /// needs support on 3 scans in a row for the flag to rise.
   std::size_t young_place_rivals = 3;
   std::uint32_t young_place_scans = 20;
-  /// A young place's challenger that loses as iRANSAC proposed it (up to
-  /// half a metre and a few degrees off its place) is refined and dueled
-  /// once more, and then wins only by this lead: refined, a look-alike fits
-  /// a short local map a little better than before, the true place far
-  /// better (docs/design.md section 2.3). Both steps score points spread
-  /// over the whole local map, not drawn, so a refined challenger that loses
-  /// changes no later estimate. Above 2 (scores lie in [-1, 1]): never.
+  /// A young place's challenger that loses as iRANSAC proposed it is refined
+  /// and dueled once more, and then wins only by this lead. Above 2: never.
   double young_refined_margin = 0.1;
-  double same_place_m = 1.0;     ///< [m]
-  double same_place_deg = 10.0;  ///< [deg]
-  /// The newest-scan fit: the reported place scored on this many of the
-  /// newest data-points (about two scans). A local map that broke at the last
-  /// scans (a fast turn the scan matcher lost) leaves an estimate whose older
-  /// support is intact but whose heading is wrong now.
-  std::size_t newest_points = 100;
-  /// The flag rises on the test above (stable, supported, min_margin) when
-  /// the reported place also fits the newest data-points: newest fit at
-  /// least `rise_min_newest_fit` (a local map broken by a fast turn fits its
-  /// older scans but not its newest). Once up it is held while the place is
-  /// kept and was once supported, unless the map contradicts the newest
-  /// data-points at the reported pose: their mean penalty (the negative part
-  /// of their scores, (newest_evidence - newest_fit) / 2), above
-  /// `hold_max_contradiction` on one scan, or above
-  /// `hold_max_mean_contradiction` on average (exponential, weight
-  /// `contradiction_smoothing` per scan). Where the map says nothing about
-  /// the newest scans (a robot in a corridor the mappers saw from far away)
-  /// the held flag stays up: silence is no evidence against the place
-  /// (docs/results/confidence.md, "The flag now: risen on the test and a
-  /// fitting newest scan, held until the map contradicts").
-  double rise_min_newest_fit = 0.1;
-  double hold_max_contradiction = 0.13;
-  double hold_max_mean_contradiction = 0.1;
-  double contradiction_smoothing = 0.3;
-  /// The rise's margin test (min_margin, a C/N lead over means of
-  /// different data-points) also passes when the reported place leads its
-  /// best rival by this much on the same whole_map_points data-points
-  /// (LocalizationEstimate::whole_map_lead). The rest of the test still
-  /// holds (stable, supported, newest fit): docs/results/confidence.md,
-  /// "Relative support, and a whole-map lead of 0.2 passes the margin".
-  /// Above 2 (scores lie in [-1, 1]): never.
-  double rise_margin_whole_map_lead = 0.2;
-  /// ... over a rival scored on fewer than rise_rival_min_scored the lead
-  /// must be this large: such a rival may have displaced a well-scored
-  /// look-alike as the best elsewhere.
-  double rise_young_rival_whole_map_lead = 0.25;
-  /// ... or when it leads that rival by rise_paired_whole_map_lead on the
-  /// whole-map points and by rise_paired_newest_lead on the newest_points
-  /// newest data-points (LocalizationEstimate::newest_lead): a look-alike
-  /// that fits the older scans well stops fitting where the robot goes next.
-  /// Not over a rival scored on fewer than rise_rival_min_scored: such a
-  /// one may have displaced a well-scored rival as the best elsewhere by
-  /// C/N (docs/results/confidence.md, "The place's mirror image, and rivals
-  /// scored on few points"). Above 2: never.
-  double rise_paired_whole_map_lead = 0.15;
-  double rise_paired_newest_lead = 0.25;
-  std::size_t whole_map_points = 1000;
-  /// Weak support, for a building whose map scores even the true place
-  /// under min_mean_score (a thin map). A scan whose best hypothesis has
-  /// N >= weak_support_min_scored, C/N >=
-  /// weak_support_min_mean_score, a rise margin >= weak_support_min_margin
-  /// and a whole-map lead >= weak_support_min_whole_map_lead, where the map
-  /// scores at most weak_support_max_newest_evidence of the newest points
-  /// (the map is thin where the robot is: a look-alike in a fully mapped
-  /// building scores far more of them), also counts as supported for the
-  /// rise, and makes a kept place supported for the hold (not for the duels:
-  /// no estimate moves). With it, the rise's newest-fit test also passes
-  /// where the map scores at most silent_newest_evidence of the newest
-  /// points: a robot driving where its map is silent
-  /// (docs/results/confidence.md, "What the last confident-but-wrong scans
-  /// were, and three changes"). false: off.
-  bool weak_support = true;
-  std::uint32_t weak_support_min_scored = 3000;
-  double weak_support_min_mean_score = 0.2;
-  double weak_support_min_margin = 0.2;
-  double weak_support_min_whole_map_lead = 0.15;
-  double weak_support_max_newest_evidence = 0.2;
-  double silent_newest_evidence = 0.05;
-  /// Relative support, for a place the map scores under min_mean_score
-  /// while it clearly fits better than anything else: a scan whose best
-  /// hypothesis has N >= relative_support_min_scored, C/N >=
-  /// relative_support_min_mean_score and a rise margin >=
-  /// relative_support_min_margin, and whose reported place leads its best
-  /// rival by relative_support_min_whole_map_lead on the same
-  /// whole_map_points data-points spread over the whole local map and by
-  /// relative_support_min_newest_lead on the newest_points newest ones,
-  /// counts as supported like weak support (the rise and the hold, not the
-  /// duels). Not over a rival scored on fewer than rise_rival_min_scored.
-  /// It brings the first flag forward where C/N or N falls short of the
-  /// absolute test; the whole-map lead, the newest lead and the rival's N
-  /// each stop a look-alike that rose without them (docs/results/confidence.md,
-  /// "Relative support, and a whole-map lead of 0.2 passes the margin").
-  bool relative_support = true;
-  std::uint32_t relative_support_min_scored = 300;
-  double relative_support_min_mean_score = 0.25;
-  double relative_support_min_margin = 0.05;
-  double relative_support_min_whole_map_lead = 0.2;
-  double relative_support_min_newest_lead = 0.1;
-  /// Score the whole-map comparison on every scan (traces), not only when
-  /// the rise hinges on it (it costs about 0.2 ms per scan).
-  bool always_score_whole_map = false;
-  /// Weights w of the confidence value, P(the estimate is right: true
-  /// submap, within 2 m and 10 deg) = 1 / (1 + exp(-w . f)), over the
-  /// kValueFeatures dimensionless features f = (1, C/N, margin, ln(1 + N),
-  /// ln(1 + kept_scans), place_supported, stable, supported, newest_fit,
-  /// newest_evidence) of the estimate: one vector while the flag is down,
-  /// one while it is up (the flag is evidence too). Fitted by logistic
-  /// regression (scripts/confidence_fit.py), which writes them to
-  /// src/localization/confidence_value.json; the defaults are that file's.
-  std::array<double, kValueFeatures> value_weights = default_value_weights(false);
-  std::array<double, kValueFeatures> flagged_value_weights = default_value_weights(true);
-  /// The flag is the value at or above this: a flagged estimate's value is
-  /// raised to it, an unflagged one's held at least 0.001 below it (the CSVs
-  /// print 4 decimals), so that a value of 0.9 or more always comes with the
-  /// flag. In (0.001, 1].
-  double flag_threshold = 0.9;
-};
-
-/// Settings of the report policy: the confidence test and how the reported
-/// place follows the local map's drift.
-struct ReportPolicyConfig {
-  ConfidenceConfig confidence;
   /// Tracking: each scan, the reported hypothesis spawns children moved by
   /// +-track_step_m along x and y and +-track_step_deg in heading about the
   /// robot's current pose, so that a correct place keeps a hypothesis that
@@ -277,27 +101,134 @@ struct ReportPolicyConfig {
   void validate() const;
 };
 
+/// The confidence value's features, in the order of its weights.
+inline constexpr std::size_t kValueFeatures = 10;
+/// The weights of src/localization/confidence_value.json (compiled in): while the flag is down, or up.
+std::array<double, kValueFeatures> default_value_weights(bool flag_up);
+/// That file's names of the features ("log1p:scored" is ln(1 + N)); the library refuses to build
+/// when they are not the features it computes.
+std::array<const char*, kValueFeatures> value_feature_names();
+
+/// When the localizer says "localized" (docs/design.md section 2.3: say it
+/// only when the evidence is strong; a confident answer should never be
+/// wrong). The flag is a state machine over named evidence tests
+/// (FlagTests): it rises when every rise test passes and is held while the
+/// place is kept and the hold tests pass; the tests that fail are the
+/// estimate's flag_down_because. Scores are means in [-1, 1].
+struct ConfidenceConfig {
+  /// Support: iRANSAC's best hypothesis scored on at least min_scored
+  /// data-points (about 10 scans) at a mean (C/N) of min_mean_score.
+  std::uint32_t min_scored = 500;
+  double min_mean_score = 0.35;
+  /// The lead a rise needs over the best place elsewhere (another submap or
+  /// more than 2 m away): a C/N margin of min_margin; or, on the same
+  /// whole_map_points data-points spread over the whole local map, a lead of
+  /// min_whole_map_lead (strong_lead over a rival scored on fewer than
+  /// min_scored / 2 points, which may have displaced a well-scored one), or
+  /// of min_margin paired with strong_lead on the newest_points newest ones.
+  /// A lead counts only where the place itself fits those whole-map points
+  /// by min_margin: a lead over a rival the map contradicts is none.
+  double min_margin = 0.15;
+  double min_whole_map_lead = 0.2;
+  double strong_lead = 0.25;
+  /// The best stayed in one place this many scans; a rival iRANSAC dropped
+  /// stands this long after it was last seen (its active set flickers).
+  std::size_t stable_scans = 5;
+  /// [deg] A remembered rival that has come within 2 m of the reported
+  /// place but is turned more than this from it is the place's mirror
+  /// image: it stands while it stays so. >= 180: off.
+  double rival_twin_turn_deg = 90.0;
+  /// The newest-scan fit: the reported place scored on the newest
+  /// `newest_points` data-points (about two scans). A rise needs a newest fit
+  /// of min_newest_fit, or a map silent there (it scores at most
+  /// silent_newest_evidence of them) that is not negative on balance.
+  std::size_t newest_points = 100;
+  double min_newest_fit = 0.1;
+  double silent_newest_evidence = 0.05;
+  /// The hold: the newest points' mean penalty ((newest_evidence -
+  /// newest_fit) / 2) at most hold_max_contradiction on one scan and
+  /// hold_max_mean_contradiction as an exponential mean (weight
+  /// contradiction_smoothing per scan), and the whole-map fit >= 0.
+  double hold_max_contradiction = 0.13;
+  double hold_max_mean_contradiction = 0.1;
+  double contradiction_smoothing = 0.3;
+  std::size_t whole_map_points = 1000;
+  /// Weak support, for a thin map: N >= weak_support_min_scored with a rise
+  /// margin, a whole-map lead of min_margin, and the map scoring at most
+  /// weak_support_max_newest_evidence of the newest points.
+  std::uint32_t weak_support_min_scored = 3000;
+  double weak_support_max_newest_evidence = 0.2;
+  /// Relative support, for a place the map scores under min_mean_score while
+  /// it clearly fits better than its rival: N >= relative_support_min_scored,
+  /// C/N >= relative_support_min_mean_score, a C/N margin of
+  /// relative_support_min_margin, a whole-map lead of min_whole_map_lead and
+  /// a newest lead of min_newest_fit over a standing rival.
+  std::uint32_t relative_support_min_scored = 300;
+  double relative_support_min_mean_score = 0.2;
+  double relative_support_min_margin = 0.05;
+  /// The flag is the value at or above this: a flagged estimate's value is
+  /// raised to it, an unflagged one's held at least 0.001 below it (the CSVs
+  /// print 4 decimals), so that a value of 0.9 or more always comes with the
+  /// flag. In (0.001, 1]. The value's weights: src/localization/confidence_value.json.
+  double flag_threshold = 0.9;
+
+  void validate() const;
+};
+
+/// The report policy's settings: which place, and whether to trust it.
+struct ReportPolicyConfig {
+  PlaceConfig place;
+  ConfidenceConfig confidence;
+  /// The value's weights, while the flag is down and while it is up (not
+  /// settings: fitted, src/localization/confidence_value.json).
+  std::array<double, kValueFeatures> value_weights = default_value_weights(false);
+  std::array<double, kValueFeatures> flagged_value_weights = default_value_weights(true);
+  /// Score the whole-map comparison on every scan (traces), not only where a
+  /// test reads it (about 0.2 ms per scan).
+  bool always_score_whole_map = false;
+
+  void validate() const;
+};
+
 /// Which parts of the flag's test kept it down at a scan (all false while
 /// it is up, or without an estimate): what a robot's operator reads to know
 /// what the localizer still waits for.
 struct FlagDownReasons {
-  bool unstable = false;           ///< iRANSAC's best moved within the last stable_scans scans
-  bool weak_support = false;       ///< C/N under min_mean_score, and no weak or relative support instead
-  bool few_points = false;         ///< N under min_scored (C/N high enough), and no weak or relative support
-  bool support_too_short = false;  ///< supported, but not yet rise_supported_scans scans in a row
-  bool look_alike = false;         ///< the margin over the best place elsewhere is short, and no lead passes it
-  bool newest_misfit = false;      ///< the newest points fit the place under rise_min_newest_fit
-  bool young_hypothesis = false;   ///< a new hypothesis at a long-kept place, scored on too few points yet
-  bool contradicted = false;       ///< the flag was up: the newest points contradict the map (the hold's limits)
+  bool unstable = false;          ///< iRANSAC's best moved within the last stable_scans scans
+  bool weak_support = false;      ///< C/N under min_mean_score, and no weak or relative support instead
+  bool few_points = false;        ///< N under min_scored (C/N high enough), and no weak or relative support
+  bool look_alike = false;        ///< the margin over the best place elsewhere is short, and no lead passes it
+  bool newest_misfit = false;     ///< the newest points fit the place under rise_min_newest_fit
+  bool young_hypothesis = false;  ///< a new hypothesis at a long-kept place, scored on too few points yet
+  bool contradicted = false;      ///< the flag was up: the newest points contradict the map (the hold's limits)
 
   bool any() const {
-    return unstable || weak_support || few_points || support_too_short || look_alike || newest_misfit ||
-           young_hypothesis || contradicted;
+    return unstable || weak_support || few_points || look_alike || newest_misfit || young_hypothesis || contradicted;
   }
   /// The set reasons' names (the field names above), in that order.
   std::vector<const char*> names() const;
   /// Those names joined by ';' (one CSV field, needing no quotes).
   std::string joined() const;
+};
+
+/// The flag's evidence tests at one scan, each true when it passes. The flag
+/// is a two-state machine over them: down, it rises when every rise test
+/// passes; up, it stays while every hold test passes (or the rise tests pass
+/// anew). The tests that fail are the estimate's flag_down_because.
+struct FlagTests {
+  // The rise.
+  bool stable = false;       ///< iRANSAC's best stayed at one place stable_scans scans
+  bool supported = false;    ///< absolute support (min_scored, min_mean_score), or weak or relative support
+  bool newest_fits = false;  ///< the newest points fit the place (or the map is silent there, not negative)
+  bool unrivalled = false;   ///< the place leads the best place elsewhere (ConfidenceConfig: the lead)
+  bool seasoned = false;     ///< the best hypothesis is scored on as many points as its place's age asks
+  // The hold.
+  bool kept = false;              ///< the reported place is the last scan's
+  bool once_supported = false;    ///< ... and has been supported (or weakly or relatively) since it was found
+  bool not_contradicted = false;  ///< neither the newest points nor the whole local map contradict it
+
+  bool rises() const { return stable && supported && newest_fits && unrivalled && seasoned; }
+  bool holds() const { return kept && once_supported && not_contradicted; }
 };
 
 /// The localizer's answer for one target scan.
@@ -312,7 +243,7 @@ struct LocalizationEstimate {
   std::uint32_t scored = 0;  ///< N of the best hypothesis
   double margin = 0.0;       ///< C/N lead over the best hypothesis elsewhere
   /// The margin the flag's rise test reads: `margin`, or the lead over the
-  /// C/N of a rival iRANSAC dropped within rival_memory_scans, when that
+  /// C/N of a rival iRANSAC dropped within stable_scans, when that
   /// one was stronger than any it holds now.
   double rise_margin = 0.0;
   /// The rival behind `rise_margin` (has_rival false: none): its submap, the
@@ -388,9 +319,10 @@ struct ReportPolicyStats {
 
 /// iRANSAC's settings that the policy reads.
 struct RansacPreference {
-  double preference_z = 2.0;         ///< best = argmax C/N - z/sqrt(N)
-  double min_score = 30.0;           ///< C_o: hypotheses below it are not candidates
-  std::size_t recent_window = 8000;  ///< data-points of the recent-points duel
+  double preference_z = 2.0;             ///< best = argmax C/N - z/sqrt(N)
+  double min_score = 30.0;               ///< C_o: hypotheses below it are not candidates
+  std::size_t recent_window = 8000;      ///< data-points of the recent-points duel
+  std::size_t iterations_per_scan = 50;  ///< iterations iRANSAC runs per scan (points each hypothesis is scored on)
 };
 
 class ReportPolicy {
@@ -460,9 +392,6 @@ class ReportPolicy {
   /// (min_scored, min_mean_score) since the estimate last moved elsewhere.
   bool reported_supported_ = false;
   std::uint32_t kept_scans_ = 0;         ///< scans in a row the reported place has been kept
-  std::uint32_t supported_run_ = 0;      ///< scans in a row the best was supported
-  std::uint32_t run_needs_ = 1;          ///< scans of support the current run needs to raise the flag
-  bool place_qualified_ = false;         ///< the kept place had a run of support that could raise the flag
   bool weakly_supported_place_ = false;  ///< the kept place met the weak or the relative support test
   bool flag_ = false;                    ///< the confidence flag of the last report
   double mean_contradiction_ = 0.0;      ///< exponential mean of the newest points' penalty while flagged
