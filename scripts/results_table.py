@@ -6,6 +6,8 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+REPO = Path(__file__).resolve().parent.parent  # git history lives there, wherever results/ is
+
 
 def load(name):
     path = Path("results") / f"{name}.jsonl"
@@ -243,7 +245,7 @@ def judged_vs_truth():
     import subprocess
     for part in ("grid", "starts"):
         old = [json.loads(l) for l in subprocess.run(["git", "show", f"{TRUTH_ONLY_COMMIT}:results/{part}.jsonl"],
-                                                      capture_output=True, text=True, check=True).stdout.splitlines()
+                                                      capture_output=True, text=True, check=True, cwd=REPO).stdout.splitlines()
                if l.strip() and "failed" not in l]
         new = load(part)
         if not new:
@@ -268,6 +270,26 @@ def judged_vs_truth():
             print(f"| {b} | truth scans ({TRUTH_ONLY_COMMIT}) | {line(o, False)} |")
             print(f"| {b} | every scan | {line(n, True)} |")
         print()
+
+
+FLAG_BEFORE_COMMIT = "aefa4ee"  # the last commit with the rule-stack flag (issue 66's deliverables 2-4 came after)
+
+
+def flag_before_after():
+    """The flag before its rework (FLAG_BEFORE_COMMIT's lines, the same estimates) beside now, judged on every
+    scan: the 16 default scenarios, the 100 starts, our held-out windows and the live grid."""
+    import subprocess
+    print(f"| part | flag | succeed | {FLAG_HEADER} |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for part in ("grid", "starts", "heldout", "live"):
+        old = [json.loads(l) for l in subprocess.run(["git", "show", f"{FLAG_BEFORE_COMMIT}:results/{part}.jsonl"],
+                                                      capture_output=True, text=True, check=True, cwd=REPO).stdout.splitlines()
+               if l.strip() and "failed" not in l]
+        new = load(part)
+        for label, rs in ((f"before ({FLAG_BEFORE_COMMIT})", old), ("now", new)):
+            if rs:
+                print(f"| {part} | {label} | {sum(r['success'] for r in rs)}/{len(rs)} | {flag_line(rs)} |")
+    print()
 
 
 def heldout():

@@ -373,6 +373,16 @@ TEST(ReportPolicy, WeakSupportRaisesTheFlagWhereTheMapScoresEveryPlaceLow) {
   for (const auto& f : {flags(config, 0.3, 0.2, 3500), flags(config, 0.3, 0.1, cc.weak_support_min_scored - 100),
                         flags(config, 0.3, 0.1, 3500, 0.3)})
     EXPECT_EQ(std::count(f.begin(), f.end(), true), 0);
+  // No rival standing (none in iRANSAC, none remembered): the "lead" would be the place's own fit. Never.
+  FakeSample alone;
+  alone.score_of = [](const Hypothesis&) { return 0.3; };
+  alone.newest_score_of = [](const Hypothesis&) { return 0.15; };
+  ReportPolicy policy(config, kPreference);
+  for (std::size_t i = 0; i < stable + 20; ++i) {
+    const LocalizationEstimate e = step(policy, {scored(place, 0.25, 3500)}, alone);
+    EXPECT_FALSE(e.localized) << "scan " << i;
+    EXPECT_FALSE(e.has_rival);
+  }
 }
 
 TEST(ReportPolicy, TheFlagRisesOnANewestFitIsHeldWhileThePlaceIsKeptAndDropsOnContradiction) {

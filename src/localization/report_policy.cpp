@@ -402,10 +402,11 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool young_rival = standing != nullptr && standing->scored < cc.min_scored / 2;
   // The evidence tests, each named for what it asks of the place.
   FlagTests t;
-  // Weak support (a thin map: it scores few of the newest points) and relative support (a clear lead
-  // over a standing rival) stand in for the absolute test on their whole-map lead; scored only then.
-  const bool weak_candidate = !e.supported && best->scored >= cc.weak_support_min_scored && newest_known &&
-                              e.newest_evidence <= cc.weak_support_max_newest_evidence;
+  // Weak support (a thin map: it scores few of the newest points) and relative support (a clear lead)
+  // stand in for the absolute test on their whole-map lead over a standing rival; with none standing
+  // the "lead" is the place's own fit, and a robot outside a one-building map rose on it.
+  const bool weak_candidate = !e.supported && standing != nullptr && best->scored >= cc.weak_support_min_scored &&
+                              newest_known && e.newest_evidence <= cc.weak_support_max_newest_evidence;
   const bool relative_candidate =
       !e.supported && standing != nullptr && !young_rival && best->scored >= cc.relative_support_min_scored &&
       e.mean_score >= cc.relative_support_min_mean_score && e.rise_margin >= cc.relative_support_min_margin &&

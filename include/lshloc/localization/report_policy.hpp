@@ -153,9 +153,9 @@ struct ConfidenceConfig {
   double hold_max_mean_contradiction = 0.1;
   double contradiction_smoothing = 0.3;
   std::size_t whole_map_points = 1000;
-  /// Weak support, for a thin map: N >= weak_support_min_scored with a rise
-  /// margin, a whole-map lead of min_margin, and the map scoring at most
-  /// weak_support_max_newest_evidence of the newest points.
+  /// Weak support, for a thin map: N >= weak_support_min_scored, a
+  /// whole-map lead of min_margin over a standing rival, and the map scoring
+  /// at most weak_support_max_newest_evidence of the newest points.
   std::uint32_t weak_support_min_scored = 3000;
   double weak_support_max_newest_evidence = 0.2;
   /// Relative support, for a place the map scores under min_mean_score while
