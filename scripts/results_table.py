@@ -279,16 +279,19 @@ def flag_before_after():
     """The flag before its rework (FLAG_BEFORE_COMMIT's lines, the same estimates) beside now, judged on every
     scan: the 16 default scenarios, the 100 starts, our held-out windows and the live grid."""
     import subprocess
-    print(f"| part | flag | succeed | {FLAG_HEADER} |")
+    print(f"| part: building | flag | succeed | {FLAG_HEADER} |")
     print("|---|---|---|---|---|---|---|---|---|")
     for part in ("grid", "starts", "heldout", "live"):
         old = [json.loads(l) for l in subprocess.run(["git", "show", f"{FLAG_BEFORE_COMMIT}:results/{part}.jsonl"],
                                                       capture_output=True, text=True, check=True, cwd=REPO).stdout.splitlines()
                if l.strip() and "failed" not in l]
         new = load(part)
-        for label, rs in ((f"before ({FLAG_BEFORE_COMMIT})", old), ("now", new)):
-            if rs:
-                print(f"| {part} | {label} | {sum(r['success'] for r in rs)}/{len(rs)} | {flag_line(rs)} |")
+        for b in sorted({r["building"] for r in new}) + ["all"]:
+            for label, rows in ((f"before ({FLAG_BEFORE_COMMIT})", old), ("now", new)):
+                rs = rows if b == "all" else [r for r in rows if r["building"] == b]
+                if rs:
+                    name = f"**{part}: all**" if b == "all" else f"{part}: {b}"
+                    print(f"| {name} | {label} | {sum(r['success'] for r in rs)}/{len(rs)} | {flag_line(rs)} |")
     print()
 
 

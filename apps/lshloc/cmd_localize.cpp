@@ -308,15 +308,24 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
                         degrees(angle_distance(e.rival_pose.theta, e.pose.theta)));
     else
       where = "in " + map.submap_name(e.rival_submap);
+    // A rival scoring above the reported place on iRANSAC's points is named as such: the place is reported
+    // because it won the duel on the whole local map (whole_map_lead), not because it scores higher there.
+    std::string whole_map;
+    if (e.whole_map_scored) io::append_format(whole_map, "on the whole local map it leads by %.2f; ", e.whole_map_lead);
     io::append_format(text,
-                      "a look-alike fits almost as well: %s at x %.2f m, y %.2f m, heading %.1f deg (%s) scores "
-                      "%.2f, the reported place %.2f (the test wants a lead of %.2f)",
+                      "%s: %s at x %.2f m, y %.2f m, heading %.1f deg (%s) scores %.2f, the reported place %.2f "
+                      "(%sthe test wants a lead of %.2f)",
+                      e.rise_margin < 0.0 ? "a place elsewhere scores higher on iRANSAC's points"
+                                          : "a look-alike fits almost as well",
                       map.submap_name(e.rival_submap).c_str(), e.rival_pose.x, e.rival_pose.y,
-                      degrees(e.rival_pose.theta), where.c_str(), e.rival_mean_score, e.mean_score, c.min_margin);
-    reason("look_alike", {{"rival_submap", map.submap_name(e.rival_submap)},
-                          {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
-                          {"rival_mean_score", e.rival_mean_score},
-                          {"lead", e.rise_margin}});
+                      degrees(e.rival_pose.theta), where.c_str(), e.rival_mean_score, e.mean_score, whole_map.c_str(),
+                      c.min_margin);
+    reason("look_alike",
+           {{"rival_submap", map.submap_name(e.rival_submap)},
+            {"rival_pose", {e.rival_pose.x, e.rival_pose.y, e.rival_pose.theta}},
+            {"rival_mean_score", e.rival_mean_score},
+            {"lead", e.rise_margin},
+            {"whole_map_lead", e.whole_map_scored ? nlohmann::json(e.whole_map_lead) : nlohmann::json()}});
   } else if (why.look_alike) {
     io::append_format(text,
                       "the reported place scores %.2f, not far enough above nothing to stand out (the test wants a "
@@ -488,11 +497,20 @@ void print_answer(const nlohmann::json& j) {
         "  %zu scans were stamped within %.0f ms of a scan estimated elsewhere (bunched time stamps): their poses "
         "are not marked confident (stamp_clash in the CSV)\n",
         clashes, 1e3 * j["stamp_clash_tolerance_s"].get<double>());
-  std::printf(
-      "  confidence at the last scan: %.3f (mean score %.3f over %u points, lead %.3f over the best place "
-      "elsewhere)\n",
-      j["confidence"].get<double>(), j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(),
-      j["final_margin"].get<double>());
+  // Up, the flag rests on what it rose on and on the hold: say so rather than a lead it does not read.
+  if (j["localized"].get<bool>() && !j["final_whole_map_fit"].is_null())
+    std::printf(
+        "  confidence at the last scan: %.3f (mean score %.3f over %u points; the flag is held while the place is "
+        "kept and neither the newest scans nor the whole local map contradict it: whole-map fit %.3f, lead %.3f "
+        "there over the best place elsewhere)\n",
+        j["confidence"].get<double>(), j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(),
+        j["final_whole_map_fit"].get<double>(), j["final_whole_map_lead"].get<double>());
+  else
+    std::printf(
+        "  confidence at the last scan: %.3f (mean score %.3f over %u points, lead %.3f over the best place "
+        "elsewhere)\n",
+        j["confidence"].get<double>(), j["final_mean_score"].get<double>(), j["final_scored"].get<unsigned>(),
+        j["final_margin"].get<double>());
   std::string pace = "its stamps span no time";  // a log without time stamps
   if (j["log_s"].get<double>() > 0.0)
     pace = std::to_string(std::lround(j["realtime_factor"].get<double>())) + "x real time";
@@ -597,6 +615,9 @@ nlohmann::json answer_json(const std::string& path, const TargetRun& target, con
   j["final_mean_score"] = last.mean_score;
   j["final_scored"] = last.scored;
   j["final_margin"] = last.margin;
+  // Null where no test scored them at the last scan.
+  j["final_whole_map_fit"] = last.whole_map_scored ? nlohmann::json(last.whole_map_fit) : nlohmann::json();
+  j["final_whole_map_lead"] = last.whole_map_scored ? nlohmann::json(last.whole_map_lead) : nlohmann::json();
   j["not_confident_because"] = not_confident_reasons(last, confidence, map);
   j["log_s"] = run.log_duration_s;
   j["localize_cpu_s"] = run.localize_cpu_s;

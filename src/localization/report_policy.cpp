@@ -389,6 +389,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
     if (whole_map_known || cc.whole_map_points == 0) return;
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
     whole_map_known = taken > 0;
+    e.whole_map_scored = whole_map_known;
     if (taken > 0) {
       const std::array<Hypothesis, 2> pair{*reported_, standing ? standing->hypothesis : *reported_};
       sample.score(std::span(pair).first(standing ? 2 : 1), sums_);

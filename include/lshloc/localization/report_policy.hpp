@@ -272,6 +272,7 @@ struct LocalizationEstimate {
   /// means over different points; this one does not.
   double whole_map_fit = 0.0;
   double whole_map_lead = 0.0;
+  bool whole_map_scored = false;  ///< the two above were scored at this scan (else 0: no test read them)
   /// Another scan stamped at the same time has an estimate elsewhere
   /// (localization/stamp_clash.hpp): this pose cannot be looked up by time.
   bool stamp_clash = false;
