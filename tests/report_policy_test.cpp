@@ -165,7 +165,7 @@ TEST(ReportPolicy, ARivalThatVanishesStandsForRivalMemoryScans) {
   const std::vector<LocalizationEstimate> brief = replay(2, 0.5);
   for (std::size_t i = 0; i < brief.size(); ++i) EXPECT_EQ(brief[i].localized, i >= 2) << "scan " << i;
   // A weaker rival that iRANSAC holds once the first is dropped does not
-  // stand for it: the dropped one still does, for its rival_memory_scans.
+  // stand for it: the dropped one still does, for its stable_scans.
   {
     ReportPolicy policy(plain(), kPreference);
     FakeSample sample;
@@ -520,10 +520,10 @@ LocalizationEstimate after_steady_scans(const ReportPolicyConfig& config, const 
 
 TEST(ReportPolicy, TheFlagRisesOnRelativeSupportWhereTheMapScoresThePlaceUnderTheAbsoluteTest) {
   // C/N 0.3 is under min_mean_score (0.35): the flag rises only on a lead of
-  // relative_support_min_whole_map_lead (0.2) over the rival on the same
-  // whole-map points and of relative_support_min_newest_lead (0.1) on the
+  // min_whole_map_lead (0.2) over the rival on the same
+  // whole-map points and of min_newest_fit (0.1) on the
   // newest ones, with N and C/N at least relative_support_min_*, over a rival
-  // scored on rise_rival_min_scored points or more.
+  // scored on min_scored / 2 points or more.
   const Hypothesis place = at(1, 4.0), rival = at(2, 0.0);
   const auto flag_after = [&](const ReportPolicyConfig& config, double place_mean, std::uint32_t scored_n,
                               double rival_score, std::optional<double> rival_newest = std::nullopt,
@@ -590,7 +590,7 @@ TEST(ReportPolicy, TheMarginTestAlsoPassesOnAWholeMapLead) {
   LocalizationEstimate e = flag_after(plain(), 0.35);  // a lead of 0.15, compared on every scan
   EXPECT_NEAR(e.whole_map_lead, 0.15, 1e-12);
   EXPECT_FALSE(e.localized);
-  // A rival scored on fewer than rise_rival_min_scored: a lead of 0.2 is not enough, 0.25 is.
+  // A rival scored on fewer than min_scored / 2: a lead of 0.2 is not enough, strong_lead (0.25) is.
   const std::uint32_t young = cc.min_scored / 2 - 150;
   e = flag_after(plain(), 0.3, young);
   EXPECT_NEAR(e.whole_map_lead, 0.2, 1e-12);

@@ -198,7 +198,7 @@ struct FlagDownReasons {
   bool weak_support = false;      ///< C/N under min_mean_score, and no weak or relative support instead
   bool few_points = false;        ///< N under min_scored (C/N high enough), and no weak or relative support
   bool look_alike = false;        ///< the margin over the best place elsewhere is short, and no lead passes it
-  bool newest_misfit = false;     ///< the newest points fit the place under rise_min_newest_fit
+  bool newest_misfit = false;     ///< the newest points fit the place under min_newest_fit
   bool young_hypothesis = false;  ///< a new hypothesis at a long-kept place, scored on too few points yet
   bool contradicted = false;      ///< the flag was up: the newest points contradict the map (the hold's limits)
 
