@@ -197,6 +197,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   const std::string trace_path = suffix_trace ? opt.trace + ".R" + std::to_string(config.submaps) : opt.trace;
   if (!opt.trace.empty()) io::require_writable(trace_path), io::require_writable(trace_path + ".truth.csv");
   if (!opt.plot_dir.empty()) io::require_writable_directory(opt.plot_dir, "the figure directory");
+  if (!opt.save_map.empty()) io::require_replaceable(opt.save_map);
   // A saved or a fleet's map holds the submaps: only the target's logs are read.
   Scenario sc = opt.load_map.empty() && opt.map_redis.empty()
                     ? load_eval_scenario(catalog, config, slam_pose_cache(opt.slam_cache))

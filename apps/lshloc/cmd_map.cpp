@@ -136,7 +136,7 @@ void run_build(const BuildOptions& opt, const char* made_by) {
     std::printf("%s\n", io::json_text(nlohmann::json(config), 2).c_str());
     return;
   }
-  io::require_writable(opt.out);  // before the work, not after it
+  io::require_replaceable(opt.out);  // before the work, not after it
   const auto t0 = std::chrono::steady_clock::now();
   GlobalMap map(config);
   std::fprintf(stderr, "%s: reading and adding %zu submaps\n", made_by, opt.logs.size());
@@ -431,7 +431,7 @@ void add_from_redis(CLI::App& map_cmd) {
                   "update arrived for this long, then save")
       ->check(within(0, 1e6));
   cmd->callback([opt] {
-    io::require_writable(opt->out);
+    io::require_replaceable(opt->out);
     const auto t0 = std::chrono::steady_clock::now();
     fleet::MapFollower follower(fleet::RedisAddress::parse(opt->url),
                                 fleet::MapFollowerConfig{.log = {.prefix = opt->prefix}});

@@ -80,11 +80,19 @@ void write_into_stream(const std::string& path, std::string_view bytes) {
 
 }  // namespace
 
-int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
+namespace {
+
+void refuse_stream(const std::string& path) {
   if (output_kind(path) != OutputKind::kFile)
     throw Error(path +
                 ": is a character device or FIFO; expected a file name (this output is replaced whole, "
                 "and a device is never replaced)");
+}
+
+}  // namespace
+
+int replace_file(const std::string& path, std::span<const std::uint8_t> bytes) {
+  refuse_stream(path);
   const std::string tmp = temporary_path_for(path);
   const int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw FileError(system_error(path, "cannot create its temporary file " + tmp));
@@ -195,6 +203,11 @@ void require_writable(const std::string& path) {
   if (!fs::is_directory(name, ec))
     throw FileError(path + ": cannot write here (the directory " + name + " does not exist)");
   if (::access(name.c_str(), W_OK) != 0) throw FileError(system_error(path, "cannot write in " + name));
+}
+
+void require_replaceable(const std::string& path) {
+  refuse_stream(path);
+  require_writable(path);
 }
 
 void require_writable_directory(const std::string& dir, const std::string& what) {

@@ -69,6 +69,11 @@ void write_files_atomically(std::span<const FileOutput> files);
 /// a long run makes before it starts.
 void require_writable(const std::string& path);
 
+/// require_writable() for an output replaced whole (a saved map and its
+/// journal, replace_file()): a character device or FIFO is refused too, before
+/// the run makes what it would write there.
+void require_replaceable(const std::string& path);
+
 /// Creates `dir` (and its parents) where it is missing, and throws
 /// lshloc::Error naming it, and what it is for (`what`, e.g. "the figure
 /// directory"), unless files can be written in it.
