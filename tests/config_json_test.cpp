@@ -212,6 +212,39 @@ TEST(ConfigJson, TheManyBuildingsExampleSetsOnlyAQueryTimeSetting) {
   EXPECT_EQ(nlohmann::json(with_query_settings(LshConfig{}, c.map.database)), nlohmann::json(c.map.database));
 }
 
+TEST(ConfigJson, AConfigInTheReportPolicysFormerShapeStillApplies) {
+  // Before the flag's rework every setting of the report policy sat under localizer.report.confidence
+  // (tracking and refinement under localizer.report): they apply where they live now.
+  ScenarioRunConfig c;
+  io::apply_config_patch({{"localizer",
+                           {{"report",
+                             {{"confidence", {{"duel_z", 2.5}, {"min_margin", 0.2}, {"rise_min_newest_fit", 0.05}}},
+                              {"refine_points", 10u}}}}}},
+                         c, "old.json");
+  EXPECT_EQ(c.localizer.place.duel_z, 2.5);
+  EXPECT_EQ(c.localizer.place.refine_points, 10u);
+  EXPECT_EQ(c.localizer.report.min_margin, 0.2);
+  EXPECT_EQ(c.localizer.report.min_newest_fit, 0.05);
+  // A count of 2^32 there is refused as under its current name.
+  io::apply_config_patch({{"localizer", {{"report", {{"confidence", {{"duel_points", 4294967296u}}}}}}}}, c,
+                         "old.json");
+  EXPECT_THROW(c.localizer.validate(), Error);
+  // A setting of the former rules that is gone: named, with where the settings are now.
+  try {
+    ScenarioRunConfig d;
+    io::apply_config_patch({{"localizer", {{"report", {{"confidence", {{"rival_memory_scans", 50}}}}}}}}, d,
+                           "old.json");
+    ADD_FAILURE() << "a removed setting applied";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("old.json: localizer.report.confidence.rival_memory_scans: a setting of the confidence "
+                        "flag's former rules"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("localizer.place"), std::string::npos) << what;
+  }
+}
+
 TEST(ConfigJson, TheReportPolicyHoldsTheFlagsTwentySettingsAndNoPlaceSetting) {
   // The flag's settings are "report"; which place is reported is "place"; the value's weights are not
   // settings (src/localization/confidence_value.json).

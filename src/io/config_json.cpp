@@ -159,13 +159,55 @@ void check_config_patch(const nlohmann::json& patch, const nlohmann::json& curre
   }
 }
 
-nlohmann::json with_current_names(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
+namespace {
+
+/// A localizer patch in the report policy's former shape ("report": {"confidence": {...}, "track_...",
+/// "refine_..."}) in its current one: the place's settings under "place", the flag's under "report".
+/// A setting of the flag's former rules that is gone throws, naming it.
+nlohmann::json with_report_split(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
+                                 const std::string& path) {
+  static constexpr std::array<std::pair<const char*, const char*>, 2> kFlagRenames{
+      {{"rise_min_newest_fit", "min_newest_fit"}, {"rise_margin_whole_map_lead", "min_whole_map_lead"}}};
+  if (!patch.contains("report") || !patch["report"].is_object() || !current.contains("place")) return patch;
+  nlohmann::json out = patch;
+  nlohmann::json& report = out["report"];
+  nlohmann::json former = nlohmann::json::object();
+  if (report.contains("confidence") && report["confidence"].is_object()) {
+    former = report["confidence"];
+    report.erase("confidence");
+  }
+  const nlohmann::json given = report;  // erased from while iterated
+  for (const auto& [key, value] : given.items())
+    if (current["place"].contains(key)) former[key] = value, report.erase(key);
+  const std::string at = (path.empty() ? std::string() : path + ".") + "report.confidence.";
+  for (const auto& [key, value] : former.items()) {
+    std::string name = key;
+    for (const auto& [was, now] : kFlagRenames)
+      if (key == was) name = now;
+    nlohmann::json& into = current["place"].contains(name) ? out["place"] : report;
+    if (!current["place"].contains(name) && !current["report"].contains(name))
+      throw Error(source + ": " + at + key +
+                  ": a setting of the confidence flag's former rules, gone since the flag became named evidence "
+                  "tests (docs/design.md section 2.3; the flag's settings are now " +
+                  (path.empty() ? std::string() : path + ".") + "report, the place's " +
+                  (path.empty() ? std::string() : path + ".") + "place)");
+    if (into.contains(name))
+      throw Error(source + ": " + at + key + " and its current place " + name + " name one setting");
+    into[name] = value;
+  }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json with_current_names(const nlohmann::json& input, const nlohmann::json& current, const std::string& source,
                                   const std::string& path) {
   static constexpr std::array<std::pair<const char*, const char*>, 3> kFormerNames{
       {{"new_features_per_scan", "new_data_points_per_scan"},
        {"max_features", "max_data_points"},
        {"scan_voxel", "scan_point_spacing"}}};
-  if (!patch.is_object() || !current.is_object()) return patch;
+  if (!input.is_object() || !current.is_object()) return input;
+  const nlohmann::json patch = with_report_split(input, current, source, path);
   nlohmann::json out = nlohmann::json::object();
   for (const auto& [key, value] : patch.items()) {
     const std::string key_path = path.empty() ? key : path + "." + key;

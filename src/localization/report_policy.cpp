@@ -399,7 +399,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   };
   if (config_.always_score_whole_map || flag_) score_whole_map();  // the hold reads the whole-map fit
   // A rival scored on few points may have displaced a well-scored one as the best elsewhere by C/N: a
-  // margin over it needs the whole-map lead too, a lead alone must be strong, and no lead stands for support.
+  // margin over it needs the whole-map lead too, a lead alone must be strong, and relative support is off.
   const bool young_rival = standing != nullptr && standing->scored < cc.min_scored / 2;
   // The evidence tests, each named for what it asks of the place.
   FlagTests t;

@@ -85,8 +85,10 @@ void check_config_patch(const nlohmann::json& patch, const nlohmann::json& curre
 
 /// `patch` with settings under a former name (iRANSAC's new_features_per_scan
 /// and max_features, the scan matcher's scan_voxel) under their current one, where `current` has it, so
-/// that older config files still apply. Both names at once throw
-/// lshloc::Error naming `source`.
+/// that older config files still apply; likewise the localizer's former
+/// "report": {"confidence": {...}} split into "place" and "report" (a
+/// setting of the flag's former rules that is gone throws, naming it). Both
+/// names at once throw lshloc::Error naming `source`.
 nlohmann::json with_current_names(const nlohmann::json& patch, const nlohmann::json& current, const std::string& source,
                                   const std::string& path = "");
 
