@@ -18,6 +18,13 @@ cmake -S examples/embed -B "$prefix/embed" -DCMAKE_PREFIX_PATH="$prefix/install"
 cmake --build "$prefix/embed" -j"$(nproc)" >/dev/null
 "$prefix/embed/embed"
 echo "embed: built against the installed package and ran"
+# lshloc::core alone needs Eigen alone: the other packages are hidden from the consumer.
+cmake -S examples/embed_core -B "$prefix/embed_core" -DCMAKE_PREFIX_PATH="$prefix/install" \
+  -DCMAKE_DISABLE_FIND_PACKAGE_PkgConfig=ON -DCMAKE_DISABLE_FIND_PACKAGE_PNG=ON -DCMAKE_DISABLE_FIND_PACKAGE_ZLIB=ON \
+  -DCMAKE_DISABLE_FIND_PACKAGE_nlohmann_json=ON -DCMAKE_DISABLE_FIND_PACKAGE_CLI11=ON >/dev/null
+cmake --build "$prefix/embed_core" >/dev/null
+"$prefix/embed_core/embed_core"
+echo "embed_core: lshloc::core built with Eigen alone and localized"
 "$prefix/install/bin/lshloc-rosbag-to-carmen" --help >/dev/null
 echo "lshloc-rosbag-to-carmen: installed and runs"
 ./scripts/sanitize.sh
