@@ -25,7 +25,7 @@
 #include <variant>
 
 #include "lshloc/common/error.hpp"
-#include "lshloc/eval/scenario_runner.hpp"
+#include "lshloc/runtime/session.hpp"
 #include "lshloc/io/atomic_file.hpp"
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/scan_record.hpp"

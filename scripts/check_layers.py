@@ -17,11 +17,12 @@ ALLOWED = {
     "matching": {"common", "geometry", "appearance"},
     "slam": {"common", "geometry"},
     "localization": {"common", "geometry", "appearance", "matching", "slam"},
-    "io": {"common", "geometry", "appearance", "matching", "slam", "localization"},
+    "runtime": {"common", "geometry", "appearance", "matching", "slam", "localization"},
+    "io": {"common", "geometry", "appearance", "matching", "slam", "localization", "runtime"},
     "figures": {"common", "geometry"},
-    "eval": {"common", "geometry", "appearance", "matching", "slam", "localization", "io"},
-    "sim": {"common", "geometry", "appearance", "matching", "slam", "localization", "io", "eval"},
-    "fleet": {"common", "geometry", "appearance", "matching", "slam", "localization", "io"},
+    "eval": {"common", "geometry", "appearance", "matching", "slam", "localization", "runtime", "io"},
+    "sim": {"common", "geometry", "appearance", "matching", "slam", "localization", "runtime"},
+    "fleet": {"common", "geometry", "appearance", "matching", "slam", "localization", "runtime", "io"},
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"lshloc/([a-z_]+)/[^"]+"')
 

@@ -14,7 +14,7 @@ namespace lshloc {
 namespace {
 
 std::string error_of(const nlohmann::json& patch) {
-  ScenarioRunConfig c;
+  RunConfig c;
   try {
     io::apply_config_patch(patch, c, "cfg.json");
   } catch (const Error& e) {
@@ -24,7 +24,7 @@ std::string error_of(const nlohmann::json& patch) {
 }
 
 TEST(ConfigJson, RoundTripKeepsEveryValue) {
-  ScenarioRunConfig c;
+  RunConfig c;
   c.map.occupancy.cell_size = 0.3;
   c.map.database.bucket_capacity = 32;
   c.localizer.ransac.order_rule = DataPointOrderRule::kUniform;
@@ -49,7 +49,7 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
   c.localizer.newly_mapped_halvings = 2;
   c.map_share_before_target = 0.5;
   const nlohmann::json j = c;
-  const ScenarioRunConfig back = j.get<ScenarioRunConfig>();
+  const RunConfig back = j.get<RunConfig>();
   EXPECT_EQ(nlohmann::json(back), j);
   EXPECT_EQ(back.map.occupancy.cell_size, 0.3);
   EXPECT_EQ(back.map.database.bucket_capacity, 32u);
@@ -77,8 +77,8 @@ TEST(ConfigJson, RoundTripKeepsEveryValue) {
 }
 
 TEST(ConfigJson, APatchChangesOnlyWhatItNames) {
-  ScenarioRunConfig c;
-  const ScenarioRunConfig defaults;
+  RunConfig c;
+  const RunConfig defaults;
   io::apply_config_patch(nlohmann::json::parse(R"({"localizer": {"scan_matcher": {"max_range": 20},
                                                                   "ransac": {"order_rule": "fresh"}}})"),
                          c, "cfg.json");
@@ -96,7 +96,7 @@ TEST(ConfigJson, APatchChangesOnlyWhatItNames) {
 
 // Config files written before iRANSAC's settings were named after data-points still apply.
 TEST(ConfigJson, FormerNamesOfSettingsStillApply) {
-  ScenarioRunConfig c;
+  RunConfig c;
   io::apply_config_patch(nlohmann::json::parse(R"({"localizer": {"ransac": {"max_features": 16000,
                                                                              "new_features_per_scan": 25}}})"),
                          c, "old.json");
@@ -172,7 +172,7 @@ TEST(ConfigJson, CountsThatOnlyExhaustMemoryOrTimeAreRefused) {
         std::pair{nlohmann::json{{"localizer", {{"scan_matcher", {{"max_iterations", 4294967296u}}}}}},
                   "max_iterations"},
         std::pair{nlohmann::json{{"map", {{"occupancy", {{"initial_capacity", 4294967296u}}}}}}, "initial_capacity"}}) {
-    ScenarioRunConfig c;
+    RunConfig c;
     io::apply_config_patch(patch, c, "cfg.json");  // well-typed: applied, then refused by the check of use
     std::string e;
     try {
@@ -185,14 +185,14 @@ TEST(ConfigJson, CountsThatOnlyExhaustMemoryOrTimeAreRefused) {
 }
 
 TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndSketchAndNothingElse) {
-  ScenarioRunConfig c;
+  RunConfig c;
   const std::string path = std::string(LSHLOC_SOURCE_DIR) + "/examples/config/large-map.json";
   io::apply_config_patch(io::read_json_file(path), c, path);
   EXPECT_EQ(c.map.database.K, 20u);
   EXPECT_EQ(c.map.database.max_candidates, 2000u);
   EXPECT_EQ(c.map.database.sketch_bits, 256u);
   EXPECT_NO_THROW(c.map.database.validate());
-  nlohmann::json expected = ScenarioRunConfig{};
+  nlohmann::json expected = RunConfig{};
   expected["map"]["database"]["K"] = 20;
   expected["map"]["database"]["max_candidates"] = 2000;
   expected["map"]["database"]["sketch_bits"] = 256;
@@ -202,11 +202,11 @@ TEST(ConfigJson, TheLargeMapExampleSetsTheFinerHashAndSketchAndNothingElse) {
 TEST(ConfigJson, TheManyBuildingsExampleSetsOnlyAQueryTimeSetting) {
   // A larger candidate budget, nothing a map's layout depends on: a map
   // saved with the defaults can be given it without a rebuild.
-  ScenarioRunConfig c;
+  RunConfig c;
   const std::string path = std::string(LSHLOC_SOURCE_DIR) + "/examples/config/many-buildings.json";
   io::apply_config_patch(io::read_json_file(path), c, path);
   EXPECT_EQ(c.map.database.max_candidates, 1000u);
-  nlohmann::json expected = ScenarioRunConfig{};
+  nlohmann::json expected = RunConfig{};
   expected["map"]["database"]["max_candidates"] = 1000;
   EXPECT_EQ(nlohmann::json(c), expected);
   EXPECT_EQ(nlohmann::json(with_query_settings(LshConfig{}, c.map.database)), nlohmann::json(c.map.database));
@@ -215,7 +215,7 @@ TEST(ConfigJson, TheManyBuildingsExampleSetsOnlyAQueryTimeSetting) {
 TEST(ConfigJson, AConfigInTheReportPolicysFormerShapeStillApplies) {
   // Before the flag's rework every setting of the report policy sat under localizer.report.confidence
   // (tracking and refinement under localizer.report): they apply where they live now.
-  ScenarioRunConfig c;
+  RunConfig c;
   io::apply_config_patch({{"localizer",
                            {{"report",
                              {{"confidence", {{"duel_z", 2.5}, {"min_margin", 0.2}, {"rise_min_newest_fit", 0.05}}},
@@ -231,7 +231,7 @@ TEST(ConfigJson, AConfigInTheReportPolicysFormerShapeStillApplies) {
   EXPECT_THROW(c.localizer.validate(), Error);
   // A setting of the former rules that is gone: named, with where the settings are now.
   try {
-    ScenarioRunConfig d;
+    RunConfig d;
     io::apply_config_patch({{"localizer", {{"report", {{"confidence", {{"rival_memory_scans", 50}}}}}}}}, d,
                            "old.json");
     ADD_FAILURE() << "a removed setting applied";
@@ -248,7 +248,7 @@ TEST(ConfigJson, AConfigInTheReportPolicysFormerShapeStillApplies) {
 TEST(ConfigJson, TheReportPolicyHoldsTheFlagsTwentySettingsAndNoPlaceSetting) {
   // The flag's settings are "report"; which place is reported is "place"; the value's weights are not
   // settings (src/localization/confidence_value.json).
-  const nlohmann::json j = ScenarioRunConfig{};
+  const nlohmann::json j = RunConfig{};
   EXPECT_EQ(j["localizer"]["report"].size(), 20u) << j["localizer"]["report"].dump();
   for (const auto& [key, value] : j["localizer"]["report"].items()) EXPECT_FALSE(value.is_object()) << key;
   EXPECT_TRUE(j["localizer"]["place"].contains("duel_z"));

@@ -571,7 +571,7 @@ TEST(LiveFleet, AFollowerFeedsTheMapWhileALocalizerReadsIt) {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
   });
-  const ScenarioRun run = localize_target(map, sc.target, LocalizerConfig{}, {}, {}, {}, &mutex);
+  const LocalizationRun run = localize_target(map, sc.target, LocalizerConfig{}, {}, {}, {}, &mutex);
   mapper.join();
   // Let the follower take the rest, then stop it.
   std::size_t total = 0;
@@ -589,7 +589,7 @@ TEST(LiveFleet, AFollowerFeedsTheMapWhileALocalizerReadsIt) {
   EXPECT_EQ(follower.stats().duplicates, 0u);
   const std::optional<std::uint32_t> target = map.find_submap(sc.submaps[sc.target_submap].name);
   ASSERT_TRUE(target.has_value());
-  const auto m = evaluate_localization(run.scan_estimates(), sc.target.truth, *target);
+  const auto m = evaluate_localization(scan_estimates(run), sc.target.truth, *target);
   EXPECT_TRUE(m.success);
 }
 

@@ -356,9 +356,9 @@ TEST(GridSubmap, ARobotLocalizesInAMapBuiltOnlyFromGrids) {
     io::write_ros_map(stem, build_occupancy_grid(s.scans));
     add_grid_submap(map, map.add_submap(s.name), io::read_ros_map(stem + ".yaml"), config);
   }
-  const ScenarioRun run = localize_target(map, sc.target, LocalizerConfig{});
+  const LocalizationRun run = localize_target(map, sc.target, LocalizerConfig{});
   const auto m =
-      evaluate_localization(run.scan_estimates(), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
+      evaluate_localization(scan_estimates(run), sc.target.truth, static_cast<std::uint32_t>(sc.target_submap));
   ASSERT_TRUE(m.final_error_m.has_value()) << "the final estimate is in the wrong building or absent";
   EXPECT_LT(*m.final_error_m, 0.3);
   EXPECT_LT(*m.final_heading_error_deg, 3.0);

@@ -81,9 +81,9 @@ TEST(LiveReplay, ATargetWhoseBuildingIsMappedOnlyMidRunIsNotFlaggedBeforeAndLoca
   LiveReplayConfig live;
   live.mapper_speed = 0.1 * static_cast<double>(far.size()) / (0.5 * run_s);
 
-  const LiveRun run = run_live_scenario(sc, ScenarioRunConfig{}, live);
+  const LiveRun run = run_live_scenario(sc, RunConfig{}, live);
   const auto m =
-      evaluate_localization(run.run.scan_estimates(), target.truth, static_cast<std::uint32_t>(sc.target_submap));
+      evaluate_localization(scan_estimates(run.run), target.truth, static_cast<std::uint32_t>(sc.target_submap));
   const LiveMetrics lm = evaluate_live(run, m);
   ASSERT_TRUE(lm.first_mapped_at);
   EXPECT_GT(*lm.first_mapped_at, target.scans.size() / 3) << "the place should be mapped only mid-run";
@@ -119,14 +119,14 @@ TEST(LiveThreads, AScanTheMapRefusesEndsTheRunWithItsError) {
   Submap& other = sc.submaps[sc.target_submap == 0 ? 1 : 0];
   ASSERT_GT(other.scans.size(), 10u);
   other.scans[10].pose.x = 1e7;
-  EXPECT_THROW(run_live_scenario(sc, ScenarioRunConfig{}, LiveReplayConfig{}), Error);
-  EXPECT_THROW(run_live_threaded(sc, ScenarioRunConfig{}, LiveReplayConfig{}, /*live=*/true), Error);
+  EXPECT_THROW(run_live_scenario(sc, RunConfig{}, LiveReplayConfig{}), Error);
+  EXPECT_THROW(run_live_threaded(sc, RunConfig{}, LiveReplayConfig{}, /*live=*/true), Error);
 }
 
 TEST(LiveThreads, AFrozenMapGivesTheBatchEstimates) {
   const Scenario sc = sim::synthetic_scenario(test::small_world(600, 150));
-  const ScenarioRun batch = run_scenario(sc, ScenarioRunConfig{});
-  const LiveRun frozen = run_live_threaded(sc, ScenarioRunConfig{}, LiveReplayConfig{}, /*live=*/false);
+  const LocalizationRun batch = run_scenario(sc, RunConfig{});
+  const LiveRun frozen = run_live_threaded(sc, RunConfig{}, LiveReplayConfig{}, /*live=*/false);
   ASSERT_EQ(frozen.run.estimates.size(), batch.estimates.size());
   for (std::size_t i = 0; i < batch.estimates.size(); ++i) {
     const LocalizationEstimate &a = batch.estimates[i], &b = frozen.run.estimates[i];
@@ -149,9 +149,9 @@ TEST(LiveThreads, MappersWriteFromTheirThreadsWhileTheTargetLocalizes) {
   for (Submap& s : sc.submaps) {
     for (std::size_t k = 0; k < s.scans.size(); ++k) s.scans[k].timestamp = 0.1 * static_cast<double>(k);
   }
-  const LiveRun run = run_live_threaded(sc, ScenarioRunConfig{}, live, /*live=*/true);
+  const LiveRun run = run_live_threaded(sc, RunConfig{}, live, /*live=*/true);
   const auto m =
-      evaluate_localization(run.run.scan_estimates(), target.truth, static_cast<std::uint32_t>(sc.target_submap));
+      evaluate_localization(scan_estimates(run.run), target.truth, static_cast<std::uint32_t>(sc.target_submap));
   const LiveMetrics lm = evaluate_live(run, m);
   // The map grows while the target runs (how far by each scan is the threads' race).
   EXPECT_TRUE(std::is_sorted(run.map_scans_in.begin(), run.map_scans_in.end()));
@@ -171,7 +171,7 @@ TEST(LiveThreads, MappersWriteFromTheirThreadsWhileTheTargetLocalizes) {
   // The mappers keep pace with the target: a writer that got the lock once
   // per scan was starved by the localizer's reads (a tenth of the fr079 R = 15
   // mapper scans got in); by the end about what the replay on one thread fed.
-  const LiveRun replay = run_live_scenario(sc, ScenarioRunConfig{}, live);
+  const LiveRun replay = run_live_scenario(sc, RunConfig{}, live);
   EXPECT_GE(2 * run.mapper_scans, replay.mapper_scans) << run.mapper_scans << " of " << replay.mapper_scans;
 }
 

@@ -23,9 +23,9 @@ namespace {
 
 // The target's run ends right (< 0.3 m, < 3 deg), localized within 200
 // scans, flagged at some scan and never wrongly. Returns the run.
-ScenarioRun expect_localized(const Scenario& sc) {
-  ScenarioRun run = run_scenario(sc, ScenarioRunConfig{});
-  const auto m = evaluate_localization(run.scan_estimates(), sc.target.truth, 1);
+LocalizationRun expect_localized(const Scenario& sc) {
+  LocalizationRun run = run_scenario(sc, RunConfig{});
+  const auto m = evaluate_localization(scan_estimates(run), sc.target.truth, 1);
   EXPECT_TRUE(m.final_error_m.has_value()) << "the final estimate is in the wrong building or absent";
   EXPECT_LT(m.final_error_m.value_or(1e9), 0.3);
   EXPECT_LT(m.final_heading_error_deg.value_or(1e9), 3.0);
@@ -36,7 +36,7 @@ ScenarioRun expect_localized(const Scenario& sc) {
 }
 
 TEST(Localizer, FindsTheRightBuildingAndPoseInASyntheticWorld) {
-  const ScenarioRun run = expect_localized(sim::synthetic_scenario(test::small_world()));
+  const LocalizationRun run = expect_localized(sim::synthetic_scenario(test::small_world()));
   EXPECT_GT(run.map.features, 1000u);
   EXPECT_GT(run.localizer.ransac.scores, 0u);
 }
@@ -83,13 +83,13 @@ TEST(SharedMap, LocalizersOnTheirOwnThreadsGiveALoneLocalizersEstimates) {
   const Scenario sc = sim::synthetic_scenario(test::small_world());
   GlobalMap map(GlobalMapConfig{});
   MapFeeder(map, sc.submaps).feed_until(1.0);
-  const ScenarioRun alone = localize_target(map, sc.target, LocalizerConfig{});
-  std::vector<ScenarioRun> together(2);
+  const LocalizationRun alone = localize_target(map, sc.target, LocalizerConfig{});
+  std::vector<LocalizationRun> together(2);
   {
     std::vector<std::jthread> robots;
     for (auto& run : together) robots.emplace_back([&] { run = localize_target(map, sc.target, LocalizerConfig{}); });
   }
-  for (const ScenarioRun& run : together) {
+  for (const LocalizationRun& run : together) {
     ASSERT_EQ(run.estimates.size(), alone.estimates.size());
     for (std::size_t i = 0; i < alone.estimates.size(); ++i) {
       const LocalizationEstimate &a = alone.estimates[i], &b = run.estimates[i];
@@ -100,7 +100,7 @@ TEST(SharedMap, LocalizersOnTheirOwnThreadsGiveALoneLocalizersEstimates) {
       EXPECT_EQ(a.pose.theta, b.pose.theta) << i;
     }
   }
-  const auto m = evaluate_localization(alone.scan_estimates(), sc.target.truth, 1);
+  const auto m = evaluate_localization(scan_estimates(alone), sc.target.truth, 1);
   EXPECT_TRUE(m.success);
 }
 
@@ -152,7 +152,7 @@ TEST(Localizer, SettingsThatCannotWorkAreRefusedByName) {
   EXPECT_NO_THROW(scores.validate());
   scores.surface_on_return = std::nanf("");
   EXPECT_THROW(scores.validate(), Error);
-  ScenarioRunConfig run;
+  RunConfig run;
   run.map_share_before_target = -1.0;
   EXPECT_THROW(run.validate(), Error);
   run.map_share_before_target = 0.5;
@@ -166,16 +166,17 @@ TEST(Localizer, TakesTheMapsNewQuerySettingsFromItsNextScan) {
   const Scenario sc = sim::synthetic_scenario(test::small_world());
   GlobalMap map(GlobalMapConfig{});
   MapFeeder(map, sc.submaps).feed_until(1.0);
-  const ScenarioRun before = localize_target(map, sc.target, LocalizerConfig{});
+  const LocalizationRun before = localize_target(map, sc.target, LocalizerConfig{});
   LshConfig asked = map.config().database;
   asked.max_candidates = 1500;
   asked.rarest_buckets_first = false;
-  const ScenarioRun changed_on_the_way = localize_target(map, sc.target, LocalizerConfig{}, {}, {}, [&](std::size_t i) {
-    if (i == 0) map.set_query_settings(asked);
-  });
+  const LocalizationRun changed_on_the_way =
+      localize_target(map, sc.target, LocalizerConfig{}, {}, {}, [&](std::size_t i) {
+        if (i == 0) map.set_query_settings(asked);
+      });
   EXPECT_EQ(map.config().database.max_candidates, 1500u);
   EXPECT_FALSE(map.database().config().rarest_buckets_first);
-  const ScenarioRun after = localize_target(map, sc.target, LocalizerConfig{});
+  const LocalizationRun after = localize_target(map, sc.target, LocalizerConfig{});
   ASSERT_EQ(changed_on_the_way.estimates.size(), after.estimates.size());
   bool differs_from_before = false;
   for (std::size_t i = 0; i < after.estimates.size(); ++i) {
@@ -193,10 +194,10 @@ TEST(Localizer, MapperScansMayArriveWhileTheTargetLocalizes) {
   // Half of every submap is mapped before the target starts; the rest
   // arrives between target scans, and the target still localizes.
   const Scenario sc = sim::synthetic_scenario(test::small_world());
-  ScenarioRunConfig config;
+  RunConfig config;
   config.map_share_before_target = 0.5;
-  const ScenarioRun run = run_scenario(sc, config);
-  const auto m = evaluate_localization(run.scan_estimates(), sc.target.truth, 1);
+  const LocalizationRun run = run_scenario(sc, config);
+  const auto m = evaluate_localization(scan_estimates(run), sc.target.truth, 1);
   ASSERT_TRUE(m.final_error_m.has_value());
   EXPECT_LT(*m.final_error_m, 0.3);
   EXPECT_EQ(m.confident_wrong, 0u);
@@ -207,7 +208,7 @@ TEST(Localizer, SaysNotLocalizedInABuildingThatIsNotInTheMap) {
   // whatever the best hypothesis, the localizer must not be confident.
   Scenario sc = sim::synthetic_scenario(test::small_world());
   sc.submaps.erase(sc.submaps.begin() + 1);
-  const ScenarioRun run = run_scenario(sc, ScenarioRunConfig{});
+  const LocalizationRun run = run_scenario(sc, RunConfig{});
   std::size_t confident = 0;
   for (const auto& e : run.estimates) confident += e.localized;
   EXPECT_EQ(confident, 0u);
@@ -310,9 +311,8 @@ TEST(Localizer, KeepsItsPlaceWhileDrivingWhereTheMapKnowsNothing) {
   const TargetRun& target = sc.target;
   const std::size_t from = 2 * target.scans.size() / 3;
   ASSERT_GT(unmap_the_end_of_the_run(sc, from, 4.0).size(), 100u) << "the test needs a sizeable unmapped part";
-  const ScenarioRun run = run_scenario(sc, ScenarioRunConfig{});
-  const auto m =
-      evaluate_localization(run.scan_estimates(), target.truth, static_cast<std::uint32_t>(sc.target_submap));
+  const LocalizationRun run = run_scenario(sc, RunConfig{});
+  const auto m = evaluate_localization(scan_estimates(run), target.truth, static_cast<std::uint32_t>(sc.target_submap));
   ASSERT_TRUE(m.localized_at.has_value());
   EXPECT_LT(*m.localized_at, from);
   ASSERT_TRUE(m.final_error_m.has_value()) << "the final estimate left the target's building";
@@ -344,10 +344,10 @@ TEST(Localizer, GivesUpAWellSupportedPlaceOnlyForASupportedChallenger) {
   // Moves to another submap, after the first estimate iRANSAC supported,
   // onto an estimate it does not support (N, C/N of the confidence test).
   const auto unsupported_moves = [&](bool challenger_needs_support) {
-    ScenarioRunConfig config;
+    RunConfig config;
     config.localizer.place.challenger_needs_support = challenger_needs_support;
     const ConfidenceConfig& cc = config.localizer.report;
-    const ScenarioRun run = run_scenario(sc, config);
+    const LocalizationRun run = run_scenario(sc, config);
     const auto supported = [&](const LocalizationEstimate& e) {
       return e.scored >= cc.min_scored && e.mean_score >= cc.min_mean_score;
     };
@@ -435,9 +435,9 @@ TEST(Localizer, APlaceMappedAfterTheTargetSawItStillProposesHypotheses) {
 
 TEST(Localizer, AMapCompleteBeforeTheFirstScanGivesTheSameEstimatesWithOrWithoutNewlyMappedLookups) {
   const Scenario sc = sim::synthetic_scenario(test::small_world());
-  ScenarioRunConfig off;
+  RunConfig off;
   off.localizer.newly_mapped_candidates = 0;
-  const ScenarioRun a = run_scenario(sc, ScenarioRunConfig{}), b = run_scenario(sc, off);
+  const LocalizationRun a = run_scenario(sc, RunConfig{}), b = run_scenario(sc, off);
   ASSERT_EQ(a.estimates.size(), b.estimates.size());
   for (std::size_t i = 0; i < a.estimates.size(); ++i) {
     EXPECT_EQ(a.estimates[i].submap, b.estimates[i].submap) << i;

@@ -40,7 +40,7 @@ struct RobotsOptions {
 struct RoundResult {
   double wall_s = 0.0;
   double peak_rss_mb = 0.0;
-  std::vector<ScenarioRun> runs;
+  std::vector<LocalizationRun> runs;
 };
 
 RoundResult run_robots(const GlobalMap& map, const TargetRun& target, const LocalizerConfig& config,
@@ -68,7 +68,7 @@ RoundResult run_robots(const GlobalMap& map, const TargetRun& target, const Loca
 }
 
 /// Whether two runs gave the same estimate at every scan, bit for bit.
-bool same_estimates(const ScenarioRun& a, const ScenarioRun& b) {
+bool same_estimates(const LocalizationRun& a, const LocalizationRun& b) {
   if (a.estimates.size() != b.estimates.size()) return false;
   for (std::size_t i = 0; i < a.estimates.size(); ++i) {
     const auto &x = a.estimates[i], &y = b.estimates[i];
@@ -121,7 +121,7 @@ void add_bench_robots_command(CLI::App& bench, GlobalOptions& global) {
     const bool tty = isatty(fileno(stderr));
     const io::DatasetCatalog catalog(global.resolved_data_dir());
     const Scenario sc = io::load_scenario(catalog, opt->scenario);
-    const ScenarioRunConfig config = make_run_config(opt->localizer);
+    const RunConfig config = make_run_config(opt->localizer);
     GlobalMap map(config.map);
     MapFeeder(map, sc.submaps).feed_until(1.0);
     const double map_rss_mb = rss_mb();
@@ -129,7 +129,7 @@ void add_bench_robots_command(CLI::App& bench, GlobalOptions& global) {
     if (tty) std::fprintf(stderr, "map: %zu submaps, %zu features\n", map.submap_count(), map.stats().features);
 
     // A lone robot's run is the reference every robot must equal.
-    const ScenarioRun reference = localize_target(map, sc.target, localizer);
+    const LocalizationRun reference = localize_target(map, sc.target, localizer);
     std::vector<std::vector<double>> scans_per_s(opt->threads.size());
     std::vector<double> first_rss(opt->threads.size(), 0.0), cpu_s(opt->threads.size(), 0.0);
     std::vector<bool> identical(opt->threads.size(), true);

@@ -61,9 +61,9 @@ void localize_all(const GlobalMap& map, const std::vector<TargetRun>& targets,
     std::vector<TruthRank> ranks;
     LocalizerObserver observer;
     if (!trace_dir.empty()) observer = truth_rank_observer(targets[t], target_submaps[t], ranks);
-    const ScenarioRun run = localize_target(map, targets[t], config, {}, observer);
+    const LocalizationRun run = localize_target(map, targets[t], config, {}, observer);
     const JudgedTruth truth = interpolate_truth(targets[t]);
-    const auto m = evaluate_localization(run.scan_estimates(), truth, target_submaps[t]);
+    const auto m = evaluate_localization(scan_estimates(run), truth, target_submaps[t]);
     if (!trace_dir.empty()) {
       const std::string path =
           trace_dir + "/" + targets[t].building + "." + std::to_string(map.submap_count()) + "." + label + ".csv";
@@ -136,7 +136,7 @@ std::vector<RecallQuery> recall_sample(const std::vector<TargetRun>& targets,
 /// at 1 submap, one map per target. The same buildings host the targets at
 /// every size.
 nlohmann::json run_size(const ScaleOptions& opt, std::size_t submaps, bool tty) {
-  ScenarioRunConfig config = make_run_config(opt.localizer);
+  RunConfig config = make_run_config(opt.localizer);
   // Traces carry the whole-map comparison on every scan, as eval's do: it
   // draws nothing at random, so the estimates stay those of a run without it.
   if (!opt.trace_dir.empty()) config.localizer.trace_evidence = true;

@@ -40,7 +40,7 @@ struct ShardsOptions {
 /// its submap made global, its margin the smaller of its own and its lead
 /// over every other worker's best, and its flag kept only while that margin
 /// still meets the policy's.
-std::vector<ScanEstimate> merge_reports(const std::vector<ScenarioRun>& workers,
+std::vector<ScanEstimate> merge_reports(const std::vector<LocalizationRun>& workers,
                                         const std::vector<std::vector<std::uint32_t>>& global_ids, double min_margin) {
   const std::size_t scans = workers.front().estimates.size();
   std::vector<ScanEstimate> out(scans);
@@ -63,7 +63,7 @@ std::vector<ScanEstimate> merge_reports(const std::vector<ScenarioRun>& workers,
 }
 
 nlohmann::json run_sharded(const ShardsOptions& opt, std::size_t k, bool tty) {
-  const ScenarioRunConfig config = make_run_config(opt.localizer);
+  const RunConfig config = make_run_config(opt.localizer);
   std::vector<std::unique_ptr<GlobalMap>> maps;
   std::vector<std::vector<std::uint32_t>> global_ids(k);  // per worker: local submap id -> global index
   for (std::size_t w = 0; w < k; ++w) maps.push_back(std::make_unique<GlobalMap>(config.map));
@@ -89,7 +89,7 @@ nlohmann::json run_sharded(const ShardsOptions& opt, std::size_t k, bool tty) {
   double wall_s = 0.0, cpu_s = 0.0, merge_s = 0.0, scans = 0.0;
   nlohmann::json per_target = nlohmann::json::array();
   for (const TargetRun& target : targets) {
-    std::vector<ScenarioRun> runs(k);
+    std::vector<LocalizationRun> runs(k);
     const auto t1 = std::chrono::steady_clock::now();
     {
       std::vector<std::jthread> workers;

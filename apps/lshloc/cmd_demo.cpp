@@ -77,12 +77,14 @@ void add_demo_command(CLI::App& app, GlobalOptions& global) {
                  "buildings, at a place it is not told, and drives %zu scans.\n",
                  map_scans, sc.target.scans.size());
     std::optional<std::size_t> announced;
-    const ScenarioRun run = run_scenario(sc, make_run_config(opt->localizer), [&](std::size_t done, std::size_t total) {
-      if (tty && (done % 10 == 0 || done == total)) std::fprintf(stderr, "\r  localizing: scan %zu/%zu", done, total);
-      if (done == total && tty) std::fprintf(stderr, "\n");
-    });
+    const LocalizationRun run =
+        run_scenario(sc, make_run_config(opt->localizer), [&](std::size_t done, std::size_t total) {
+          if (tty && (done % 10 == 0 || done == total))
+            std::fprintf(stderr, "\r  localizing: scan %zu/%zu", done, total);
+          if (done == total && tty) std::fprintf(stderr, "\n");
+        });
     const JudgedTruth truth = interpolate_truth(sc.target);
-    const auto m = evaluate_localization(run.scan_estimates(), truth, static_cast<std::uint32_t>(sc.target_submap));
+    const auto m = evaluate_localization(scan_estimates(run), truth, static_cast<std::uint32_t>(sc.target_submap));
     for (std::size_t i = 0; i < run.estimates.size() && !announced; ++i) {
       if (run.estimates[i].localized) announced = i;
     }

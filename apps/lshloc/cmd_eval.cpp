@@ -112,8 +112,8 @@ std::uint32_t check_saved_scenario(const nlohmann::json& meta, const ScenarioCon
 
 /// The scenario's run, on a map built from its submaps (saved with
 /// --save-map) or loaded with --load-map.
-ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOptions& opt, const Progress& progress,
-                     const LocalizerObserver& observer, nlohmann::json& map_store) {
+LocalizationRun run_eval(Scenario& sc, RunConfig& run_config, const EvalOptions& opt, const Progress& progress,
+                         const LocalizerObserver& observer, nlohmann::json& map_store) {
   if (opt.grid_maps) {
     // Each submap as a user without logs would have it: its occupancy grid
     // (`map to-grid`) turned back into a submap (`map from-grid`), with the
@@ -133,7 +133,7 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
                        {"cpu_s", st.cpu_s}});
     }
     map_store["grid_maps"] = grids;
-    ScenarioRun run = localize_target(map, sc.target, run_config.localizer, progress, observer);
+    LocalizationRun run = localize_target(map, sc.target, run_config.localizer, progress, observer);
     run.map_build_s = seconds_since(t0) - run.localize_s;
     return run;
   }
@@ -160,7 +160,7 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
     map_store["map_file_bytes"] = std::filesystem::file_size(opt.save_map);
     std::fprintf(stderr, "map saved: %s\n", opt.save_map.c_str());
   }
-  ScenarioRun run = localize_target(*map, sc.target, run_config.localizer, progress, observer);
+  LocalizationRun run = localize_target(*map, sc.target, run_config.localizer, progress, observer);
   run.map_build_s = map_s;
   return run;
 }
@@ -170,8 +170,8 @@ ScenarioRun run_eval(Scenario& sc, ScenarioRunConfig& run_config, const EvalOpti
 /// what the mappers add while the target localizes. The target's submap is
 /// the fleet map's submap named after the target's building (sc.target_submap
 /// is set to its id there).
-ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const EvalOptions& opt,
-                             const Progress& progress, const LocalizerObserver& observer, nlohmann::json& extra) {
+LocalizationRun run_on_fleet_map(Scenario& sc, RunConfig& run_config, const EvalOptions& opt, const Progress& progress,
+                                 const LocalizerObserver& observer, nlohmann::json& extra) {
   FleetMap fleet = open_fleet_map(opt.map_redis, opt.map_prefix, opt.map_snapshot, run_config);
   GlobalMap& map = *fleet.map;
   const std::string& target_name = sc.config.building;  // the scenario names submaps by building
@@ -182,7 +182,7 @@ ScenarioRun run_on_fleet_map(Scenario& sc, ScenarioRunConfig& run_config, const 
   sc.target_submap = *id;
   std::shared_mutex mutex;
   fleet.follower->start(map, mutex);
-  ScenarioRun run = localize_target(map, sc.target, run_config.localizer, progress, observer, {}, &mutex);
+  LocalizationRun run = localize_target(map, sc.target, run_config.localizer, progress, observer, {}, &mutex);
   fleet.follower->stop();
   run.map_build_s = fleet.catch_up_s;
   extra["map_log"] = fleet_map_json(fleet, map);
@@ -207,7 +207,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
                  "lshloc: warning: %s has no map scans outside the window and its %.0f s guard: its own submap is "
                  "empty, so the robot cannot be localized in it (a shorter --guard or window?)\n",
                  sc.config.building.c_str(), sc.config.guard_s);
-  ScenarioRunConfig run_config = make_run_config(opt.localizer);
+  RunConfig run_config = make_run_config(opt.localizer);
   // The trace's whole-map comparison on every scan: it scores a fixed spread
   // of the data-points (no random draw), so the estimates stay those of a run without it.
   if (!opt.trace.empty()) run_config.localizer.trace_evidence = true;
@@ -224,7 +224,7 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
     }
   };
   std::optional<LiveRun> live;
-  ScenarioRun batch;
+  LocalizationRun batch;
   if (opt.threads) {
     live = run_live_threaded(sc, run_config, opt.live_replay, opt.live, progress, opt.mapper_threads);
   } else if (opt.live) {
@@ -234,10 +234,10 @@ io::ErrorSeries eval_scenario(const io::DatasetCatalog& catalog, const ScenarioC
   } else {
     batch = run_eval(sc, run_config, opt, progress, observer, map_store);
   }
-  const ScenarioRun& run = live ? live->run : batch;
+  const LocalizationRun& run = live ? live->run : batch;
   const JudgedTruth truth = interpolate_truth(sc.target);
   const LocalizationMetrics m =
-      evaluate_localization(run.scan_estimates(), truth, static_cast<std::uint32_t>(sc.target_submap));
+      evaluate_localization(scan_estimates(run), truth, static_cast<std::uint32_t>(sc.target_submap));
   nlohmann::json j = scenario_json(sc, run, m);
   j["order_rule"] = run_config.localizer.ransac.order_rule;
   j["hypotheses"] = run_config.localizer.hypothesis_source;

@@ -207,7 +207,7 @@ nlohmann::json pose_json(const Pose2& p) { return nlohmann::json::array({p.x, p.
 /// Writes the CSV and the TUM files together (all or none). The CSV holds
 /// laser poses, as every other output; the TUM files hold robot poses (the
 /// target's laser mount taken off), in time order, as TUM tools expect.
-void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun& target, const ScenarioRun& run) {
+void write_outputs(const std::string& out, const GlobalMap& map, const TargetRun& target, const LocalizationRun& run) {
   std::string csv = csv_header();
   ConfidentPoses confident;
   const Pose2 robot_from_laser = target.laser_offset.inverse();
@@ -235,7 +235,7 @@ std::string log_stem(const std::string& path) {
 /// log's scans or grid, or its features for a saved map) and the confidence
 /// over time.
 void write_plots(const std::string& dir, const std::string& target_path, const GlobalMap& map,
-                 const MapSources& sources, const ScenarioRun& run, double flag_threshold) {
+                 const MapSources& sources, const LocalizationRun& run, double flag_threshold) {
   io::require_writable_directory(dir, "the figure directory");
   const std::string stem = dir + "/" + log_stem(target_path);
   const auto& last = run.estimates.back();
@@ -544,13 +544,13 @@ std::size_t localizer_threads(std::size_t asked, std::size_t targets) {
 
 /// Localizes every target against the one map, on `threads` threads (each
 /// takes the next target; the map is only read). Progress on a terminal.
-std::vector<ScenarioRun> localize_targets(const GlobalMap& map, const std::vector<TargetRun>& targets,
-                                          const LocalizerConfig& config, std::size_t threads,
-                                          std::shared_mutex* map_mutex) {
+std::vector<LocalizationRun> localize_targets(const GlobalMap& map, const std::vector<TargetRun>& targets,
+                                              const LocalizerConfig& config, std::size_t threads,
+                                              std::shared_mutex* map_mutex) {
   const bool tty = isatty(fileno(stderr));
   std::size_t total = 0;
   for (const auto& t : targets) total += t.scans.size();
-  std::vector<ScenarioRun> runs(targets.size());
+  std::vector<LocalizationRun> runs(targets.size());
   std::vector<std::exception_ptr> errors(targets.size());
   std::atomic<std::size_t> next{0}, done{0};
   auto work = [&] {
@@ -579,7 +579,7 @@ std::vector<ScenarioRun> localize_targets(const GlobalMap& map, const std::vecto
 }
 
 /// The answer for one target, as --json prints it.
-nlohmann::json answer_json(const std::string& path, const TargetRun& target, const ScenarioRun& run,
+nlohmann::json answer_json(const std::string& path, const TargetRun& target, const LocalizationRun& run,
                            const GlobalMap& map, double map_s, const ConfidenceConfig& confidence) {
   std::optional<std::size_t> first_localized;
   std::size_t confident = 0;
@@ -748,7 +748,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       }
     }
 
-    ScenarioRunConfig config = make_run_config(opt->localizer);
+    RunConfig config = make_run_config(opt->localizer);
     // The mount the localizer runs with (the log's, or the config's for a log without one) is the one the TUM
     // files take off; a config's other than the log's is refused here, before the map is built.
     for (auto& t : targets)
@@ -819,7 +819,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       return;
     }
     const auto t_localize = std::chrono::steady_clock::now();
-    std::vector<ScenarioRun> runs = localize_targets(*map, targets, config.localizer, opt->threads, shared);
+    std::vector<LocalizationRun> runs = localize_targets(*map, targets, config.localizer, opt->threads, shared);
     const std::optional<fleet::MapFollowerStats> followed = end_following();
     const double wall_s = seconds_since(t_localize);
     for (std::size_t k = 0; k < targets.size(); ++k) {
@@ -841,7 +841,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     }
     // Exit status 3: not localized at the end (a script's test), said on stderr too (a JSON answer is on stdout).
     std::size_t lost = 0;
-    for (const ScenarioRun& run : runs) lost += run.estimates.empty() || !run.estimates.back().localized;
+    for (const LocalizationRun& run : runs) lost += run.estimates.empty() || !run.estimates.back().localized;
     if (lost > 0 && global.exit_code == 0) {
       global.exit_code = kExitNotLocalized;
       std::fprintf(stderr, "lshloc: %zu of %zu targets not localized at their last scan (exit status %d)\n", lost,

@@ -16,7 +16,7 @@
 namespace lshloc::app {
 
 struct LocalizerOptions {
-  ScenarioRunConfig config;
+  RunConfig config;
   std::string config_file;  ///< the --config file (empty: none), named by errors in its settings
   bool print_config = false;
 };
@@ -66,8 +66,8 @@ inline void add_localizer_options(CLI::App& cmd, LocalizerOptions& o, bool resea
 
 /// The run configuration the options describe: the localizer's features are
 /// the map's (they must match).
-inline ScenarioRunConfig make_run_config(const LocalizerOptions& o) try {
-  ScenarioRunConfig c = o.config;
+inline RunConfig make_run_config(const LocalizerOptions& o) try {
+  RunConfig c = o.config;
   // The descriptors' settings are the map's: the localizer takes them from there, and one asked of the
   // localizer alone would be dropped without a word, so it is refused.
   const LocalizerConfig defaults{};

@@ -143,7 +143,7 @@ Submap load_map_argument(const std::string& arg, bool slam) {
   return s;
 }
 
-void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config, const std::string& source) {
+void adopt_map_settings(const GlobalMapConfig& built, RunConfig& config, const std::string& source) {
   // The map's settings decide, but for those only queries read: one that
   // --config moves off its default is taken (a saved map tuned without a
   // rebuild). Any other setting that --config asks for must be the map's.
@@ -164,7 +164,7 @@ void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config,
   config.localizer = with_map_descriptor_settings(config.localizer, built);
 }
 
-io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config) {
+io::LoadedMap open_saved_map(const std::string& path, RunConfig& config) {
   io::LoadedMap loaded = io::load_map(path);
   print_warnings(loaded.warnings);
   adopt_map_settings(loaded.map->config(), config, path);
@@ -173,7 +173,7 @@ io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config)
 }
 
 FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const std::string& snapshot,
-                        ScenarioRunConfig& config) {
+                        RunConfig& config) {
   const auto t0 = std::chrono::steady_clock::now();
   FleetMap f;
   f.follower = std::make_unique<fleet::MapFollower>(fleet::RedisAddress::parse(url),

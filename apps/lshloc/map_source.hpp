@@ -45,11 +45,11 @@ std::size_t log_argument_comma(const std::string& arg);
 /// other than the map's or the localizer cannot use the map. The database's
 /// query-time settings that `config` moves off their defaults
 /// (with_query_settings()) are the exception: the map answers with them.
-io::LoadedMap open_saved_map(const std::string& path, ScenarioRunConfig& config);
+io::LoadedMap open_saved_map(const std::string& path, RunConfig& config);
 
 /// Takes a map's settings (from a file or a fleet's registry, named by
 /// `source`) into `config`, the same checks as open_saved_map.
-void adopt_map_settings(const GlobalMapConfig& built, ScenarioRunConfig& config, const std::string& source);
+void adopt_map_settings(const GlobalMapConfig& built, RunConfig& config, const std::string& source);
 
 /// A fleet's map on Redis (docs/fleet.md), ready to localize on: its settings
 /// adopted into the run's config, the map restored from `snapshot` (a file
@@ -62,7 +62,7 @@ struct FleetMap {
   double catch_up_s = 0.0;  ///< [s] wall time to load the snapshot and apply the rest
 };
 FleetMap open_fleet_map(const std::string& url, const std::string& prefix, const std::string& snapshot,
-                        ScenarioRunConfig& config);
+                        RunConfig& config);
 /// JSON of the follower's counters and the map it fed (`fleet.map`, or where
 /// the command moved it) for a command's answer.
 nlohmann::json fleet_map_json(const FleetMap& fleet, const GlobalMap& map);

@@ -18,7 +18,7 @@ namespace {
 nlohmann::json optional_json(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(); }
 }  // namespace
 
-nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m) {
+nlohmann::json scenario_json(const Scenario& sc, const LocalizationRun& run, const LocalizationMetrics& m) {
   nlohmann::json j;
   j["building"] = sc.config.building;
   j["start"] = sc.config.start;
@@ -89,7 +89,7 @@ nlohmann::json median_localized_at(std::vector<double> scans) {
   return scans.size() % 2 == 1 ? scans[half] : 0.5 * (scans[half - 1] + scans[half]);
 }
 
-void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run) {
+void add_localizer_cost(nlohmann::json& j, const LocalizationRun& run) {
   const double scans = static_cast<double>(std::max<std::size_t>(run.estimates.size(), 1));
   const LocalizerStats& s = run.localizer;
   const double staged = s.scan_matching_s + s.extract_s + s.query_s + s.ransac_s;
@@ -103,7 +103,7 @@ void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run) {
                                {"other", 1e3 * std::max(0.0, run.localize_cpu_s - staged) / scans}};
 }
 
-std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const ScenarioRun& run,
+std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const LocalizationRun& run,
                                    const LocalizationMetrics& m) {
   io::require_writable_directory(dir, "the figure directory");
   const std::string stem = dir + "/" + sc.config.building + "-s" + std::to_string(sc.config.start) + "-R" +
@@ -146,7 +146,7 @@ std::string write_scenario_figures(const std::string& dir, const Scenario& sc, c
 }
 
 void write_scenario_trace(const std::string& path, const TargetRun& target, const JudgedTruth& truth,
-                          const ScenarioRun& run, const LocalizationMetrics& m) {
+                          const LocalizationRun& run, const LocalizationMetrics& m) {
   std::string f;
   io::append_format(f,
                     "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,"

@@ -13,7 +13,7 @@
 namespace lshloc::app {
 
 /// The metrics of docs/design.md section 6 and the run's costs, as `lshloc eval` prints them.
-nlohmann::json scenario_json(const Scenario& sc, const ScenarioRun& run, const LocalizationMetrics& m);
+nlohmann::json scenario_json(const Scenario& sc, const LocalizationRun& run, const LocalizationMetrics& m);
 
 /// The metrics of docs/design.md section 6 (errors, timing, the flag and its
 /// confident-but-wrong counts over every judged scan), as keys added to `j`.
@@ -21,7 +21,7 @@ void add_judgement(nlohmann::json& j, const LocalizationMetrics& m);
 /// The localizer's cost over the run: ms_per_scan, realtime_factor and
 /// ms_per_scan_by_stage (scan_matching, features, retrieval, ransac, other).
 /// Keys are added to `j`.
-void add_localizer_cost(nlohmann::json& j, const ScenarioRun& run);
+void add_localizer_cost(nlohmann::json& j, const LocalizationRun& run);
 
 /// One target's outcome in a benchmark's per_target list.
 nlohmann::json target_outcome_json(const std::string& building, const LocalizationMetrics& m);
@@ -33,13 +33,13 @@ nlohmann::json median_localized_at(std::vector<double> scans);
 /// Writes STEM-error.{png,svg} (error per viewpoint, the paper's Fig. 8) and
 /// STEM-map.{png,svg} (trajectories over the target's submap, Figs. 5-6) into
 /// `dir`; returns STEM.
-std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const ScenarioRun& run,
+std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const LocalizationRun& run,
                                    const LocalizationMetrics& m);
 
 /// One CSV row per target scan: estimate, scores, the truth it is judged against (measured,
 /// truth_*, or interpolated, interpolated_*) and its error.
 void write_scenario_trace(const std::string& path, const TargetRun& target, const JudgedTruth& truth,
-                          const ScenarioRun& run, const LocalizationMetrics& m);
+                          const LocalizationRun& run, const LocalizationMetrics& m);
 
 /// Where the true pose stands among the localizer's active hypotheses after
 /// one scan (a trace's .truth.csv row): whether verification or retrieval is

@@ -68,7 +68,7 @@ std::vector<MapperEvent> mapper_schedule(const std::vector<Submap>& submaps, con
   return events;
 }
 
-LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& config, const LiveReplayConfig& live,
+LiveRun run_live_scenario(const Scenario& scenario, const RunConfig& config, const LiveReplayConfig& live,
                           const Progress& progress, const LocalizerObserver& observer) {
   const std::vector<MapperEvent> events = mapper_schedule(scenario.submaps, live);
   GlobalMap map(config.map);
@@ -99,9 +99,8 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
   return out;
 }
 
-LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& config,
-                          const LiveReplayConfig& live_config, bool live, const Progress& progress,
-                          std::size_t max_mapper_threads) {
+LiveRun run_live_threaded(const Scenario& scenario, const RunConfig& config, const LiveReplayConfig& live_config,
+                          bool live, const Progress& progress, std::size_t max_mapper_threads) {
   const std::vector<MapperEvent> events = mapper_schedule(scenario.submaps, live_config);
   GlobalMap map(config.map);
   LiveRun out;

@@ -6,17 +6,8 @@
 #include <random>
 
 #include "lshloc/common/error.hpp"
-#include "lshloc/slam/pose_graph_slam.hpp"
 
 namespace lshloc {
-
-bool odometry_changes(std::span<const LaserScan> scans) {
-  if (scans.size() < 2) return true;
-  const Pose2& first = scans.front().odometry;
-  return std::any_of(scans.begin() + 1, scans.end(), [&](const LaserScan& s) {
-    return s.odometry.x != first.x || s.odometry.y != first.y || s.odometry.theta != first.theta;
-  });
-}
 
 const std::vector<std::string>& canonical_building_order() {
   static const std::vector<std::string> order = {
@@ -52,18 +43,6 @@ std::vector<std::string> other_buildings(const ScenarioConfig& config) {
   }
   others.resize(config.submaps - 1);
   return others;
-}
-
-std::vector<LaserScan> slam_mapped_scans(const std::vector<LaserScan>& raw, const Pose2& laser_offset) {
-  PoseGraphSlamConfig config;
-  config.matcher.laser_offset = laser_offset;
-  PoseGraphSlam slam(config);
-  for (const LaserScan& s : raw) slam.add_scan(s);
-  slam.finish();
-  const std::vector<Pose2> poses = slam.laser_poses();
-  std::vector<LaserScan> out = raw;
-  for (std::size_t i = 0; i < out.size(); ++i) out[i].pose = poses[i];
-  return out;
 }
 
 void split_target_building(const BuildingRecording& rec, const ScenarioConfig& config, Submap& map_side,
@@ -150,18 +129,6 @@ std::vector<std::optional<std::size_t>> join_truth_to_scans(std::span<const Lase
     if (out[k]) taken[*out[k]] = true;
   }
   return out;
-}
-
-Submap whole_building_submap(const BuildingRecording& rec) {
-  Submap s;
-  s.name = rec.name;
-  if (!rec.corrected_scans.empty()) {
-    s.scans = rec.corrected_scans;
-  } else {
-    s.scans = slam_mapped_scans(rec.raw_scans, rec.laser_offset);
-    s.poses_from_slam = true;
-  }
-  return s;
 }
 
 }  // namespace lshloc

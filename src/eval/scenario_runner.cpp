@@ -1,7 +1,5 @@
 #include "lshloc/eval/scenario_runner.hpp"
 
-#include "lshloc/common/cpu_time.hpp"
-#include "lshloc/common/error.hpp"
 #include "lshloc/common/wall_time.hpp"
 
 #include <chrono>
@@ -12,135 +10,15 @@ namespace {
 using Clock = std::chrono::steady_clock;
 }  // namespace
 
-std::vector<ScanEstimate> ScenarioRun::scan_estimates() const {
+std::vector<ScanEstimate> scan_estimates(const LocalizationRun& run) {
   std::vector<ScanEstimate> out;
-  out.reserve(estimates.size());
-  for (const auto& e : estimates) out.push_back({e.has_estimate, e.submap, e.pose, e.localized, e.mean_score});
+  out.reserve(run.estimates.size());
+  for (const auto& e : run.estimates) out.push_back({e.has_estimate, e.submap, e.pose, e.localized, e.mean_score});
   return out;
 }
 
-void ScenarioRunConfig::validate() const {
-  map.validate();
-  localizer.validate();
-  require(map_share_before_target > 0.0 && map_share_before_target <= 1.0, "ScenarioRunConfig.map_share_before_target",
-          "in (0, 1]", map_share_before_target);
-}
-
-MapFeeder::MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps)
-    : map_(map), submaps_(submaps), fed_(submaps.size(), 0) {
-  for (const Submap& s : submaps) ids_.push_back(map.add_submap(s.name));
-}
-
-MapFeeder::MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps, std::vector<std::uint32_t> ids)
-    : map_(map), submaps_(submaps), ids_(std::move(ids)), fed_(submaps.size(), 0) {
-  if (ids_.size() != submaps_.size())
-    throw Error("MapFeeder: expected one submap id per submap (" + std::to_string(submaps_.size()) + "), got " +
-                std::to_string(ids_.size()));
-}
-
-void MapFeeder::feed_until(double share) {
-  bool any = true;
-  while (any) {
-    any = false;
-    for (std::size_t r = 0; r < submaps_.size(); ++r) {
-      const auto& scans = submaps_[r].scans;
-      const auto limit =
-          std::min(scans.size(), static_cast<std::size_t>(share * static_cast<double>(scans.size()) + 0.5));
-      if (fed_[r] < limit) {
-        const LaserScan& scan = scans[fed_[r]];
-        try {
-          map_.add_scan(ids_[r], scan, scan.pose);
-        } catch (const Error& e) {
-          throw Error(submaps_[r].name + (scan.source_line ? ":" + std::to_string(scan.source_line) : "") + ": scan " +
-                      std::to_string(fed_[r]) + " cannot enter the map: " + e.what());
-        }
-        ++fed_[r];
-        any = true;
-      }
-    }
-  }
-}
-
-LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& target_offset) {
-  // The laser offset comes from the target's log; a config may give one for
-  // a log without it, but never another one than the log's.
-  const Pose2& given = config.scan_matcher.laser_offset;
-  const bool config_sets = given.x != 0.0 || given.y != 0.0 || given.theta != 0.0;
-  const bool log_sets = target_offset.x != 0.0 || target_offset.y != 0.0 || target_offset.theta != 0.0;
-  if (config_sets && log_sets &&
-      (given.x != target_offset.x || given.y != target_offset.y || given.theta != target_offset.theta)) {
-    throw Error("LocalizerConfig.scan_matcher.laser_offset: expected none or the target log's (" +
-                std::to_string(target_offset.x) + ", " + std::to_string(target_offset.y) + ", " +
-                std::to_string(target_offset.theta) + "), got (" + std::to_string(given.x) + ", " +
-                std::to_string(given.y) + ", " + std::to_string(given.theta) + ")");
-  }
-  if (!config_sets) config.scan_matcher.laser_offset = target_offset;
-  return config;
-}
-
-ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
-                            const Progress& progress, const LocalizerObserver& observer, const BeforeScan& before_scan,
-                            std::shared_mutex* map_mutex) {
-  ScenarioRun run;
-  config = with_target_laser_offset(config, target.laser_offset);
-  if (!target.odometry) config.scan_matcher.odometry = false;
-  Localizer localizer(map, config);
-  const auto& scans = target.scans;
-  run.estimates.reserve(scans.size());
-  run.cpu_s.reserve(scans.size());
-  const double cpu0 = thread_cpu_seconds();
-  double excluded_cpu = 0.0;
-  // Mapper scans and diagnostics run between target scans: not the localizer's cost.
-  const auto excluded = [&](const auto& work) {
-    const double c0 = thread_cpu_seconds();
-    work();
-    excluded_cpu += thread_cpu_seconds() - c0;
-  };
-  std::shared_lock<std::shared_mutex> reading;
-  if (map_mutex) reading = std::shared_lock<std::shared_mutex>(*map_mutex, std::defer_lock);
-  const auto t0 = Clock::now();
-  for (std::size_t i = 0; i < scans.size(); ++i) {
-    if (before_scan) excluded([&] { before_scan(i); });
-    if (map_mutex) reading.lock();
-    run.estimates.push_back(localizer.add_scan(scans[i]));
-    run.cpu_s.push_back(thread_cpu_seconds() - cpu0 - excluded_cpu);
-    if (observer) excluded([&] { observer(i, localizer, run.estimates.back()); });
-    if (map_mutex) reading.unlock();
-    if (progress) progress(i + 1, scans.size());
-  }
-  if (map_mutex) reading.lock();  // the final look at the map below
-  run.localize_s = seconds_since(t0);
-  run.localize_cpu_s = run.cpu_s.empty() ? 0.0 : run.cpu_s.back();
-  if (scans.size() > 1) run.log_duration_s = scans.back().timestamp - scans.front().timestamp;
-  if (!run.estimates.empty() && run.estimates.back().has_estimate) {
-    // The newest surface data-points placed by the final estimate.
-    const LocalizationEstimate& last = run.estimates.back();
-    const auto points = localizer.ransac().data_points();
-    const std::size_t window = std::min(points.size(), config.ransac.recent_window);
-    for (const LocalPoint& x : points.last(window)) {
-      if (x.kind != LocalPoint::Kind::kSurface) continue;
-      const Point2 g = last.T_submap_local.transform(Point2(x.x, x.y));
-      const double th = last.T_submap_local.transform_angle(x.theta);
-      (map.occupancy().probe(last.submap, g.x(), g.y(), th) & cell_flags::kOccupied ? run.final_inliers
-                                                                                    : run.final_outliers)
-          .push_back(g);
-    }
-  }
-  run.map = map.stats();
-  run.localizer = localizer.stats();
-  // The localizer compared each scan with those before it; a whole run can
-  // also compare it with those after.
-  std::vector<double> stamps(scans.size());
-  for (std::size_t i = 0; i < scans.size(); ++i) stamps[i] = scans[i].timestamp;
-  const StampClashStats later = mark_stamp_clashes(stamps, run.estimates, config.stamp_clash);
-  run.stamp_clash = run.localizer.stamp_clash;
-  run.stamp_clash.clashing_scans += later.clashing_scans;
-  run.stamp_clash.flags_withheld += later.flags_withheld;
-  return run;
-}
-
-ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress,
-                         const LocalizerObserver& observer) {
+LocalizationRun run_scenario(const Scenario& scenario, RunConfig config, const Progress& progress,
+                             const LocalizerObserver& observer) {
   config.validate();
   GlobalMap map(config.map);
   MapFeeder feeder(map, scenario.submaps);
@@ -157,7 +35,7 @@ ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, con
                         (1.0 - config.map_share_before_target) * static_cast<double>(i + 1) / n);
     };
   }
-  ScenarioRun run = localize_target(map, scenario.target, config.localizer, progress, observer, rest_of_map);
+  LocalizationRun run = localize_target(map, scenario.target, config.localizer, progress, observer, rest_of_map);
   run.map_build_s = map_build_s;
   return run;
 }

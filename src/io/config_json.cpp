@@ -112,6 +112,8 @@ LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_p
                    newly_mapped_candidates, newly_mapped_per_scan, newly_mapped_touched, newly_mapped_share,
                    newly_mapped_scan_window, newly_mapped_points, newly_mapped_halvings, newly_mapped_reach_scans,
                    seen_features_kept, place, report, trace_evidence, stamp_clash, seed)
+LSHLOC_JSON_FIELDS(RunConfig, map, localizer, map_share_before_target)
+LSHLOC_JSON_FIELDS(SessionConfig, localizer, restart_after_time_back_s)
 
 }  // namespace lshloc
 

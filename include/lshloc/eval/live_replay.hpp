@@ -49,7 +49,7 @@ std::vector<MapperEvent> mapper_schedule(const std::vector<Submap>& submaps, con
 
 /// What a live run adds to a scenario run.
 struct LiveRun {
-  ScenarioRun run;
+  LocalizationRun run;
   /// Per target scan: 1 when it has ground truth (measured or interpolated,
   /// interpolate_truth) and a scan of the target's building within
   /// mapped_radius_m of that truth was in the map when it was localized, else 0.
@@ -63,7 +63,7 @@ struct LiveRun {
 /// Runs `scenario` live: the target's scans at log speed, each submap's
 /// scans as mapper_schedule() orders them, fed before the first target scan
 /// at or after their time. Single-threaded and deterministic.
-LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& config, const LiveReplayConfig& live,
+LiveRun run_live_scenario(const Scenario& scenario, const RunConfig& config, const LiveReplayConfig& live,
                           const Progress& progress = {}, const LocalizerObserver& observer = {});
 
 /// The real-time mode (`eval --threads`). With `live`, mapper threads feed
@@ -76,9 +76,8 @@ LiveRun run_live_scenario(const Scenario& scenario, const ScenarioRunConfig& con
 /// (one per scan let the target's back-to-back reads starve the writers);
 /// the target holds it shared for each of its scans, so it waits at most
 /// one mapper's due scans. Not deterministic: the interleaving is the threads'.
-LiveRun run_live_threaded(const Scenario& scenario, const ScenarioRunConfig& config,
-                          const LiveReplayConfig& live_config, bool live, const Progress& progress = {},
-                          std::size_t max_mapper_threads = 16);
+LiveRun run_live_threaded(const Scenario& scenario, const RunConfig& config, const LiveReplayConfig& live_config,
+                          bool live, const Progress& progress = {}, std::size_t max_mapper_threads = 16);
 
 /// The live metrics (docs/design.md section 6) beside the batch ones.
 struct LiveMetrics {
@@ -96,7 +95,7 @@ struct LiveMetrics {
 LiveMetrics evaluate_live(const LiveRun& live, const LocalizationMetrics& metrics);
 
 /// [ms] the 99th percentile (nearest rank) of the CPU time per scan, from
-/// cumulative CPU seconds per scan (ScenarioRun::cpu_s); 0 for no scans.
+/// cumulative CPU seconds per scan (LocalizationRun::cpu_s); 0 for no scans.
 double ms_per_scan_p99(const std::vector<double>& cumulative_cpu_s);
 
 }  // namespace lshloc

@@ -7,13 +7,10 @@
 
 #include "lshloc/eval/appearance.hpp"
 #include "lshloc/eval/place_recall.hpp"
-#include "lshloc/eval/scenario_runner.hpp"
 #include "lshloc/io/config_json.hpp"
 
 namespace lshloc {
 
-void to_json(nlohmann::json& j, const ScenarioRunConfig& c);
-void from_json(const nlohmann::json& j, ScenarioRunConfig& c);
 void to_json(nlohmann::json& j, const DescriptorContextConfig& c);
 void from_json(const nlohmann::json& j, DescriptorContextConfig& c);
 void to_json(nlohmann::json& j, const PlaceRecallConfig& c);

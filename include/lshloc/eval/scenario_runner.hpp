@@ -1,110 +1,22 @@
 #pragma once
-// Runs a scenario: feeds the submaps to a GlobalMap as mappers working in
-// parallel would, runs the target's scans through a Localizer, and records the
-// estimates with their costs.
-// Poses [m, rad]; times [s], CPU (the whole process's) or wall clock as each
-// field says.
-// Thread safety: run_scenario owns its map and localizer. localize_target only
-// reads `map` and MapFeeder writes it, but a GlobalMap is not thread-safe
-// (docs/design.md section 5): keep each map on one thread, or give
-// localize_target the shared_mutex its writers lock exclusively (the live
-// threaded mode). The localizer's CPU time is its own thread's.
-#include <functional>
-#include <shared_mutex>
+// Runs a scenario: builds its global map from the submaps and localizes the
+// target on it (runtime/localize_run.hpp), in the form the metrics take.
+// Thread safety: run_scenario owns its map and localizer; safe from any thread.
 #include <vector>
 
-#include "lshloc/common/cpu_time.hpp"
-#include "lshloc/localization/global_map.hpp"
 #include "lshloc/eval/localization_metrics.hpp"
-#include "lshloc/localization/localizer.hpp"
 #include "lshloc/eval/scenario.hpp"
+#include "lshloc/runtime/localize_run.hpp"
 
 namespace lshloc {
 
-struct ScenarioRunConfig {
-  GlobalMapConfig map;
-  LocalizerConfig localizer;
-  /// Share (0..1] of each submap's scans fed before the target starts (one
-  /// scan of each submap in turn, as robots mapping in parallel would); the
-  /// rest arrives between target scans.
-  double map_share_before_target = 1.0;
-
-  /// The map's and the localizer's validate(), and the share in (0, 1].
-  void validate() const;
-};
-
-/// What one scenario run produced, scan by scan, with its costs.
-struct ScenarioRun {
-  std::vector<LocalizationEstimate> estimates;  ///< per target scan
-  std::vector<double> cpu_s;    ///< [s] process CPU time spent on the target up to and including each scan
-  double map_build_s = 0.0;     ///< [s] wall time to feed every mapper scan
-  double localize_s = 0.0;      ///< [s] wall time of all target scans
-  double localize_cpu_s = 0.0;  ///< [s] process CPU time of all target scans
-  double log_duration_s = 0.0;  ///< [s] time the target's scans span in the log
-  GlobalMapStats map;
-  LocalizerStats localizer;
-  /// Scans stamped together with another at a different pose, over the
-  /// whole run (those after each scan too), and how many of them were flagged.
-  StampClashStats stamp_clash;
-  /// The newest surface data-points of iRANSAC placed by the final estimate,
-  /// split by whether they hit the map (for the paper's Fig. 6 style figure).
-  std::vector<Point2> final_inliers, final_outliers;
-
-  /// The estimates in the form evaluate_localization() takes.
-  std::vector<ScanEstimate> scan_estimates() const;
-};
-
-/// Progress callback: (target scans done, total); may be empty.
-using Progress = std::function<void(std::size_t, std::size_t)>;
-/// Called after each target scan with its index, the localizer and its
-/// estimate (for diagnostics that look inside it; its CPU time is not
-/// counted as the localizer's); may be empty.
-using LocalizerObserver = std::function<void(std::size_t, const Localizer&, const LocalizationEstimate&)>;
-
-/// Feeds submaps' scans (with their map poses) to a global map as mapper
-/// robots working in parallel would: one scan of each submap in turn.
-class MapFeeder {
- public:
-  /// Opens one submap of `map` per entry of `submaps` (which must outlive it).
-  MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps);
-  /// Feeds submaps[i] into the map's existing submap ids[i] instead.
-  MapFeeder(GlobalMap& map, const std::vector<Submap>& submaps, std::vector<std::uint32_t> ids);
-  /// Feeds scans until this share (0..1) of every submap is in the map.
-  void feed_until(double share);
-  /// The map's id of submaps[i].
-  std::uint32_t submap_id(std::size_t i) const { return ids_.at(i); }
-
- private:
-  GlobalMap& map_;
-  const std::vector<Submap>& submaps_;
-  std::vector<std::uint32_t> ids_;
-  std::vector<std::size_t> fed_;
-};
-
-/// Called before target scan i; its CPU time is not counted as the target's.
-using BeforeScan = std::function<void(std::size_t)>;
-
-/// `config` with the target's laser offset: the target log's, or the
-/// config's for a log without one; a config offset other than the log's
-/// throws lshloc::Error.
-LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& target_offset);
-
-/// Runs a target's scans through a new Localizer over `map` (its scan
-/// matcher takes the target's laser offset, unless the config gives one for
-/// a target without; a config offset other than the target's is an error).
-/// The localizer's cost is the calling thread's CPU time. With `map_mutex`,
-/// other threads may write the map meanwhile: each target scan (and the
-/// observer's look) holds it shared, so writers must hold it exclusively.
-/// At the end each estimate stamped together with a later scan elsewhere is
-/// marked `stamp_clash` (the observer saw it unmarked). map_build_s stays 0.
-ScenarioRun localize_target(const GlobalMap& map, const TargetRun& target, LocalizerConfig config,
-                            const Progress& progress = {}, const LocalizerObserver& observer = {},
-                            const BeforeScan& before_scan = {}, std::shared_mutex* map_mutex = nullptr);
+/// The estimates in the form evaluate_localization() takes.
+std::vector<ScanEstimate> scan_estimates(const LocalizationRun& run);
 
 /// Builds the global map from the scenario's submaps and runs the target's
 /// scans through a Localizer. Map scans are fed with their map poses.
 /// The localizer's scan matcher takes the target's laser offset.
-ScenarioRun run_scenario(const Scenario& scenario, ScenarioRunConfig config, const Progress& progress = {},
-                         const LocalizerObserver& observer = {});
+LocalizationRun run_scenario(const Scenario& scenario, RunConfig config, const Progress& progress = {},
+                             const LocalizerObserver& observer = {});
 
 }  // namespace lshloc

@@ -16,6 +16,8 @@
 #include "lshloc/localization/localizer.hpp"
 #include "lshloc/matching/incremental_ransac.hpp"
 #include "lshloc/matching/pose_grid.hpp"
+#include "lshloc/runtime/localize_run.hpp"
+#include "lshloc/runtime/session.hpp"
 #include "lshloc/slam/correlative_matcher.hpp"
 #include "lshloc/slam/pose_graph.hpp"
 #include "lshloc/slam/pose_graph_slam.hpp"
@@ -68,6 +70,10 @@ void to_json(nlohmann::json& j, const PlaceConfig& c);
 void from_json(const nlohmann::json& j, PlaceConfig& c);
 void to_json(nlohmann::json& j, const LocalizerConfig& c);
 void from_json(const nlohmann::json& j, LocalizerConfig& c);
+void to_json(nlohmann::json& j, const RunConfig& c);
+void from_json(const nlohmann::json& j, RunConfig& c);
+void to_json(nlohmann::json& j, const SessionConfig& c);
+void from_json(const nlohmann::json& j, SessionConfig& c);
 
 }  // namespace lshloc
 

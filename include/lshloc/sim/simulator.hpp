@@ -20,7 +20,7 @@
 #include <cstdint>
 #include <string>
 
-#include "lshloc/eval/scenario.hpp"
+#include "lshloc/runtime/inputs.hpp"
 #include "lshloc/sim/floor_plan.hpp"
 #include "lshloc/sim/ray_caster.hpp"
 #include "lshloc/sim/sensors.hpp"

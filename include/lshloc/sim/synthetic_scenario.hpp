@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "lshloc/eval/scenario.hpp"
+#include "lshloc/runtime/inputs.hpp"
 #include "lshloc/sim/sensors.hpp"
 
 namespace lshloc::sim {
