@@ -141,7 +141,8 @@ LocalizationRun run_eval(Scenario& sc, RunConfig& run_config, const EvalOptions&
   std::unique_ptr<GlobalMap> map;
   const auto t0 = std::chrono::steady_clock::now();
   if (!opt.load_map.empty()) {
-    io::LoadedMap loaded = open_saved_map(opt.load_map, run_config);
+    io::LoadedMap loaded = io::open_saved_map(opt.load_map, run_config);
+    print_warnings(loaded.warnings);
     sc.target_submap = check_saved_scenario(loaded.info.meta, sc.config, opt.load_map);
     map = std::move(loaded.map);
   } else {
@@ -172,7 +173,9 @@ LocalizationRun run_eval(Scenario& sc, RunConfig& run_config, const EvalOptions&
 /// is set to its id there).
 LocalizationRun run_on_fleet_map(Scenario& sc, RunConfig& run_config, const EvalOptions& opt, const Progress& progress,
                                  const LocalizerObserver& observer, nlohmann::json& extra) {
-  FleetMap fleet = open_fleet_map(opt.map_redis, opt.map_prefix, opt.map_snapshot, run_config);
+  std::vector<std::string> warnings;
+  fleet::FleetMap fleet = fleet::open_fleet_map(opt.map_redis, opt.map_prefix, opt.map_snapshot, run_config, warnings);
+  print_warnings(warnings);
   GlobalMap& map = *fleet.map;
   const std::string& target_name = sc.config.building;  // the scenario names submaps by building
   const std::optional<std::uint32_t> id = map.find_submap(target_name);
@@ -185,7 +188,7 @@ LocalizationRun run_on_fleet_map(Scenario& sc, RunConfig& run_config, const Eval
   LocalizationRun run = localize_target(map, sc.target, run_config.localizer, progress, observer, {}, &mutex);
   fleet.follower->stop();
   run.map_build_s = fleet.catch_up_s;
-  extra["map_log"] = fleet_map_json(fleet, map);
+  extra["map_log"] = fleet::fleet_map_json(fleet, map);
   return run;
 }
 

@@ -31,6 +31,7 @@
 #include "lshloc/figures/figures.hpp"
 #include "lshloc/geometry/voxel_thinning.hpp"
 #include "lshloc/io/carmen_reader.hpp"
+#include "lshloc/io/ros_map.hpp"
 #include "lshloc/io/config_json.hpp"
 #include "lshloc/io/estimate_csv.hpp"
 #include "lshloc/io/trajectory_writer.hpp"
@@ -235,7 +236,7 @@ std::string log_stem(const std::string& path) {
 /// log's scans or grid, or its features for a saved map) and the confidence
 /// over time.
 void write_plots(const std::string& dir, const std::string& target_path, const GlobalMap& map,
-                 const MapSources& sources, const LocalizationRun& run, double flag_threshold) {
+                 const io::MapSources& sources, const LocalizationRun& run, double flag_threshold) {
   io::require_writable_directory(dir, "the figure directory");
   const std::string stem = dir + "/" + log_stem(target_path);
   const auto& last = run.estimates.back();
@@ -370,7 +371,7 @@ nlohmann::json not_confident_reasons(const LocalizationEstimate& e, const Confid
 bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const LocalizeOptions& opt,
                      std::shared_mutex* map_mutex, io::CarmenReader& reader, std::vector<io::CarmenRecord> read_ahead) {
   io::CarmenLog params;  // the PARAM lines seen before the first scan (the laser offset)
-  std::unique_ptr<Localizer> localizer;
+  std::unique_ptr<LocalizationSession> session;
   // --out: the CSV grows a row per scan, flushed, so that it holds every scan so far if the stream is cut;
   // the TUM files are written at the end.
   const OutputFiles out = output_files(opt.out);
@@ -394,20 +395,17 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   while ((opt.length == 0 || done < opt.length) && next()) {
     if (rec.type == io::CarmenRecord::Type::kParam) params.params[rec.param_name] = rec.param_value;
     if (rec.type != io::CarmenRecord::Type::kLaser || index++ < opt.start) continue;
-    if (!localizer) {
+    if (!session) {
       params.path = "stdin";
       params.robotlaser_offset = reader.robotlaser_offset();  // the first ROBOTLASER1 line's, if any
-      LocalizerConfig c = with_target_laser_offset(config, params.front_laser_offset());
-      if (opt.no_odometry) c.scan_matcher.odometry = false;
-      robot_from_laser = c.scan_matcher.laser_offset.inverse();
-      localizer = std::make_unique<Localizer>(map, c);
+      session = std::make_unique<LocalizationSession>(map, SessionConfig{.localizer = config},
+                                                      params.front_laser_offset(), !opt.no_odometry, map_mutex);
+      robot_from_laser = session->robot_from_laser();
     }
-    LocalizationEstimate e;
-    {
-      std::shared_lock<std::shared_mutex> lock;
-      if (map_mutex) lock = std::shared_lock(*map_mutex);
-      e = localizer->add_scan(rec.scan);
-    }
+    const LocalizationEstimate e = session->add_scan(rec.scan);
+    if (session->last_restart() == SessionRestart::kTimeWentBack)
+      std::fprintf(stderr, "lshloc: warning: stdin:%zu: time ran back to %.3f s: localizing from nothing again\n",
+                   rec.scan.source_line, rec.scan.timestamp);
     const std::string submap = e.has_estimate ? map.submap_name(e.submap) : "";
     if (opt.json) {
       nlohmann::json j = {{"scan", done},
@@ -708,9 +706,11 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     if (stream && (opt->from_s || opt->to_s || !opt->plot_dir.empty()))
       throw Error("--target -: the stream is localized scan by scan; --from/--to and --plot need a log file");
     // Output paths and the map's files first: a typo must not cost reading a long target log.
-    for (const auto& m : opt->maps) {
-      if (m.starts_with("redis://")) continue;
-      const std::string file = m.substr(0, log_argument_comma(m));
+    std::vector<io::MapSource> sources;
+    for (const auto& m : opt->maps) sources.push_back(io::MapSource::parse(m));
+    for (const auto& source : sources) {
+      const std::string file = source.required_file();
+      if (file.empty()) continue;
       std::error_code ec;
       if (!std::filesystem::exists(file, ec)) throw FileError("--map " + file + ": no such file");
     }
@@ -724,7 +724,8 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     std::vector<io::CarmenRecord> read_ahead;
     if (stream) {
       stdin_reader = std::make_unique<io::CarmenReader>("-");
-      if (std::any_of(opt->maps.begin(), opt->maps.end(), [](const std::string& m) { return is_grid_argument(m); })) {
+      if (std::any_of(sources.begin(), sources.end(),
+                      [](const io::MapSource& m) { return m.kind == io::MapSourceKind::kRosMap; })) {
         io::CarmenRecord rec;
         while (stdin_reader->next(rec)) {
           read_ahead.push_back(rec);
@@ -737,7 +738,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       first_scan = &read_ahead.back().scan;
     if (!stream) {
       for (const auto& path : paths) {
-        if (is_grid_argument(path))
+        if (io::is_ros_map_path(path))
           throw Error(path + ": a ROS map is no target log; give it to --map, and the robot's log to --target");
         // A window by scans reads the log up to its end only (a long log, or a gzip that expands without end).
         constexpr std::size_t kAll = std::numeric_limits<std::size_t>::max();
@@ -755,33 +756,39 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       t.laser_offset = with_target_laser_offset(config.localizer, t.laser_offset).scan_matcher.laser_offset;
     const auto t0 = std::chrono::steady_clock::now();
     std::unique_ptr<GlobalMap> map;
-    std::vector<std::string> built;
     // A fleet's map on Redis: its history now, what mappers add while the targets localize.
-    FleetMap fleet_map;
+    fleet::FleetMap fleet_map;
     std::shared_mutex map_mutex;
-    for (const auto& m : opt->maps) {
-      if (!m.starts_with("redis://")) continue;
-      if (opt->maps.size() > 1)
-        throw Error("--map " + m + ": a fleet's map on Redis is the whole map; give no other --map");
-      fleet_map = open_fleet_map(m, opt->map_prefix, opt->map_snapshot, config);
+    for (const auto& source : sources) {
+      if (source.kind != io::MapSourceKind::kFleet) continue;
+      if (sources.size() > 1)
+        throw Error("--map " + source.text + ": a fleet's map on Redis is the whole map; give no other --map");
+      std::vector<std::string> warnings;
+      fleet_map = fleet::open_fleet_map(source.path, opt->map_prefix, opt->map_snapshot, config, warnings);
+      print_warnings(warnings);
       map = std::move(fleet_map.map);
     }
     if (!opt->map_snapshot.empty() && !fleet_map.follower)
       throw Error("--map-snapshot " + opt->map_snapshot + ": goes with --map redis://HOST:PORT");
     fleet::MapFollower* follower = fleet_map.follower.get();
-    for (const auto& m : opt->maps) {
+    std::vector<io::MapSource> built;
+    for (const auto& source : sources) {
       if (follower) break;
-      const bool saved = !is_grid_argument(m) && (io::looks_like_map_file(m) || m.ends_with(".map"));
-      if (saved && map) throw Error(m + ": only one saved map can be given (" + opt->maps.front() + " was another)");
+      const bool saved = source.kind == io::MapSourceKind::kSavedMap;
+      if (saved && map)
+        throw Error(source.text + ": only one saved map can be given (" + opt->maps.front() + " was another)");
       if (saved) {
-        map = open_saved_map(m, config).map;
+        io::LoadedMap loaded = io::open_saved_map(source.path, config);
+        print_warnings(loaded.warnings);
+        map = std::move(loaded.map);
       } else {
-        built.push_back(m);
+        built.push_back(source);
       }
     }
     if (!map) map = std::make_unique<GlobalMap>(config.map);
     if (!targets.empty()) first_scan = &targets[0].scans[0];
-    const MapSources sources = add_map_arguments(*map, built, opt->map_slam, opt->grid.resolve(first_scan));
+    const io::MapSources submaps = io::add_map_sources(*map, built, opt->map_slam, opt->grid.resolve(first_scan));
+    print_messages(submaps.messages);
     const double map_s = seconds_since(t0);
     // (A fleet's map may still be empty: its mappers fill it while the targets localize.)
     if (map->stats().features == 0 && !follower)
@@ -826,11 +833,11 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       runs[k].map_build_s = map_s;
       if (!outs.empty()) write_outputs(outs[k], *map, targets[k], runs[k]);
       if (!opt->plot_dir.empty())
-        write_plots(opt->plot_dir, paths[k], *map, sources, runs[k], config.localizer.report.flag_threshold);
+        write_plots(opt->plot_dir, paths[k], *map, submaps, runs[k], config.localizer.report.flag_threshold);
       nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s, config.localizer.report);
       j["stamp_clash_tolerance_s"] = config.localizer.stamp_clash.tolerance_s;
       if (follower) {
-        j["map_log"] = fleet_map_json(fleet_map, *map);
+        j["map_log"] = fleet::fleet_map_json(fleet_map, *map);
       }
       if (opt->json) {
         std::printf("%s\n", io::json_text(j).c_str());

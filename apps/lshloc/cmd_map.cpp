@@ -140,7 +140,7 @@ void run_build(const BuildOptions& opt, const char* made_by) {
   const auto t0 = std::chrono::steady_clock::now();
   GlobalMap map(config);
   std::fprintf(stderr, "%s: reading and adding %zu submaps\n", made_by, opt.logs.size());
-  const MapSources built = add_map_arguments(map, opt.logs, opt.slam, opt.grid.resolve(nullptr), opt.names);
+  const io::MapSources built = add_map_arguments(map, opt.logs, opt.slam, opt.grid.resolve(nullptr), opt.names);
   nlohmann::json sources = nlohmann::json::array();
   for (std::uint32_t id = 0; id < map.submap_count(); ++id) {
     nlohmann::json s = {{"submap", map.submap_name(id)}, {"source", opt.logs[id]}};
@@ -205,7 +205,7 @@ void add_from_grid(CLI::App& map_cmd) {
   cmd->callback([opt, grids, out] {
     if (!opt->print_config) require_given({grids, out});
     for (const std::string& g : opt->logs)
-      if (!is_grid_argument(g)) throw Error(g + ": expected a ROS map YAML (.yaml/.yml); logs go to `map build`");
+      if (!io::is_ros_map_path(g)) throw Error(g + ": expected a ROS map YAML (.yaml/.yml); logs go to `map build`");
     run_build(*opt, "lshloc map from-grid");
   });
 }
@@ -264,7 +264,7 @@ void add_append(CLI::App& map_cmd) {
       try {
         features += appender.add_scan(submap, log.scans[i], log.scans[i].pose);
       } catch (const Error& e) {
-        const std::string file = opt->log.substr(0, log_argument_comma(opt->log));  // LOG of LOG,POSES
+        const std::string file = io::MapSource::parse(opt->log).path;  // LOG of LOG,POSES
         throw Error(file + (log.scans[i].source_line ? ":" + std::to_string(log.scans[i].source_line) : "") + ": " +
                     e.what());
       }
