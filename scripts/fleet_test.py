@@ -101,7 +101,7 @@ def publish_scenario(url, prefix, mappers, submaps):
     """`mappers` processes publish fr079's default scenario (R = `submaps`) at
     once, each its part; returns (scans, seconds from the first start to the
     last finish) or None."""
-    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", url, "--prefix", prefix, "--building", "fr079",
+    procs = [subprocess.Popen([LSHLOC, "mapper-scenario", "--redis", url, "--prefix", prefix, "--building", "fr079",
                                "--submaps", str(submaps), "--part", f"{k}/{mappers}", "--together", str(mappers)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for k in range(mappers)]
     done = [p.communicate() for p in procs]
@@ -172,7 +172,7 @@ def cluster(work, result, submaps):
 
 def kill_mapper(redis, result):
     log("kill mapper: a mapper killed -9 while it publishes; a follower follows")
-    mapper = subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "km", "--building", "fr101",
+    mapper = subprocess.Popen([LSHLOC, "mapper-scenario", "--redis", redis.url, "--prefix", "km", "--building", "fr101",
                                "--submaps", "4", "--rate", "2000"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     for _ in range(600):  # until the mapper publishes
         if redis.stream_lengths("km") > 0:
@@ -199,7 +199,7 @@ def kill_mapper(redis, result):
 def restart_redis(redis, result):
     log("restart: Redis restarted (AOF) while a mapper publishes and a follower follows")
     follower_out = os.path.join(redis.dir, "rr.map")
-    mapper = subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "rr", "--building", "fr101",
+    mapper = subprocess.Popen([LSHLOC, "mapper-scenario", "--redis", redis.url, "--prefix", "rr", "--building", "fr101",
                                "--submaps", "4", "--rate", "1500"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                               text=True)
     for _ in range(600):
@@ -232,11 +232,11 @@ def restart_localizer(redis, work, result):
     run(["simulate", "--out", sim, "--buildings", "2", "--seed", "4", "--scans", "800"], check=True)
     logs = [os.path.join(sim, f"sim-4-00{k}", f"sim-4-00{k}-corrected.log.gz") for k in range(2)]
     target = os.path.join(sim, "sim-4-001", "sim-4-001.log.gz")
-    run(["mapper", "--redis", redis.url, "--prefix", "kl", logs[0]], check=True)
-    mapper = subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "kl", "--rate", "400", logs[1]],
+    run(["mapper", "--redis", redis.url + "?prefix=kl", logs[0]], check=True)
+    mapper = subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url + "?prefix=kl", "--rate", "400", logs[1]],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     time.sleep(0.3)
-    loc = subprocess.Popen([LSHLOC, "localize", "--map", redis.url, "--map-prefix", "kl", "--target", target,
+    loc = subprocess.Popen([LSHLOC, "localize", "--map", redis.url + "?prefix=kl", "--target", target,
                             "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     time.sleep(0.5)
     loc.send_signal(signal.SIGKILL)
@@ -244,7 +244,7 @@ def restart_localizer(redis, work, result):
     snap = os.path.join(work, "kl.map")
     run(["map", "from-redis", redis.url, "--prefix", "kl", "--out", snap], check=True)
     mapper.wait()
-    again = run(["localize", "--map", redis.url, "--map-prefix", "kl", "--map-snapshot", snap, "--target", target,
+    again = run(["localize", "--map", redis.url + "?prefix=kl&snapshot=" + snap, "--target", target,
                  "--start", "400", "--length", "100", "--json"])
     full = run(["map", "from-redis", redis.url, "--prefix", "kl", "--out", os.path.join(work, "kl-full.map")])
     a, f = last_json(again.stdout), last_json(full.stdout)
@@ -263,7 +263,7 @@ def catch_up(redis, work, result):
     logs = sorted(os.path.join(sim, d, f"{d}-corrected.log.gz") for d in os.listdir(sim)
                   if os.path.isdir(os.path.join(sim, d)))
     # The first 16 publish at once: the ingest figure with 16 mappers.
-    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "big", "--together", "16", l],
+    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url + "?prefix=big", "--together", "16", l],
                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) for l in logs[:16]]
     outs = [last_json(p.communicate()[0]) for p in procs]
     if all(outs):
@@ -272,16 +272,16 @@ def catch_up(redis, work, result):
         result["ingest_scans_per_s_16_mappers"] = round(scans / window) if window > 0 else 0
         log(f"ingest: 16 mappers (simulated buildings) {scans} scans in {window:.2f} s = "
             f"{result['ingest_scans_per_s_16_mappers']} scans/s")
-    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", "big", l],
+    procs = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url + "?prefix=big", l],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for l in logs[16:]]
     for p in procs:
         p.wait()
     snap = os.path.join(work, "big.map")
     made = last_json(run(["map", "from-redis", redis.url, "--prefix", "big", "--out", snap]).stdout)
     target = logs[0].replace("-corrected", "")
-    args = ["localize", "--map", redis.url, "--map-prefix", "big", "--target", target, "--length", "3", "--json"]
-    from_snap = last_json(run(args + ["--map-snapshot", snap]).stdout)
-    from_stream = last_json(run(args).stdout)
+    args = ["--target", target, "--length", "3", "--json"]
+    from_snap = last_json(run(["localize", "--map", redis.url + "?prefix=big&snapshot=" + snap] + args).stdout)
+    from_stream = last_json(run(["localize", "--map", redis.url + "?prefix=big"] + args).stdout)
     result["catch_up_map_features"] = made["features"] if made else None
     result["catch_up_s_1e6_snapshot"] = round(from_snap["map_log"]["catch_up_s"], 3) if from_snap else None
     result["catch_up_s_1e6_stream"] = round(from_stream["map_log"]["catch_up_s"], 3) if from_stream else None

@@ -2,7 +2,7 @@
 """A fleet's localizer against the batch run, on the 16 default scenarios (4
 buildings x R in 1 4 9 15; docs/fleet.md "Same answers as from files").
 
-For each scenario, 4 mapper processes (`lshloc mapper --building B --submaps R
+For each scenario, 4 mapper processes (`lshloc mapper-scenario --building B --submaps R
 --part k/4 --together 4`) publish its submaps into a Redis of this script's own
 (loopback, a free port), a localizer runs `eval --map-redis ... --trace`, and
 the batch run `eval ... --trace` builds the same map from the logs. The two
@@ -40,7 +40,7 @@ def main():
         for b in a.buildings.split(","):
             for r in a.submaps.split(","):
                 prefix = f"{b}-{r}"
-                mappers = [subprocess.Popen([LSHLOC, "mapper", "--redis", redis.url, "--prefix", prefix,
+                mappers = [subprocess.Popen([LSHLOC, "mapper-scenario", "--redis", redis.url, "--prefix", prefix,
                                              "--building", b, "--submaps", r, "--part", f"{k}/{a.mappers}",
                                              "--together", str(a.mappers)], stdout=subprocess.PIPE,
                                             stderr=subprocess.PIPE, text=True) for k in range(a.mappers)]

@@ -46,11 +46,11 @@ python3 -c "import json,sys; m=json.load(open(sys.argv[1])); assert m['first_seq
   "$d/ma2.json" || fail "a restarted mapper did not resume its sequence"
 
 # Live: building b is published at 2000 scans/s while the localizer starts and localizes.
-"$LSHLOC" mapper --redis "$url" --prefix live "$a" >/dev/null 2>&1
-"$LSHLOC" mapper --redis "$url" --prefix live --rate 2000 "$b" >/dev/null 2>&1 &
+"$LSHLOC" mapper --redis "$url?prefix=live" "$a" >/dev/null 2>&1
+"$LSHLOC" mapper --redis "$url?prefix=live" --rate 2000 "$b" >/dev/null 2>&1 &
 mapper=$!
 sleep 0.1
-"$LSHLOC" localize --map "$url" --map-prefix live "${target[@]}" >"$d/live.json"
+"$LSHLOC" localize --map "$url?prefix=live" "${target[@]}" >"$d/live.json"
 wait $mapper
 python3 - "$d/live.json" "$d/files.json" <<'PY' || fail "the localizer on a map still being published did not localize"
 import json, math, sys
@@ -67,8 +67,8 @@ PY
 
 # A server that lost a stream (restarted without its data) while a restarted mapper publishes:
 # the mapper says so instead of reporting its scans as published.
-"$LSHLOC" mapper --redis "$url" --prefix lost "$a" >/dev/null 2>&1
-"$LSHLOC" mapper --redis "$url" --prefix lost --rate 20 --retry 5 "$a" >"$d/lost.json" 2>"$d/lost.err" &
+"$LSHLOC" mapper --redis "$url?prefix=lost" "$a" >/dev/null 2>&1
+"$LSHLOC" mapper --redis "$url?prefix=lost" --rate 20 --retry 5 "$a" >"$d/lost.json" 2>"$d/lost.err" &
 mapper=$!
 sleep 1
 # (at once: a scan published between the two would start the stream anew at its own number)
@@ -81,7 +81,7 @@ grep -q "lost updates it had acknowledged" "$d/lost.err" || fail "lost stream: $
 
 # A server that answers but takes no writes (out of memory): the mapper gives up after --retry
 # seconds without progress, naming the server's reason, instead of reconnecting forever.
-"$LSHLOC" mapper --redis "$url" --prefix full --rate 50 --retry 2 "$a" >/dev/null 2>"$d/full.err" &
+"$LSHLOC" mapper --redis "$url?prefix=full" --rate 50 --retry 2 "$a" >/dev/null 2>"$d/full.err" &
 mapper=$!
 sleep 1
 redis-cli -p "$port" config set maxmemory 1 >/dev/null

@@ -87,7 +87,7 @@ def sweep(work):
         ("map", "append"): [os.path.join(work, "append.map"), corrected, "--count", "10", "--submap", "more"],
         ("map", "to-grid"): [corrected, "--out", os.path.join(work, "g2")],
         ("map", "from-grid"): [grid, "--out", os.path.join(work, "fromgrid.map"), "--grid-spacing", "3"],
-        ("map", "build"): [grid, "--out", os.path.join(work, "build.map"), "--grid-spacing", "3"],
+        ("map", "build"): [corrected, "--out", os.path.join(work, "build.map")],
     }
     if DATA and os.path.isdir(os.path.join(DATA, "aces")):
         commands[("eval",)] = ["--building", "aces", "--length", "20", "--json"]

@@ -46,44 +46,102 @@ namespace {
 struct LocalizeOptions {
   std::vector<std::string> maps;
   std::vector<std::string> targets;
-  std::size_t threads = 0;            ///< localizer threads with several targets (0: one per target, up to the cores)
-  std::string map_prefix = "lshloc";  ///< key prefix of a fleet's map on Redis
-  std::string map_snapshot;           ///< a `map from-redis` file to start the fleet's map from
+  std::size_t threads = 0;  ///< localizer threads with several targets (0: one per target, up to the cores)
+  std::string map_prefix;   ///< the former --map-prefix (redis://...?prefix= now); empty: not given
   std::string out;
   std::string plot_dir;
   bool json = false;
-  bool map_slam = false;
   bool no_odometry = false;
-  std::size_t start = 0;
-  std::size_t length = 0;
-  std::optional<double> from_s, to_s;
+  std::string start = "0";   ///< N scans, or Ts seconds after the log's first scan
+  std::string length = "0";  ///< N scans, or Ts seconds from the window's first scan (0: to the end)
+  std::string laser_mount;   ///< "X,Y,HEADING_DEG": the laser's pose on the robot (empty: the log's)
   LocalizerOptions localizer;
-  GridMapOptions grid;
 };
 
 double degrees(double radians) { return radians * 180.0 / std::numbers::pi; }
 
-/// The target's window of the log: --start/--length in scans or --from/--to
-/// in seconds from the log's first scan.
+/// One end of the target's window: a count of scans, or seconds ("12.5s").
+struct WindowBound {
+  double value = 0.0;
+  bool seconds = false;
+};
+
+WindowBound parse_window_bound(const std::string& option, const std::string& text) {
+  WindowBound b;
+  b.seconds = text.ends_with('s');
+  const std::string number = b.seconds ? text.substr(0, text.size() - 1) : text;
+  std::size_t used = 0;
+  try {
+    b.value = std::stod(number, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  const bool whole = b.seconds || (b.value == std::floor(b.value) && number.find_first_of(".eE") == std::string::npos);
+  if (number.empty() || used != number.size() || !(b.value >= 0.0) || b.value > 1e12 || !whole)
+    throw Error((option.empty() ? "" : option + " ") + text +
+                ": expected a count of scans (e.g. 2000) or seconds (e.g. 12.5s), >= 0");
+  return b;
+}
+
+std::size_t scan_count(const WindowBound& b) { return static_cast<std::size_t>(b.value); }
+
+/// --laser-mount X,Y,HEADING_DEG as a laser offset [m, m, rad].
+Pose2 parse_laser_mount(const std::string& option, const std::string& text) {
+  double v[3];
+  std::size_t at = 0, k = 0;
+  for (; k < 3 && at <= text.size(); ++k) {
+    const std::size_t comma = std::min(text.find(',', at), text.size());
+    const std::string field = text.substr(at, comma - at);
+    std::size_t used = 0;
+    try {
+      v[k] = std::stod(field, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (field.empty() || used != field.size() || !std::isfinite(v[k])) break;
+    at = comma + 1;
+  }
+  if (k != 3 || at <= text.size())
+    throw Error((option.empty() ? "" : option + " ") + text +
+                ": expected X,Y,HEADING_DEG (e.g. 0.12,0,0): metres and degrees");
+  return {v[0], v[1], v[2] * std::numbers::pi / 180.0};
+}
+
+/// A CLI11 check from a parser that throws lshloc::Error: its message, or "" when the text parses.
+template <class Parse>
+std::function<std::string(const std::string&)> checked_by(Parse parse, std::string option = "") {
+  return [parse, option](const std::string& text) {
+    try {
+      parse(option, text);
+      return std::string();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+  };
+}
+
+/// The target's window of the log: --start and --length, each in scans or in
+/// seconds (--start from the log's first scan, --length from the window's).
 TargetRun select_target(io::CarmenLog& log, const std::string& path, const LocalizeOptions& opt) {
   auto& scans = log.scans;
   if (scans.empty()) throw Error(path + ": the target log has no laser scans (FLASER / ROBOTLASER1)");
-  std::size_t begin = opt.start, end = opt.length == 0 ? scans.size() : std::min(scans.size(), opt.start + opt.length);
-  if (opt.from_s || opt.to_s) {
-    const double t0 = scans.front().timestamp;
-    const double from = opt.from_s.value_or(0.0), to = opt.to_s.value_or(1e300);
-    begin = scans.size(), end = 0;
-    for (std::size_t i = 0; i < scans.size(); ++i) {
-      const double t = scans[i].timestamp - t0;
-      if (t >= from && t < to) begin = std::min(begin, i), end = i + 1;
+  const WindowBound start = parse_window_bound("--start", opt.start),
+                    length = parse_window_bound("--length", opt.length);
+  std::size_t begin = scans.size(), end = scans.size();
+  if (start.seconds) {
+    for (std::size_t i = 0; i < scans.size() && begin == scans.size(); ++i)
+      if (scans[i].timestamp - scans.front().timestamp >= start.value) begin = i;
+  } else {
+    begin = std::min(scans.size(), scan_count(start));
+  }
+  if (begin >= scans.size())
+    throw Error(path + ": --start " + opt.start + " is past the log's " + std::to_string(scans.size()) +
+                " laser scans (" + std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
+  if (length.seconds) {
+    for (end = begin; end < scans.size() && scans[end].timestamp - scans[begin].timestamp < length.value; ++end) {
     }
-    if (begin >= end)
-      throw Error(path + ": no scan lies between --from " + std::to_string(from) + " s and " +
-                  (opt.to_s ? "--to " + std::to_string(to) + " s" : std::string("the log's end")) + " (the log spans " +
-                  std::to_string(scans.back().timestamp - scans.front().timestamp) + " s)");
-  } else if (begin >= scans.size()) {
-    throw Error(path + ": --start " + std::to_string(begin) + " is past the log's " + std::to_string(scans.size()) +
-                " laser scans");
+  } else if (length.value > 0) {
+    end = begin + std::min(scans.size() - begin, scan_count(length));
   }
   TargetRun target;
   target.building = path;
@@ -392,14 +450,22 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
     if (ahead < read_ahead.size()) return rec = std::move(read_ahead[ahead++]), true;
     return reader.next(rec);
   };
-  while ((opt.length == 0 || done < opt.length) && next()) {
+  const std::size_t start = scan_count(parse_window_bound("--start", opt.start));
+  const std::size_t length = scan_count(parse_window_bound("--length", opt.length));
+  while ((length == 0 || done < length) && next()) {
     if (rec.type == io::CarmenRecord::Type::kParam) params.params[rec.param_name] = rec.param_value;
-    if (rec.type != io::CarmenRecord::Type::kLaser || index++ < opt.start) continue;
+    if (rec.type != io::CarmenRecord::Type::kLaser || index++ < start) continue;
     if (!session) {
       params.path = "stdin";
       params.robotlaser_offset = reader.robotlaser_offset();  // the first ROBOTLASER1 line's, if any
-      session = std::make_unique<LocalizationSession>(map, SessionConfig{.localizer = config},
-                                                      params.front_laser_offset(), !opt.no_odometry, map_mutex);
+      const Pose2 mount = params.front_laser_offset();
+      session = std::make_unique<LocalizationSession>(map, SessionConfig{.localizer = config}, mount, !opt.no_odometry,
+                                                      map_mutex);
+      const Pose2& used = session->localizer_config().scan_matcher.laser_offset;
+      if (used.x == 0.0 && used.y == 0.0 && used.theta == 0.0)
+        std::fprintf(stderr,
+                     "lshloc: warning: stdin: the stream gives no laser mount (PARAM robot_frontlaser_offset or "
+                     "ROBOTLASER1) and none was given (--laser-mount X,Y,HEADING_DEG): robot poses are the laser's\n");
       robot_from_laser = session->robot_from_laser();
     }
     const LocalizationEstimate e = session->add_scan(rec.scan);
@@ -436,8 +502,7 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
     last = e;
     ++done;
   }
-  if (done == 0)
-    throw Error("stdin: no laser scan (FLASER / ROBOTLASER1) after the first " + std::to_string(opt.start));
+  if (done == 0) throw Error("stdin: no laser scan (FLASER / ROBOTLASER1) after the first " + std::to_string(start));
   print_warnings(reader.warnings());
   if (csv_file) {
     if (std::fclose(csv_file.release()) != 0) throw Error(out.csv + ": cannot write the per-scan CSV");
@@ -633,7 +698,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "Localize a target robot's log in a global map made of one or more mapped logs,\n"
       "or of a saved map (`lshloc map build`) and more logs, from no initial guess.\n"
       "Each --map LOG is a submap posed by its own FLASER poses (a corrected log), --map LOG,slam\n"
-      "(or --map-slam) poses a raw log by lshloc's SLAM, --map LOG,POSES takes the poses from a\n"
+      "poses a raw log by lshloc's SLAM, --map LOG,POSES takes the poses from a\n"
       "`timestamp x y theta` file (laser poses) or a TUM trajectory (robot poses, as `lshloc slam\n"
       "--out` writes); --map MAP.yaml builds a submap from a ROS occupancy grid (map_server's YAML + PGM,\n"
       "as gmapping, slam_toolbox and Cartographer save it: ray-cast with the target's laser from a 1 m\n"
@@ -646,38 +711,38 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       "all or none of them. A scan stamped within 5 ms of another scan estimated elsewhere (0.5 m or\n"
       "5 deg apart; drivers that stamp buffered scans on arrival) is never confident, its pose being\n"
       "of no use by time: its CSV row has stamp_clash 1, and localized keeps the localizer's flag.\n"
-      "A stdin stream checks each scan against the scans before it only.");
+      "A stdin stream checks each scan against the scans before it only.\n"
+      "Exit status: 0 localized at the last scan, 3 not localized, 1 an error, 2 a usage error.");
   const CLI::Option* map_option =
       cmd->add_option("--map", opt->maps,
                       "map log (LOG, LOG,POSES or LOG,slam), ROS map (MAP.yaml), or a saved map file (at most one); "
-                      "repeat for several submaps; or a fleet's live map on Redis, redis://HOST[:PORT], followed while "
-                      "the targets localize (required)");
+                      "repeat for several submaps; or a fleet's live map on Redis, "
+                      "redis://HOST[:PORT][?prefix=P&snapshot=FILE], followed while the targets localize (required)");
   const CLI::Option* target_option = cmd->add_option(
       "--target", opt->targets,
       "the target robot's raw log (odometry + scans); repeat to localize several robots at once, each on "
       "its own thread against the one map; - reads a plain-text log from stdin and prints each scan's "
       "estimate as it arrives (required)");
-  cmd->add_option("--map-prefix", opt->map_prefix, "key prefix of the fleet's map on Redis (--map redis://...)")
-      ->capture_default_str();
-  cmd->add_option("--map-snapshot", opt->map_snapshot,
-                  "with --map redis://...: start from this snapshot of the fleet's map (`lshloc map from-redis`) "
-                  "and read only what came after it");
+  // The former --map-prefix, kept working for scripts: redis://HOST:PORT?prefix=P says it now.
+  cmd->add_option("--map-prefix", opt->map_prefix)->group("");
   cmd->add_option("--threads", opt->threads,
                   "localizer threads for several targets (0: one per target, at most the machine's cores)")
       ->capture_default_str()
       ->check(within(0, 1024));
-  auto* start =
-      cmd->add_option("--start", opt->start, "first scan of the target log to localize")->capture_default_str();
-  auto* length = cmd->add_option("--length", opt->length, "scans of the target log to localize (0: to the end)")
-                     ->capture_default_str();
-  cmd->add_option("--from", opt->from_s, "[s] localize from this time after the log's first scan")
-      ->check(within(0, 1e9))
-      ->excludes(start)
-      ->excludes(length);
-  cmd->add_option("--to", opt->to_s, "[s] ... up to this time after the log's first scan")
-      ->check(within(0, 1e9))
-      ->excludes(start)
-      ->excludes(length);
+  cmd->add_option("--start", opt->start,
+                  "first scan of the target log to localize: a count of scans, or seconds after the log's first "
+                  "scan (12.5s)")
+      ->capture_default_str()
+      ->check(checked_by(parse_window_bound));
+  cmd->add_option("--length", opt->length,
+                  "scans of the target log to localize (0: to the end), or seconds from the window's first scan "
+                  "(60s)")
+      ->capture_default_str()
+      ->check(checked_by(parse_window_bound));
+  cmd->add_option("--laser-mount", opt->laser_mount,
+                  "X,Y,HEADING_DEG: the laser's pose on the robot [m, m, deg], for a log or stream that gives none "
+                  "(PARAM robot_frontlaser_offset or ROBOTLASER1); robot poses are the laser's without it")
+      ->check(checked_by(parse_laser_mount));
   cmd->add_option("--out", opt->out,
                   "estimated trajectory, TUM (confident poses), plus OUT.csv with every scan (for an OUT ending in "
                   ".csv: the CSV there and the TUM file as OUT's stem .tum); for a stdin stream the CSV grows a row "
@@ -691,20 +756,19 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
   cmd->add_flag("--no-odometry", opt->no_odometry,
                 "the targets have no odometry (a laser alone): match every scan from the motion so far; a target log "
                 "whose odometry never changes is localized so without it");
-  cmd->add_flag("--map-slam", opt->map_slam,
-                "map logs given without a poses file are raw logs: pose their scans by lshloc's SLAM (scan matching "
-                "and loop closure) instead of taking their FLASER poses");
   add_localizer_options(*cmd, opt->localizer);
-  add_grid_map_options(*cmd, opt->grid, /*laser_of_only=*/true);
   cmd->callback([opt, map_option, target_option, &global] {
+    if (!opt->laser_mount.empty())
+      opt->localizer.config.localizer.scan_matcher.laser_offset = parse_laser_mount("--laser-mount", opt->laser_mount);
     if (print_config_if_asked(opt->localizer)) return;
     require_given({map_option, target_option});
     const auto& paths = opt->targets;
     const bool stream = paths.size() == 1 && paths[0] == "-";
     if (paths.size() > 1 && std::find(paths.begin(), paths.end(), "-") != paths.end())
       throw Error("--target -: stdin can be the only target; it cannot be mixed with target logs");
-    if (stream && (opt->from_s || opt->to_s || !opt->plot_dir.empty()))
-      throw Error("--target -: the stream is localized scan by scan; --from/--to and --plot need a log file");
+    const bool by_time = opt->start.ends_with('s') || opt->length.ends_with('s');
+    if (stream && (by_time || !opt->plot_dir.empty()))
+      throw Error("--target -: the stream is localized scan by scan; a window in seconds and --plot need a log file");
     // Output paths and the map's files first: a typo must not cost reading a long target log.
     std::vector<io::MapSource> sources;
     for (const auto& m : opt->maps) sources.push_back(io::MapSource::parse(m));
@@ -742,8 +806,10 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
           throw Error(path + ": a ROS map is no target log; give it to --map, and the robot's log to --target");
         // A window by scans reads the log up to its end only (a long log, or a gzip that expands without end).
         constexpr std::size_t kAll = std::numeric_limits<std::size_t>::max();
-        const bool by_scans = !opt->from_s && !opt->to_s && opt->length > 0 && opt->length <= kAll - opt->start;
-        io::CarmenLog log = io::read_carmen_log(path, {}, by_scans ? opt->start + opt->length : kAll);
+        const std::size_t start = by_time ? 0 : scan_count(parse_window_bound("--start", opt->start));
+        const std::size_t length = by_time ? 0 : scan_count(parse_window_bound("--length", opt->length));
+        const bool by_scans = !by_time && length > 0 && length <= kAll - start;
+        io::CarmenLog log = io::read_carmen_log(path, {}, by_scans ? start + length : kAll);
         print_warnings(log.warnings);
         targets.push_back(select_target(log, path, *opt));
       }
@@ -764,12 +830,16 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
       if (sources.size() > 1)
         throw Error("--map " + source.text + ": a fleet's map on Redis is the whole map; give no other --map");
       std::vector<std::string> warnings;
-      fleet_map = fleet::open_fleet_map(source.path, opt->map_prefix, opt->map_snapshot, config, warnings);
+      std::string prefix = source.prefix;
+      if (!opt->map_prefix.empty()) {
+        print_warnings({"--map-prefix " + opt->map_prefix + ": say it in the source, --map " + source.path +
+                        "?prefix=" + opt->map_prefix + " (--map-prefix will go)"});
+        prefix = opt->map_prefix;
+      }
+      fleet_map = fleet::open_fleet_map(source.path, prefix, source.snapshot, config, warnings);
       print_warnings(warnings);
       map = std::move(fleet_map.map);
     }
-    if (!opt->map_snapshot.empty() && !fleet_map.follower)
-      throw Error("--map-snapshot " + opt->map_snapshot + ": goes with --map redis://HOST:PORT");
     fleet::MapFollower* follower = fleet_map.follower.get();
     std::vector<io::MapSource> built;
     for (const auto& source : sources) {
@@ -787,7 +857,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     }
     if (!map) map = std::make_unique<GlobalMap>(config.map);
     if (!targets.empty()) first_scan = &targets[0].scans[0];
-    const io::MapSources submaps = io::add_map_sources(*map, built, opt->map_slam, opt->grid.resolve(first_scan));
+    const io::MapSources submaps = io::add_map_sources(*map, built, false, GridMapOptions().resolve(first_scan));
     print_messages(submaps.messages);
     const double map_s = seconds_since(t0);
     // (A fleet's map may still be empty: its mappers fill it while the targets localize.)

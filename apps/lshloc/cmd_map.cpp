@@ -113,7 +113,7 @@ GlobalMapConfig map_settings(const std::string& config_path) try {
 
 /// The options `map build` and `map from-grid` share; returns --out (needed
 /// unless --print-config: require_given()).
-const CLI::Option* add_build_options(CLI::App& cmd, BuildOptions& opt) {
+const CLI::Option* add_build_options(CLI::App& cmd, BuildOptions& opt, bool from_grid) {
   const CLI::Option* out = cmd.add_option("--out", opt.out, "the map file to write (required)");
   // One name per --name (repeat it): a list would swallow the map arguments after it.
   cmd.add_option("--name", opt.names,
@@ -126,7 +126,8 @@ const CLI::Option* add_build_options(CLI::App& cmd, BuildOptions& opt) {
                  "{\"map\": ...} part of a localize/eval config (examples/config/)");
   cmd.add_flag("--print-config", opt.print_config, "print the effective map settings as JSON and exit");
   cmd.add_flag("--json", opt.json, "print one JSON line (the fields of `map info --json`) instead of text");
-  add_grid_map_options(cmd, opt.grid);
+  // map build takes the robot's laser for ROS grids; the lattice and an explicit laser are from-grid's.
+  add_grid_map_options(cmd, opt.grid, /*laser_of_only=*/!from_grid);
   return out;
 }
 
@@ -183,7 +184,7 @@ void add_build(CLI::App& map_cmd) {
       "logs", opt->logs,
       "map logs: LOG, LOG,POSES or LOG,slam (this raw log posed by lshloc's SLAM), or ROS maps MAP.yaml (required)");
   cmd->add_flag("--slam", opt->slam, "pose raw logs given without a poses file by lshloc's SLAM");
-  const CLI::Option* out = add_build_options(*cmd, *opt);
+  const CLI::Option* out = add_build_options(*cmd, *opt, false);
   cmd->callback([opt, logs, out] {
     if (!opt->print_config) require_given({logs, out});
     run_build(*opt, "lshloc map build");
@@ -201,7 +202,7 @@ void add_from_grid(CLI::App& map_cmd) {
       "should match the robot's that will localize (--grid-beams, --grid-fov-deg, --grid-max-range).\n"
       "`localize --map MAP.yaml` builds the same submap on the fly with the target's laser.");
   const CLI::Option* grids = cmd->add_option("grids", opt->logs, "ROS map YAML files (required)");
-  const CLI::Option* out = add_build_options(*cmd, *opt);
+  const CLI::Option* out = add_build_options(*cmd, *opt, true);
   cmd->callback([opt, grids, out] {
     if (!opt->print_config) require_given({grids, out});
     for (const std::string& g : opt->logs)

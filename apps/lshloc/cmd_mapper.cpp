@@ -1,8 +1,8 @@
 // `lshloc mapper`: a mapper robot of a fleet (docs/fleet.md). Publishes one
 // mapped log's scans, with their poses, as one submap's stream of the map log
 // on Redis; localizers anywhere follow it (`lshloc localize --map redis://...`).
-// With --building, it publishes (a share of) an evaluation scenario's submaps
-// instead, for `lshloc eval --map-redis`.
+// `lshloc mapper-scenario` (research) publishes (a share of) an evaluation
+// scenario's submaps instead, for `lshloc eval --map-redis`.
 #include <unistd.h>
 
 #include <chrono>
@@ -32,9 +32,9 @@ struct MapperOptions {
   std::string submap;
   std::string log;
   std::string prefix = "lshloc";
+  std::string rate = "0";  ///< scans per second, or "log": the log's own pace
   double rate_hz = 0.0;
   bool log_speed = false;
-  bool slam = false;
   std::size_t batch = 256;
   ScenarioConfig scenario{.building = ""};  ///< with --building: the scenario whose submaps to publish
   std::string part = "0/1";                 ///< K/N: submaps k with k % N == K
@@ -49,7 +49,7 @@ struct MapperOptions {
 std::vector<Submap> submaps_to_publish(const MapperOptions& opt, const std::string& data_dir,
                                        std::vector<std::string>& registered) {
   if (opt.scenario.building.empty()) {
-    Submap s = load_map_argument(opt.log, opt.slam);
+    Submap s = load_map_argument(opt.log, false);
     if (s.scans.empty()) throw Error(opt.log + ": no laser scans to publish");
     if (!opt.submap.empty()) s.name = opt.submap;
     registered = {s.name};
@@ -207,6 +207,54 @@ void run_mapper(const MapperOptions& opt, const std::string& data_dir) {
 
 }  // namespace
 
+namespace {
+
+/// --rate HZ or --rate log into the options.
+void parse_rate(MapperOptions& opt) {
+  opt.log_speed = opt.rate == "log";
+  if (opt.log_speed) return;
+  std::size_t used = 0;
+  try {
+    opt.rate_hz = std::stod(opt.rate, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != opt.rate.size() || !(opt.rate_hz >= 0.0 && opt.rate_hz <= 1e6))
+    throw Error("--rate " + opt.rate +
+                ": expected scans per second in [0, 1e6] (0: as fast as Redis takes them) or "
+                "log (the log's own pace)");
+}
+
+/// The options both mapper commands take: the server, the pace, the fleet's settings.
+void add_publishing_options(CLI::App& cmd, MapperOptions& opt) {
+  cmd.add_option("--redis", opt.redis, "the Redis server and the map's key prefix, redis://HOST[:PORT][?prefix=P]")
+      ->capture_default_str();
+  cmd.add_option("--rate", opt.rate,
+                 "scans per second (0: as fast as Redis takes them), or log: the log's own pace (its time stamps)")
+      ->capture_default_str();
+  cmd.add_option("--together", opt.together,
+                 "wait until this many mappers (counted on the server) are ready, then publish at once")
+      ->check(within(0, 10000));
+  cmd.add_option("--retry", opt.retry_s, "[s] keep reconnecting this long after the server went away")
+      ->capture_default_str()
+      ->check(within(0, 1e6));
+  cmd.add_option("--batch", opt.batch, "scans per pipelined round trip when not paced")
+      ->capture_default_str()
+      ->check(within(1, 100000));
+  add_localizer_options(cmd, opt.settings);
+}
+
+/// The server and prefix from --redis (?prefix=P), the prefix option where one was given.
+void resolve_redis(MapperOptions& opt, bool prefix_given) {
+  const io::MapSource source = io::MapSource::parse(opt.redis);
+  if (source.kind != io::MapSourceKind::kFleet || !source.snapshot.empty())
+    throw Error("--redis " + opt.redis + ": expected redis://HOST[:PORT][?prefix=P]");
+  opt.redis = source.path;
+  if (!prefix_given) opt.prefix = source.prefix;
+}
+
+}  // namespace
+
 void add_mapper_command(CLI::App& app, GlobalOptions& global) {
   auto opt = std::make_shared<MapperOptions>();
   auto* cmd = app.add_subcommand(
@@ -215,47 +263,48 @@ void add_mapper_command(CLI::App& app, GlobalOptions& global) {
       "as one submap's stream (docs/fleet.md). LOG takes the log's own FLASER poses, LOG,POSES a\n"
       "`timestamp x y theta` file or TUM trajectory, LOG,slam lshloc's SLAM over a raw log. A restarted\n"
       "mapper continues its submap's sequence. Prints one JSON line: scans, sequence numbers, scans/s.");
-  cmd->add_option("--redis", opt->redis, "the Redis server, redis://HOST[:PORT]")->capture_default_str();
-  cmd->add_option("--submap", opt->submap, "the submap's name (default: the log's file name)");
   auto* log = cmd->add_option("LOG", opt->log, "the mapped log: LOG, LOG,POSES or LOG,slam");
-  auto* building = cmd->add_option("--building", opt->scenario.building,
-                                   "instead of a log: publish the evaluation scenario's submaps (its target's "
-                                   "building without the window and guard, and R-1 others) for `eval --map-redis`")
-                       ->excludes(log);
-  cmd->add_option("--submaps", opt->scenario.submaps, "with --building: R, the scenario's submaps")
-      ->capture_default_str()
-      ->check(within(1, 15))
-      ->needs(building);
-  cmd->add_option("--start", opt->scenario.start,
-                  "with --building: the target window's first scan (default: the "
-                  "building's)")
-      ->needs(building);
-  add_slam_cache_option(*cmd, opt->slam_cache);
-  cmd->add_option("--part", opt->part, "with --building: publish submaps k with k % N == K (K/N), one of N mappers")
-      ->capture_default_str()
-      ->needs(building);
-  cmd->add_option("--rate", opt->rate_hz, "scans per second (0: as fast as Redis takes them)")
-      ->capture_default_str()
-      ->check(within(0, 1e6));
-  cmd->add_flag("--log-speed", opt->log_speed, "publish at the log's own pace (its time stamps)");
-  cmd->add_option("--prefix", opt->prefix, "key prefix of the map on the server")->capture_default_str();
-  cmd->add_option("--batch", opt->batch, "scans per pipelined round trip when not paced")
-      ->capture_default_str()
-      ->check(within(1, 100000));
-  cmd->add_option("--together", opt->together,
-                  "wait until this many mappers (counted on the server) are ready, then publish at once")
-      ->check(within(0, 10000));
-  cmd->add_option("--retry", opt->retry_s, "[s] keep reconnecting this long after the server went away")
-      ->capture_default_str()
-      ->check(within(0, 1e6));
-  cmd->add_flag("--slam", opt->slam, "a log given without poses is raw: pose it by lshloc's SLAM");
-  add_localizer_options(*cmd, opt->settings);
-  cmd->callback([opt, cmd, &global] {
+  cmd->add_option("--submap", opt->submap, "the submap's name (default: the log's file name)");
+  add_publishing_options(*cmd, *opt);
+  // The former --prefix, kept working for scripts: --redis redis://HOST:PORT?prefix=P says it now.
+  auto* prefix = cmd->add_option("--prefix", opt->prefix)->group("");
+  cmd->callback([opt, log, prefix, &global] {
     if (print_config_if_asked(opt->settings)) return;
-    if (opt->rate_hz > 0 && opt->log_speed) throw Error("mapper: give --rate or --log-speed, not both");
-    if (opt->log.empty() && opt->scenario.building.empty()) throw Error("mapper: give a LOG or --building");
-    if (!opt->scenario.building.empty() && cmd->count("--start") == 0)
-      opt->scenario.start = default_window_start(opt->scenario.building);
+    require_given({log});
+    if (prefix->count() > 0)
+      print_warnings({"--prefix " + opt->prefix + ": say it in the server's URL, --redis " + opt->redis +
+                      "?prefix=" + opt->prefix + " (--prefix will go)"});
+    resolve_redis(*opt, prefix->count() > 0);
+    parse_rate(*opt);
+    run_mapper(*opt, global.resolved_data_dir());
+  });
+}
+
+void add_mapper_scenario_command(CLI::App& app, GlobalOptions& global) {
+  auto opt = std::make_shared<MapperOptions>();
+  auto* cmd = app.add_subcommand(
+      "mapper-scenario",
+      "Mapper robots of a fleet publishing an evaluation scenario's submaps (its target's building\n"
+      "without the window and guard, and R-1 others; or a part of them) to the map log on Redis, for\n"
+      "`lshloc eval --map-redis`. Prints one JSON line as `lshloc mapper` does.");
+  auto* building = cmd->add_option("--building", opt->scenario.building, "the scenario's target building (required)");
+  cmd->add_option("--submaps", opt->scenario.submaps, "R, the scenario's submaps")
+      ->capture_default_str()
+      ->check(within(1, 15));
+  auto* start =
+      cmd->add_option("--start", opt->scenario.start, "the target window's first scan (default: the building's)");
+  cmd->add_option("--part", opt->part, "publish submaps k with k % N == K (K/N), one of N mappers")
+      ->capture_default_str();
+  auto* prefix =
+      cmd->add_option("--prefix", opt->prefix, "key prefix of the map on the server (or --redis ...?prefix=P)");
+  add_slam_cache_option(*cmd, opt->slam_cache);
+  add_publishing_options(*cmd, *opt);
+  cmd->callback([opt, building, start, prefix, &global] {
+    if (print_config_if_asked(opt->settings)) return;
+    require_given({building});
+    if (start->count() == 0) opt->scenario.start = default_window_start(opt->scenario.building);
+    resolve_redis(*opt, prefix->count() > 0);
+    parse_rate(*opt);
     run_mapper(*opt, global.resolved_data_dir());
   });
 }

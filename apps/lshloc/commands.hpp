@@ -35,6 +35,8 @@ void add_slam_command(CLI::App& app, GlobalOptions& global);
 void add_simulate_command(CLI::App& app, GlobalOptions& global);
 void add_map_command(CLI::App& app, GlobalOptions& global);
 void add_mapper_command(CLI::App& app, GlobalOptions& global);
+/// Research: mappers publishing an evaluation scenario's submaps (for eval --map-redis).
+void add_mapper_scenario_command(CLI::App& app, GlobalOptions& global);
 
 // `bench` is a group: each add_bench_<name>_command adds `bench <name>` to it.
 void add_bench_matching_command(CLI::App& bench, GlobalOptions& global);

@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   lshloc::app::add_localize_command(app, global);
   lshloc::app::add_map_command(app, global);
   lshloc::app::add_mapper_command(app, global);
+  lshloc::app::add_mapper_scenario_command(app, global);
   lshloc::app::add_slam_command(app, global);
   lshloc::app::add_simulate_command(app, global);
   auto* bench = app.add_subcommand("bench", "Benchmarks that print their figures as JSON (see `bench --help`)");
@@ -45,6 +46,9 @@ int main(int argc, char** argv) {
   lshloc::app::add_recall_command(app, global);
   lshloc::app::add_calibration_command(app, global);
   lshloc::app::add_judge_command(app, global);
+  // The research commands (the evaluation harness, benchmarks, the simulator) apart from a user's.
+  for (const char* name : {"eval", "bench", "recall", "calibration", "simulate", "mapper-scenario"})
+    app.get_subcommand(name)->group("Research");
   lshloc::app::check_numeric_options(app);
   // An unknown first word is a mistyped command: say so and list them (CLI11 would ask for "a subcommand").
   if (argc > 1 && argv[1][0] != '-') {

@@ -69,6 +69,23 @@ MapSource MapSource::parse(const std::string& text) {
   s.path = text;
   if (text.starts_with("redis://")) {
     s.kind = MapSourceKind::kFleet;
+    const std::size_t query = text.find('?');
+    if (query == std::string::npos) return s;
+    s.path = text.substr(0, query);
+    for (std::size_t at = query + 1; at <= text.size();) {
+      const std::size_t end = std::min(text.find('&', at), text.size());
+      const std::string pair = text.substr(at, end - at);
+      const std::size_t eq = pair.find('=');
+      const std::string key = pair.substr(0, eq), value = eq == std::string::npos ? "" : pair.substr(eq + 1);
+      if (key == "prefix" && !value.empty()) {
+        s.prefix = value;
+      } else if (key == "snapshot" && !value.empty()) {
+        s.snapshot = value;
+      } else {
+        throw Error(text + ": expected redis://HOST:PORT[?prefix=P&snapshot=FILE], got '" + pair + "' in the query");
+      }
+      at = end + 1;
+    }
     return s;
   }
   if (is_ros_map_path(text)) {
@@ -120,8 +137,7 @@ Submap load_log_submap(const MapSource& source, bool slam_all, MapSourceMessages
             log_path +
             ": its submap takes the log's own scan poses, and the log has no mark of corrected poses (GMapping's "
             "NEFF lines, lshloc's PARAM lshloc_scan_poses map): if it is a raw log these are odometry, which "
-            "drifts. Give LOG,POSES or LOG,slam for a raw log (or SLAM for every log: localize --map-slam, map "
-            "build --slam).");
+            "drifts. Give LOG,POSES or LOG,slam for a raw log.");
       s.scans = std::move(scans);
     }
     return s;

@@ -7,7 +7,10 @@
 //   LOG,slam       a raw log posed by lshloc's SLAM (scan matching, loop closure)
 //   MAP.yaml       a ROS map_server occupancy grid (virtual scans)
 //   FILE.map       a saved map (docs/map-format.md): the whole map
-//   redis://HOST:PORT   a fleet's live map (lshloc::fleet opens it): the whole map
+//   redis://HOST:PORT[?prefix=P&snapshot=FILE]
+//                  a fleet's live map (lshloc::fleet opens it): the whole map,
+//                  under key prefix P (default lshloc), started from a snapshot
+//                  `lshloc map from-redis` wrote and read on from its positions
 // Each log or grid is one submap, named after its file. The map decides its
 // settings: a run adopts a saved or fleet map's (adopt_map_settings).
 // Lengths [m], angles [rad], times [s].
@@ -31,21 +34,24 @@ enum class MapSourceKind { kLog, kLogWithPoses, kLogWithSlam, kRosMap, kSavedMap
 
 struct MapSource {
   MapSourceKind kind = MapSourceKind::kLog;
-  std::string text;   ///< as given
-  std::string path;   ///< the log, the ROS map YAML, the saved map, or the redis:// URL
-  std::string poses;  ///< kLogWithPoses: the poses file
+  std::string text;               ///< as given
+  std::string path;               ///< the log, the ROS map YAML, the saved map, or the redis:// URL
+  std::string poses;              ///< kLogWithPoses: the poses file
+  std::string prefix = "lshloc";  ///< kFleet: the map's key prefix on Redis
+  std::string snapshot;           ///< kFleet: a snapshot file to start from (empty: none)
 
   /// Reads `text` in the grammar above. A comma splits LOG from POSES where
   /// the whole text names no file (file names may hold commas): at the first
   /// comma whose left side names a file, else the first comma. A saved map is
   /// told by its magic bytes or a `.map` ending, a ROS map by its YAML ending.
-  /// Throws lshloc::Error naming the source when nothing follows a comma.
+  /// Throws lshloc::Error naming the source when nothing follows a comma or
+  /// a redis:// query holds a key other than prefix and snapshot.
   static MapSource parse(const std::string& text);
   /// Whether the source adds one submap to a map (a log or a grid), rather
   /// than being a whole map (saved or a fleet's).
   bool adds_submap() const { return kind != MapSourceKind::kSavedMap && kind != MapSourceKind::kFleet; }
-  /// The file that must exist before any work (empty for a fleet's map).
-  std::string required_file() const { return kind == MapSourceKind::kFleet ? std::string() : path; }
+  /// The file that must exist before any work (a fleet's: its snapshot, if any).
+  std::string required_file() const { return kind == MapSourceKind::kFleet ? snapshot : path; }
 };
 
 /// What loading sources said besides the map: problems that lost nothing
