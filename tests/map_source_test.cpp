@@ -34,6 +34,14 @@ std::vector<LaserScan> box_scans(const std::vector<double>& stamps) {
 TEST(MapSource, TellsEachKindApart) {
   EXPECT_EQ(MapSource::parse("redis://127.0.0.1:6380").kind, MapSourceKind::kFleet);
   EXPECT_EQ(MapSource::parse("redis://127.0.0.1:6380").required_file(), "");
+  const MapSource fleet = MapSource::parse("redis://127.0.0.1:6380?prefix=hall&snapshot=late.map");
+  EXPECT_EQ(fleet.path, "redis://127.0.0.1:6380");
+  EXPECT_EQ(fleet.prefix, "hall");
+  EXPECT_EQ(fleet.snapshot, "late.map");
+  EXPECT_EQ(fleet.required_file(), "late.map");
+  EXPECT_EQ(MapSource::parse("redis://127.0.0.1:6380").prefix, "lshloc");
+  EXPECT_THROW(MapSource::parse("redis://127.0.0.1:6380?prefx=hall"), Error);
+  EXPECT_THROW(MapSource::parse("redis://127.0.0.1:6380?prefix="), Error);
   EXPECT_EQ(MapSource::parse("floor2.yaml").kind, MapSourceKind::kRosMap);
   EXPECT_EQ(MapSource::parse("site.map").kind, MapSourceKind::kSavedMap);
   EXPECT_FALSE(MapSource::parse("site.map").adds_submap());
