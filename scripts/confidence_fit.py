@@ -30,7 +30,8 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 VALUE_JSON = os.path.join(HERE, "..", "src", "localization", "confidence_value.json")
-# localize's CSV names some columns apart from eval's trace.
+# The value's features name the localizer's C/N `mean_score`; the estimate schema's column is `score`
+# (traces written before the one schema have `mean_score`).
 ALIASES = {"mean_score": "score"}
 
 
@@ -54,7 +55,7 @@ def judged_scans(path, features):
     out = []
     with open(path) as f:
         for r in csv.DictReader(f):
-            if r["has_estimate"] != "1" or r["judged_error_m"] == "":
+            if r["submap"] == "" or r["judged_error_m"] == "":
                 continue
             err = float(r["judged_error_m"])
             head = float(r["judged_heading_error_deg"]) if r["judged_heading_error_deg"] != "" else 0.0

@@ -70,8 +70,8 @@ if [ -d "$data/intel" ]; then
   python3 - "$d/tr.csv" <<'PY' || fail "eval --trace rows"
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-none = [r for r in rows if r["has_estimate"] == "0"]
-assert none and all(r["x"] == r["submap"] == r["theta"] == "" for r in none), none[:1]
+none = [r for r in rows if r["submap"] == ""]
+assert none and all(r["x"] == r["submap_id"] == r["heading_deg"] == "" for r in none), none[:1]
 assert all(r["heading_error_deg"] == "" for r in rows if r["error_m"] == "inf")
 assert all(r["heading_error_deg"] != "" for r in rows if r["error_m"] not in ("", "inf"))
 # Every scan between two truth scans is judged: measured truth or interpolated, never both; error_m stays at
@@ -95,7 +95,7 @@ fi
 # Bad input: a missing column, a value outside [0, 1], a short row.
 echo "scan,confidence" >"$d/bad1.csv"
 if "$LSHLOC" calibration "$d/bad1.csv" 2>"$d/e1"; then fail "a trace without error_m was accepted"; fi
-grep -q "bad1.csv:1: no column \"has_estimate\"" "$d/e1" || fail "missing column message: $(cat "$d/e1")"
+grep -q "bad1.csv:1: no column \"submap\"" "$d/e1" || fail "missing column message: $(cat "$d/e1")"
 { echo "$header"; echo "0,0.0,1,0,0,0,0,1,1.5,0.5,100,0.3,0,0,0,0.1,1.0"; } >"$d/bad2.csv"
 if "$LSHLOC" calibration "$d/bad2.csv" 2>"$d/e2"; then fail "a value of 1.5 was accepted"; fi
 grep -q "bad2.csv:2: confidence 1.5 is outside \[0, 1\]" "$d/e2" || fail "range message: $(cat "$d/e2")"

@@ -50,7 +50,14 @@ assert all(0.0 <= float(r["confidence"]) <= 1.0 for r in rows), "confidence outs
 assert 0.0 <= j["confidence"] <= 1.0
 assert abs(float(rows[-1]["heading_deg"]) - j["final_heading_deg"]) < 1e-3
 assert j["localized"] and j["not_confident_because"] == [], j["not_confident_because"]
+# The map was built from this very run (the simulator's corrected log holds the raw log's readings): said.
+held = [w for w in j["warnings"] if w["kind"] == "target_scans_in_map"]
+assert len(held) == 1 and held[0]["scans"] == 150, j["warnings"]
 PY
+# A map of another building holds none of the target's scans: no such warning.
+"$LSHLOC" localize --map "$a/sim-3-000-corrected.log.gz" "${target[@]}" --json 2>/dev/null >"$d/other.json" || true
+python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); assert all(w["kind"] != "target_scans_in_map" for w in j["warnings"]), j["warnings"]' \
+  "$d/other.json" || fail "a map of another building was said to hold the target's scans"
 
 # Eight scans in, the flag is down: the answer says why, from the last scan's evidence (the CSV's last row),
 # in the JSON and in words.

@@ -11,7 +11,7 @@ d = tempfile.mkdtemp()
 rng = random.Random(7)
 # The truth: while the flag is down, P(right) = sigmoid(-2 + 6 C/N + 3 newest_fit); up, right 99%.
 true_down = {"bias": -2.0, "mean_score": 6.0, "newest_fit": 3.0}
-cols = ["scan", "has_estimate", "localized", "mean_score", "margin", "scored", "kept_scans", "place_supported",
+cols = ["scan", "submap", "localized", "score", "margin", "scored", "kept_scans", "place_supported",
         "stable", "supported", "newest_fit", "newest_evidence", "judged_error_m", "judged_heading_error_deg",
         "interpolated_x"]
 for run in range(4):
@@ -24,10 +24,10 @@ for run in range(4):
             p = 0.99 if up else 1 / (1 + math.exp(-(-2.0 + 6.0 * cn + 3.0 * nf)))
             right = rng.random() < p
             # Every other scan between truth scans (interpolated): wrong there beyond 2 m, like at truth.
-            w.writerow([i, 1, int(up), cn, rng.uniform(0, 0.3), rng.randint(0, 5000), rng.randint(0, 100),
+            w.writerow([i, "hall", int(up), cn, rng.uniform(0, 0.3), rng.randint(0, 5000), rng.randint(0, 100),
                         rng.randint(0, 1), rng.randint(0, 1), rng.randint(0, 1), nf, rng.uniform(0, 1),
                         0.1 if right else 5.0, 1.0, "1.0" if i % 2 else ""])
-        w.writerow([6000, 0, 0] + [""] * (len(cols) - 3))  # no estimate: not judged
+        w.writerow([6000, "", 0] + [""] * (len(cols) - 3))  # no estimate: not judged
 out = os.path.join(d, "value.json")
 r = subprocess.run([sys.executable, script, "--train", d, "--write", out], capture_output=True, text=True)
 assert r.returncode == 0, r.stderr

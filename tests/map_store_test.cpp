@@ -100,6 +100,32 @@ TEST(MapSnapshot, RestoresTheMapBitForBit) {
   expect_same_estimates(localize(*map), localize(*restored));
 }
 
+TEST(MapSnapshot, KeepsTheFingerprintsOfItsScansAndReadsAFileWithout) {
+  const auto map = map_of_first(300);
+  const Submap& first = world().submaps[0];
+  const std::span<const LaserScan> mapped(first.scans.data(), 300), later(first.scans.data() + 300, 200);
+  EXPECT_EQ(map->scans_held(mapped), 300u);
+  EXPECT_EQ(map->scans_held(later), 0u);
+  EXPECT_EQ(map->scans_held(world().target.scans), 0u) << "the target's own tour is no mapper's";
+
+  const auto sections = map->snapshot();
+  const auto restored = GlobalMap::from_snapshot(map->config(), views(sections), "test");
+  EXPECT_TRUE(restored->knows_every_scan());
+  EXPECT_EQ(restored->scans_held(mapped), 300u);
+  EXPECT_EQ(restored->scans_held(later), 0u);
+
+  // A file written before maps kept fingerprints (format version 2): read, and only scans added since are known.
+  std::vector<MapSectionView> older;
+  for (const MapSectionView& v : views(sections))
+    if (v.name != "scan_prints") older.push_back(v);
+  const auto old = GlobalMap::from_snapshot(map->config(), older, "test");
+  EXPECT_FALSE(old->knows_every_scan());
+  EXPECT_EQ(old->scans_held(mapped), 0u);
+  expect_same_estimates(localize(*map), localize(*old));
+  old->add_scan(0, later[0], later[0].pose);
+  EXPECT_EQ(old->scans_held(later.first(1)), 1u);
+}
+
 TEST(MapSnapshot, ARestoredMapGrowsExactlyAsTheOriginal) {
   // Half the scans, snapshot, restore; the rest fed to both: same contents,
   // and the same as a map fed everything at once.
@@ -372,13 +398,16 @@ TEST_F(DamagedMap, TruncatedEmptyWrongMagicAndNewerVersionAreRefused) {
   bytes[0] = 'X';
   EXPECT_NE(error_of(bytes).find("not an lshloc map"), std::string::npos);
   bytes = good_;
-  bytes[8] = 3;  // format version 3, the header's checksum not resealed: newer, or damaged
-  EXPECT_NE(error_of(bytes).find("format version 3 is newer"), std::string::npos) << error_of(bytes);
+  const auto newer = static_cast<std::uint8_t>(io::kMapFormatVersion + 1);
+  const std::string says = "format version " + std::to_string(newer) + " is newer";
+  bytes[8] = newer;  // the header's checksum not resealed: newer, or damaged
+  EXPECT_NE(error_of(bytes).find(says), std::string::npos) << error_of(bytes);
   EXPECT_NE(error_of(bytes).find("or the header is damaged"), std::string::npos) << error_of(bytes);
-  // Resealed (a writer of version 3 keeping this header's layout): newer only.
+  // Resealed (a writer of a newer version keeping this header's layout): newer only.
   const std::uint32_t crc = static_cast<std::uint32_t>(crc32_z(crc32_z(0L, Z_NULL, 0), bytes.data(), 60));
   for (int i = 0; i < 4; ++i) bytes[60 + i] = static_cast<std::uint8_t>(crc >> (8 * i));
-  EXPECT_NE(error_of(bytes).find("format version 3 is newer than this lshloc reads (2); use a newer lshloc"),
+  EXPECT_NE(error_of(bytes).find(says + " than this lshloc reads (" + std::to_string(io::kMapFormatVersion) +
+                                 "); use a newer lshloc"),
             std::string::npos)
       << error_of(bytes);
 }

@@ -61,7 +61,7 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
   // Every judged scan's errors (judged_*); traces written before every scan was judged have them at truth
   // scans only (error_m, heading_error_deg), and no interpolated truth.
   const bool dense = header.find("judged_error_m") < header.size();
-  const std::size_t c_value = header.column("confidence"), c_has = header.column("has_estimate"),
+  const std::size_t c_value = header.column("confidence"), c_submap = header.column("submap"),
                     c_err = header.column(dense ? "judged_error_m" : "error_m"),
                     c_heading = header.column(dense ? "judged_heading_error_deg" : "heading_error_deg");
   const std::size_t c_interpolated = header.find("interpolated_x");
@@ -80,7 +80,7 @@ void read_trace(const std::string& path, const LocalizationMetricsConfig& rule, 
     const bool interpolated = c_interpolated < columns && !f[c_interpolated].empty();
     const double heading_limit = interpolated ? rule.wrong_confident_interpolated_deg : rule.wrong_confident_deg;
     values.push_back(value);
-    right.push_back(f[c_has] == "1" && err <= rule.wrong_confident_m && heading <= heading_limit);
+    right.push_back(!f[c_submap].empty() && err <= rule.wrong_confident_m && heading <= heading_limit);
   }
 }
 

@@ -178,36 +178,13 @@ TargetRun select_target(io::CarmenLog& log, const std::string& path, const Local
 /// Per-scan CSV (one row per target scan) and TUM files of the confident
 /// poses: OUT holds those in the final answer's submap, OUT.<submap>.tum
 /// those in any other.
-/// The per-scan CSV's header and rows, the same for --out and a stdin stream.
-std::string csv_header() {
-  return std::string(
-             "scan,log_scan,time,submap,submap_id,x,y,heading_deg,confident,confidence,score,scored,margin,stable,"
-             "supported,place_supported,kept_scans,newest_fit,newest_evidence,localized,stamp_clash,"
-             "flag_down_because,") +
-         io::kEstimateEvidenceColumns + "\n";
-}
-/// A CSV field as RFC 4180 quotes it: submap names may hold commas or quotes.
-std::string csv_field(const std::string& text) {
-  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
-  std::string out = "\"";
-  for (const char c : text) out += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return out + "\"";
-}
+/// The per-scan CSV's header and rows (io/estimate_csv.hpp), the same for --out and a stdin stream.
+std::string csv_header() { return std::string(io::kEstimateColumns) + "\n"; }
 
 void append_csv_row(std::string& csv, std::size_t scan, std::size_t log_scan, double time, const GlobalMap& map,
                     const LocalizationEstimate& e) {
-  if (e.has_estimate) {
-    io::append_format(csv, "%zu,%zu,%.6f,%s,%u,%.4f,%.4f,%.3f,%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,%d,%d,%s,",
-                      scan, log_scan, time, csv_field(map.submap_name(e.submap)).c_str(), e.submap, e.pose.x, e.pose.y,
-                      degrees(e.pose.theta), e.confident() ? 1 : 0, e.confidence, e.mean_score, e.scored, e.margin,
-                      e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0, e.kept_scans, e.newest_fit,
-                      e.newest_evidence, e.localized ? 1 : 0, e.stamp_clash ? 1 : 0,
-                      e.flag_down_because.joined().c_str());
-    io::append_estimate_evidence(csv, e);
-    csv += '\n';
-  } else {
-    io::append_format(csv, "%zu,%zu,%.6f,,,,,,0,0,,,,,,,,,,0,0,,,,,,,,,,,\n", scan, log_scan, time);
-  }
+  io::append_estimate_row(csv, scan, log_scan, time, e.has_estimate ? map.submap_name(e.submap) : std::string(), e);
+  csv += '\n';
 }
 
 /// The TUM file of the confident poses in `submap` when it is not the
@@ -442,7 +419,7 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   ConfidentPoses confident_poses;
   Pose2 robot_from_laser;
   io::CarmenRecord rec;
-  std::size_t index = 0, done = 0, confident = 0, ahead = 0;
+  std::size_t index = 0, done = 0, confident = 0, ahead = 0, held = 0;
   std::optional<std::size_t> first_confident;
   LocalizationEstimate last;
   if (!opt.json) std::printf("%s", csv_header().c_str());
@@ -468,7 +445,10 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
                      "ROBOTLASER1) and none was given (--laser-mount X,Y,HEADING_DEG): robot poses are the laser's\n");
       robot_from_laser = session->robot_from_laser();
     }
-    const LocalizationEstimate e = session->add_scan(rec.scan);
+    // (The look runs under the map's lock: a live map may grow meanwhile.)
+    const LocalizationEstimate e = session->add_scan(rec.scan, [&](const Localizer&, const LocalizationEstimate&) {
+      held += map.scans_held({&rec.scan, 1});
+    });
     if (session->last_restart() == SessionRestart::kTimeWentBack)
       std::fprintf(stderr, "lshloc: warning: stdin:%zu: time ran back to %.3f s: localizing from nothing again\n",
                    rec.scan.source_line, rec.scan.timestamp);
@@ -504,6 +484,10 @@ bool localize_stream(const GlobalMap& map, const LocalizerConfig& config, const 
   }
   if (done == 0) throw Error("stdin: no laser scan (FLASER / ROBOTLASER1) after the first " + std::to_string(start));
   print_warnings(reader.warnings());
+  if (held > 0)
+    print_warnings({"stdin: " + std::to_string(held) + " of its " + std::to_string(done) +
+                    " scans are in the map already (the same readings): the map was built from this run, so the "
+                    "answer is optimistic"});
   if (csv_file) {
     if (std::fclose(csv_file.release()) != 0) throw Error(out.csv + ": cannot write the per-scan CSV");
     write_files_atomically(tum_files(out.tum, map, confident_poses, last));
@@ -782,6 +766,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     for (const auto& out : outs)
       io::require_writable(output_files(out).tum), io::require_writable(output_files(out).csv);
     std::vector<TargetRun> targets;
+    std::vector<std::vector<nlohmann::json>> target_warnings;  ///< per target: `--json`'s "warnings"
     // A stream's first scan is read before the map is built when the map has
     // ROS grids: their virtual scans take the target's laser, as for a log.
     std::unique_ptr<io::CarmenReader> stdin_reader;
@@ -811,6 +796,9 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
         const bool by_scans = !by_time && length > 0 && length <= kAll - start;
         io::CarmenLog log = io::read_carmen_log(path, {}, by_scans ? start + length : kAll);
         print_warnings(log.warnings);
+        std::vector<nlohmann::json> said;
+        for (const std::string& w : log.warnings) said.push_back({{"kind", "target_log"}, {"message", w}});
+        target_warnings.push_back(said);
         targets.push_back(select_target(log, path, *opt));
       }
     }
@@ -860,6 +848,19 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
     const io::MapSources submaps = io::add_map_sources(*map, built, false, GridMapOptions().resolve(first_scan));
     print_messages(submaps.messages);
     const double map_s = seconds_since(t0);
+    for (std::size_t k = 0; k < targets.size(); ++k) {
+      for (const std::string& w : submaps.messages.warnings)
+        target_warnings[k].push_back({{"kind", "map_source"}, {"message", w}});
+      // A map built from the very scans being localized answers better than any robot would: say so.
+      const std::size_t held = map->scans_held(targets[k].scans);
+      if (held == 0) continue;
+      const std::string message = paths[k] + ": " + std::to_string(held) + " of its " +
+                                  std::to_string(targets[k].scans.size()) +
+                                  " scans are in the map already (the same readings): the map was built from this "
+                                  "run, so the answer is optimistic; map it from another run to judge localization";
+      print_warnings({message});
+      target_warnings[k].push_back({{"kind", "target_scans_in_map"}, {"message", message}, {"scans", held}});
+    }
     // (A fleet's map may still be empty: its mappers fill it while the targets localize.)
     if (map->stats().features == 0 && !follower)
       throw Error("the map has no features (" + std::to_string(map->submap_count()) + " submaps, " +
@@ -906,6 +907,7 @@ void add_localize_command(CLI::App& app, GlobalOptions& global) {
         write_plots(opt->plot_dir, paths[k], *map, submaps, runs[k], config.localizer.report.flag_threshold);
       nlohmann::json j = answer_json(paths[k], targets[k], runs[k], *map, map_s, config.localizer.report);
       j["stamp_clash_tolerance_s"] = config.localizer.stamp_clash.tolerance_s;
+      j["warnings"] = target_warnings[k];
       if (follower) {
         j["map_log"] = fleet::fleet_map_json(fleet_map, *map);
       }

@@ -149,25 +149,15 @@ void write_scenario_trace(const std::string& path, const TargetRun& target, cons
                           const LocalizationRun& run, const LocalizationMetrics& m) {
   std::string f;
   io::append_format(f,
-                    "scan,timestamp,has_estimate,submap,x,y,theta,localized,confidence,mean_score,scored,margin,"
-                    "stable,supported,place_supported,kept_scans,newest_fit,newest_evidence,%s,flag_down_because,"
-                    "truth_x,truth_y,truth_theta,error_m,heading_error_deg,interpolated_x,interpolated_y,"
+                    "%s,truth_x,truth_y,truth_theta,error_m,heading_error_deg,interpolated_x,interpolated_y,"
                     "interpolated_theta,judged_error_m,judged_heading_error_deg\n",
-                    io::kEstimateEvidenceColumns);
+                    io::kEstimateColumns);
   for (std::size_t i = 0; i < run.estimates.size(); ++i) {
     const auto& e = run.estimates[i];
     const auto& t = truth.pose[i];
-    io::append_format(f, "%zu,%.6f,%d,", i, target.scans[i].timestamp, e.has_estimate ? 1 : 0);
-    // No estimate: no pose (empty fields, not a pose at the origin of submap 0).
-    if (e.has_estimate)
-      io::append_format(f, "%u,%.4f,%.4f,%.5f,", e.submap, e.pose.x, e.pose.y, e.pose.theta);
-    else
-      f += ",,,,";
-    io::append_format(f, "%d,%.4f,%.4f,%u,%.4f,%d,%d,%d,%u,%.4f,%.4f,", e.localized ? 1 : 0, e.confidence, e.mean_score,
-                      e.scored, e.margin, e.stable ? 1 : 0, e.supported ? 1 : 0, e.place_supported ? 1 : 0,
-                      e.kept_scans, e.newest_fit, e.newest_evidence);
-    io::append_estimate_evidence(f, e);
-    io::append_format(f, ",%s,", e.flag_down_because.joined().c_str());
+    io::append_estimate_row(f, i, target.start + i, target.scans[i].timestamp,
+                            e.has_estimate ? run.submap_names.at(e.submap) : std::string(), e);
+    f += ',';
     const bool measured = t && truth.measured[i];
     if (measured)
       io::append_format(f, "%.4f,%.4f,%.5f,", t->x, t->y, t->theta);

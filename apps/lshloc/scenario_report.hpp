@@ -36,8 +36,8 @@ nlohmann::json median_localized_at(std::vector<double> scans);
 std::string write_scenario_figures(const std::string& dir, const Scenario& sc, const LocalizationRun& run,
                                    const LocalizationMetrics& m);
 
-/// One CSV row per target scan: estimate, scores, the truth it is judged against (measured,
-/// truth_*, or interpolated, interpolated_*) and its error.
+/// One CSV row per target scan: the estimate schema (io/estimate_csv.hpp), then the truth it is
+/// judged against (measured, truth_*, or interpolated, interpolated_*) and its error.
 void write_scenario_trace(const std::string& path, const TargetRun& target, const JudgedTruth& truth,
                           const LocalizationRun& run, const LocalizationMetrics& m);
 

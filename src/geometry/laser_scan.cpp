@@ -1,5 +1,7 @@
 #include "lshloc/geometry/laser_scan.hpp"
 
+#include <cmath>
+
 #include <bit>
 #include <numbers>
 #include <string>
@@ -56,6 +58,23 @@ void set_flaser_geometry(LaserScan& scan) {
     scan.angle_increment = kPi / n;
     scan.angle_min = -kPi / 2.0 + scan.angle_increment / 2.0;
   }
+}
+
+std::uint64_t scan_fingerprint(const LaserScan& scan) {
+  // splitmix64's finalizer over each reading in turn: every bit of a reading moves the whole hash.
+  const auto mix = [](std::uint64_t h, std::uint64_t v) {
+    h ^= v + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2);
+    h ^= h >> 30, h *= 0xbf58476d1ce4e5b9ULL;
+    h ^= h >> 27, h *= 0x94d049bb133111ebULL;
+    return h ^ (h >> 31);
+  };
+  std::uint64_t h = mix(0x6c73686c6f63ULL, scan.ranges.size());
+  for (const float r : scan.ranges) {
+    // NaN, inf and out-of-range readings all read as "none": one code.
+    const bool finite = std::isfinite(r) && std::abs(r) < 1e6f;
+    h = mix(h, finite ? static_cast<std::uint64_t>(std::llround(static_cast<double>(r) * 100.0)) : ~0ULL);
+  }
+  return h;
 }
 
 }  // namespace lshloc

@@ -106,6 +106,7 @@ std::size_t GlobalMap::add_scan(std::uint32_t submap, const LaserScan& scan, con
   stats_.database_insert_s += t3 - t2;
   ++state.scans;
   ++stats_.scans;
+  if (grids == ScanGrids::kMark) scan_prints_.insert(scan_fingerprint(scan));
   state.context.offer(surface);
   if (added) added->insert(added->end(), features.begin(), features.end());
   return features.size();
@@ -288,8 +289,8 @@ std::optional<std::uint32_t> GlobalMap::find_submap(std::string_view name) const
 }
 
 const std::vector<std::string>& GlobalMap::snapshot_sections() {
-  static const std::vector<std::string> names = {"submaps",   "locations",  "database",
-                                                 "occupancy", "free_space", "counters"};
+  static const std::vector<std::string> names = {"submaps",    "locations", "database",   "occupancy",
+                                                 "free_space", "counters",  "scan_prints"};
   return names;
 }
 
@@ -312,6 +313,13 @@ std::vector<MapSection> GlobalMap::snapshot() const {
       occupancy_.write_snapshot(w);
     } else if (name == "free_space") {
       free_space_.write_snapshot(w);
+    } else if (name == "scan_prints") {
+      // Sorted, as deltas: canonical whatever the set's layout.
+      std::vector<std::uint64_t> prints(scan_prints_.begin(), scan_prints_.end());
+      std::sort(prints.begin(), prints.end());
+      w.varint(prints.size());
+      std::uint64_t last = 0;
+      for (const std::uint64_t p : prints) w.varint(p - last), last = p;
     } else {
       w.varint(stats_.scans);
       w.varint(stats_.features);
@@ -330,6 +338,10 @@ std::unique_ptr<GlobalMap> GlobalMap::from_snapshot(const GlobalMapConfig& confi
     const MapSectionView* section = nullptr;
     for (const MapSectionView& s : sections)
       if (s.name == name) section = &s;
+    if (section == nullptr && name == "scan_prints") {  // a file written before maps kept them
+      map->scan_prints_complete_ = false;
+      continue;
+    }
     if (section == nullptr) throw Error(source + ": section " + name + " is missing");
     ByteReader in(section->bytes, source + ": section " + name);
     const auto submaps = static_cast<std::uint32_t>(map->submaps_.size());
@@ -349,6 +361,15 @@ std::unique_ptr<GlobalMap> GlobalMap::from_snapshot(const GlobalMapConfig& confi
       map->occupancy_.read_snapshot(in, submaps);
     } else if (name == "free_space") {
       map->free_space_.read_snapshot(in, submaps);
+    } else if (name == "scan_prints") {
+      const auto count = in.varint_at_most(map->stats_.scans, "a scan fingerprint count (at most one per scan)");
+      map->scan_prints_.reserve(static_cast<std::size_t>(count));
+      std::uint64_t last = 0;
+      for (std::uint64_t i = 0; i < count; ++i) {
+        const std::uint64_t delta = in.varint();
+        if (i > 0 && delta == 0) in.fail("fingerprints in ascending order, each once");
+        map->scan_prints_.insert(last += delta);
+      }
     } else {
       map->stats_.scans = static_cast<std::size_t>(in.varint());
       map->stats_.features = static_cast<std::size_t>(in.varint());
@@ -372,6 +393,12 @@ std::unique_ptr<GlobalMap> GlobalMap::from_snapshot(const GlobalMapConfig& confi
     });
   map->recent_first_ = static_cast<std::uint32_t>(map->locations_.size());
   return map;
+}
+
+std::size_t GlobalMap::scans_held(std::span<const LaserScan> scans) const {
+  std::size_t held = 0;
+  for (const LaserScan& scan : scans) held += scan_prints_.count(scan_fingerprint(scan));
+  return held;
 }
 
 GlobalMapStats GlobalMap::stats() const {

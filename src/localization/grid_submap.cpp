@@ -183,7 +183,7 @@ GridSubmapStats fill_grid_submap(GlobalMap& map, const std::function<std::uint32
   }
   // Every cell the submap marks lies within the grid's rectangle: its corners must fit the map's pose grids
   // (cells within +-2^16 of their origin), or marking would fail with the submap half-built.
-  for (const Point2 corner :
+  for (const Point2& corner :
        {Point2(0.0, 0.0), Point2(static_cast<double>(w) * res, 0.0), Point2(0.0, static_cast<double>(h) * res),
         Point2(static_cast<double>(w) * res, static_cast<double>(h) * res)}) {
     const Point2 p = origin.transform(corner);

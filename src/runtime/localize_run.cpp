@@ -105,6 +105,7 @@ LocalizationRun localize_target(const GlobalMap& map, const TargetRun& target, L
     }
   }
   run.map = map.stats();
+  for (std::uint32_t id = 0; id < map.submap_count(); ++id) run.submap_names.push_back(map.submap_name(id));
   run.localizer = localizer.stats();
   // The localizer compared each scan with those before it; a whole run can
   // also compare it with those after.

@@ -92,4 +92,11 @@ inline bool scan_angles_in_radians(double start, double span) {
   return std::abs(start) <= kTurn && std::abs(span) <= kTurn;
 }
 
+/// A 64-bit fingerprint of a scan's readings: its beam count and each range
+/// rounded to the centimetre logs print (invalid readings alike). Two logs
+/// of one recording (a raw log and its corrected copy) give the same scan the
+/// same fingerprint, though their time stamps may come from other clocks;
+/// two different scans share one by chance only (1 in 2^64).
+std::uint64_t scan_fingerprint(const LaserScan& scan);
+
 }  // namespace lshloc

@@ -21,9 +21,10 @@
 
 namespace lshloc::io {
 
-/// The file format version this lshloc writes; it reads 1 too (whose journal
-/// records are not tied to their snapshot: docs/map-format.md).
-inline constexpr std::uint32_t kMapFormatVersion = 2;
+/// The file format version this lshloc writes; it reads 1 (whose journal
+/// records are not tied to their snapshot) and 2 (no scan fingerprints) too:
+/// docs/map-format.md.
+inline constexpr std::uint32_t kMapFormatVersion = 3;
 
 /// What a map file holds, as far as reading it found.
 struct MapFileInfo {

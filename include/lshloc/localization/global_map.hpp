@@ -16,6 +16,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <unordered_set>
 #include <vector>
 
 #include "lshloc/appearance/feature_extractor.hpp"
@@ -143,12 +144,23 @@ class GlobalMap {
   /// The id of the first submap named `name`, if any.
   std::optional<std::uint32_t> find_submap(std::string_view name) const;
 
+  /// How many of `scans` the map holds already: mapper scans with the same
+  /// readings (scan_fingerprint), as when a map is built from the very log a
+  /// robot is localized with. Counts only scans whose fingerprints the map
+  /// knows: see knows_every_scan().
+  std::size_t scans_held(std::span<const LaserScan> scans) const;
+  /// false for a map loaded from a file written before maps kept their
+  /// scans' fingerprints (format version 2 and older): it knows those of the
+  /// scans added since only.
+  bool knows_every_scan() const { return scan_prints_complete_; }
+
   /// The names of the snapshot's sections, in the order snapshot() writes them.
   static const std::vector<std::string>& snapshot_sections();
   /// The map's whole state as sections, in snapshot_sections() order:
   /// "submaps" (names, scan counts, descriptor contexts), "locations",
-  /// "database", "occupancy", "free_space" and "counters" (counts and the
-  /// build's CPU times). Canonical: maps with equal contents write equal
+  /// "database", "occupancy", "free_space", "counters" (counts and the
+  /// build's CPU times) and "scan_prints" (the mapper scans' fingerprints;
+  /// optional when read). Canonical: maps with equal contents write equal
   /// sections whatever their tables' layout (the times in "counters" aside).
   std::vector<MapSection> snapshot() const;
   /// The map snapshot() wrote, given the writer's config; add_scan() then
@@ -176,6 +188,11 @@ class GlobalMap {
   GlobalMapStats stats() const;
 
  private:
+  /// Fingerprints of the mapper scans added with their grid marks (not the
+  /// virtual scans of occupancy grids).
+  std::unordered_set<std::uint64_t> scan_prints_;
+  bool scan_prints_complete_ = true;
+
   struct SubmapState {
     std::string name;
     ScanContext context;  ///< descriptor context of the submap's next scans

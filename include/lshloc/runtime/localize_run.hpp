@@ -49,6 +49,8 @@ struct LocalizationRun {
   /// The newest surface data-points of iRANSAC placed by the final estimate,
   /// split by whether they hit the map (for the paper's Fig. 6 style figure).
   std::vector<Point2> final_inliers, final_outliers;
+  /// The map's submap names by id at the end of the run (what estimates' submap ids name).
+  std::vector<std::string> submap_names;
 };
 
 /// Progress callback: (target scans done, total); may be empty.
