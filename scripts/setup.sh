@@ -6,7 +6,11 @@ set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev zlib1g-dev libcli11-dev nlohmann-json3-dev
           libgtest-dev libgmock-dev libbenchmark-dev libcairo2-dev libyaml-dev libpng-dev python3 clang-format
           pybind11-dev python3-dev python3-numpy python3-pytest clang libclang-rt-14-dev ninja-build
-          redis-server libhiredis-dev python3-zstandard python3-lz4)
+          redis-server libhiredis-dev python3-zstandard python3-lz4
+          # ROS 1 (Debian's): the lshloc_ros_node build and its test against a real master and rosbag play
+          libroscpp-dev libtf2-ros-dev libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libstd-srvs-dev
+          libstd-msgs-dev librosbag-dev ros-core-dev python3-rosbag python3-rospy python3-tf2-msgs
+          python3-sensor-msgs python3-nav-msgs python3-geometry-msgs python3-std-msgs)
 # --peers: also the indexes bench/lsh_peers_bench compares against (BENCHMARKS.md).
 [ "${1:-}" = "--peers" ] && packages+=(libhnswlib-dev libfaiss-dev libflann-dev liblz4-dev)
 missing=()

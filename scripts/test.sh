@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs dependencies, builds lshloc (Release, a unity build: CI time) with its Python bindings,
+# Installs dependencies, builds lshloc (Release, a unity build: CI time) with its Python bindings and ROS node,
 # runs the whole test suite (the layer check and pytest included), then installs into a temporary prefix and builds
 # and runs examples/embed against it (find_package(lshloc)); last, the sanitizer job
 # (scripts/sanitize.sh: the ctest suite under ASan and UBSan, and a 20 s smoke run of each fuzz target).
@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DLSHLOC_BUILD_PYTHON=ON -DCMAKE_UNITY_BUILD=ON >/dev/null
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DLSHLOC_BUILD_PYTHON=ON -DLSHLOC_BUILD_ROS=ON -DCMAKE_UNITY_BUILD=ON >/dev/null
 cmake --build build -j"$(nproc)"
 ctest --test-dir build -j"$(nproc)" --output-on-failure
 prefix=$(mktemp -d)

@@ -90,6 +90,26 @@ TEST(LocalizationSession, StartsOverWhenTimeRunsBackAndNotOnSmallStepsBack) {
   EXPECT_EQ(session.stats().restarts, 1u);
 }
 
+TEST(LocalizationSession, StartsOverAfterALongGap) {
+  World w;
+  const TargetRun& target = w.scenario.target;
+  SessionConfig config;
+  config.restart_after_gap_s = 60.0;
+  LocalizationSession session(w.map, config, target.laser_offset);
+  std::vector<LocalizationEstimate> first;
+  for (const LaserScan& scan : target.scans) first.push_back(session.add_scan(scan));
+  const double span = target.scans.back().timestamp - target.scans.front().timestamp;
+  // The run again, from 61 s after its end: a new localizer, the first pass's estimates again.
+  for (std::size_t i = 0; i < target.scans.size(); ++i) {
+    LaserScan later = target.scans[i];
+    later.timestamp += span + 61.0;
+    expect_same(session.add_scan(later), first[i], i);
+    EXPECT_EQ(session.last_restart(), i == 0 ? SessionRestart::kGap : SessionRestart::kNone) << i;
+  }
+  EXPECT_EQ(session.stats().gap_restarts, 1u);
+  EXPECT_EQ(session.stats().time_back_restarts, 0u);
+}
+
 TEST(LocalizationSession, TakesTheRobotsLaserMountAndRefusesAnotherOne) {
   World w;
   const Pose2 mount(0.12, -0.03, 0.0);

@@ -113,7 +113,7 @@ LSHLOC_JSON_FIELDS(LocalizerConfig, scan_matcher, features, ransac, candidates_p
                    newly_mapped_scan_window, newly_mapped_points, newly_mapped_halvings, newly_mapped_reach_scans,
                    seen_features_kept, place, report, trace_evidence, stamp_clash, seed)
 LSHLOC_JSON_FIELDS(RunConfig, map, localizer, map_share_before_target)
-LSHLOC_JSON_FIELDS(SessionConfig, localizer, restart_after_time_back_s)
+LSHLOC_JSON_FIELDS(SessionConfig, localizer, restart_after_time_back_s, restart_after_gap_s)
 
 }  // namespace lshloc
 

@@ -12,6 +12,7 @@ void SessionConfig::validate() const {
   localizer.validate();
   require(restart_after_time_back_s > 0.0, "SessionConfig.restart_after_time_back_s", "> 0 (infinity: never)",
           restart_after_time_back_s);
+  require(restart_after_gap_s > 0.0, "SessionConfig.restart_after_gap_s", "> 0 (infinity: never)", restart_after_gap_s);
 }
 
 LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& target_offset) {
@@ -56,6 +57,10 @@ LocalizationEstimate LocalizationSession::add_scan(const LaserScan& scan, const 
     restart();
     ++stats_.time_back_restarts;
     last_restart_ = SessionRestart::kTimeWentBack;
+  } else if (any_scan_ && scan.timestamp - newest_stamp_ >= config_.restart_after_gap_s) {
+    restart();
+    ++stats_.gap_restarts;
+    last_restart_ = SessionRestart::kGap;
   }
   newest_stamp_ = any_scan_ ? std::max(newest_stamp_, scan.timestamp) : scan.timestamp;
   any_scan_ = true;

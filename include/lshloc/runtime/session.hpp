@@ -3,8 +3,9 @@
 // stream, a batch replay) feeds with scans as they arrive and reads estimates
 // from. It wraps one Localizer over a GlobalMap and adds what a live input
 // needs: the target's laser mount, a start over on request (AMCL's
-// global_localization) and when time runs back (a bag looped, a robot
-// restarted), and an optional lock on a map that other threads write.
+// global_localization), when time runs back (a bag looped, a robot
+// restarted) and after a long gap, and an optional lock on a map that other
+// threads write.
 // Poses [m, rad], times [s].
 // Thread safety: a session is not thread-safe (one caller at a time); with
 // `map_mutex` it holds the map shared during each scan, so map writers on
@@ -26,15 +27,21 @@ struct SessionConfig {
   /// steps back are the localizer's (raw logs step back by up to 0.9 s where
   /// stamps bunch). Infinity: never.
   double restart_after_time_back_s = 5.0;
+  /// [s] a scan stamped this long after the one before starts the session
+  /// over too: the laser was off that long (a robot restarted, a bag played
+  /// on after another) and the robot may have been moved meanwhile, which
+  /// odometry does not say. Infinity: never.
+  double restart_after_gap_s = 60.0;
 
-  /// The localizer's validate() and a positive restart_after_time_back_s.
+  /// The localizer's validate(), and positive restart_after_time_back_s and restart_after_gap_s.
   void validate() const;
 };
 
 struct SessionStats {
   std::size_t scans = 0;               ///< scans added since the session began (restarts included)
-  std::size_t restarts = 0;            ///< starts over: asked for and on time running back
+  std::size_t restarts = 0;            ///< starts over: asked for, on time running back, after a gap
   std::size_t time_back_restarts = 0;  ///< of which on a scan stamped restart_after_time_back_s back
+  std::size_t gap_restarts = 0;        ///< of which after a gap of restart_after_gap_s
 };
 
 /// `config` with the target's laser offset: the target log's, or the
@@ -43,7 +50,7 @@ struct SessionStats {
 LocalizerConfig with_target_laser_offset(LocalizerConfig config, const Pose2& target_offset);
 
 /// Whether a LocalizationSession started over at a scan, and why.
-enum class SessionRestart { kNone, kTimeWentBack };
+enum class SessionRestart { kNone, kTimeWentBack, kGap };
 
 class LocalizationSession {
  public:
