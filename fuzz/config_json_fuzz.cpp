@@ -6,13 +6,12 @@
 
 #include "fuzz_input_file.hpp"
 #include "lshloc/common/error.hpp"
-#include "lshloc/eval/run_config_json.hpp"
 #include "lshloc/io/config_json.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
     const nlohmann::json patch = lshloc::io::read_json_file(lshloc::fuzz::input_file(data, size));
-    lshloc::ScenarioRunConfig config;
+    lshloc::RunConfig config;
     lshloc::io::apply_config_patch(patch, config, "fuzz");
     config.map.validate();
     config.localizer.validate();
