@@ -30,6 +30,7 @@
 #include "lshloc/io/carmen_reader.hpp"
 #include "lshloc/io/scan_record.hpp"
 #include "lshloc/io/config_json.hpp"
+#include "lshloc/io/map_source.hpp"
 #include "lshloc/io/map_store.hpp"
 #include "lshloc/io/ros_map.hpp"
 #include "lshloc/localization/global_map.hpp"
@@ -668,6 +669,43 @@ PYBIND11_MODULE(lshloc, m) {
       },
       py::arg("path"),
       "Loads a saved map (snapshot and journal); a torn last journal record is dropped with a UserWarning");
+
+  m.def(
+      "map_from_sources",
+      [](const std::vector<std::string>& texts) {
+        std::unique_ptr<GlobalMap> map;
+        io::MapSourceMessages said;
+        {
+          py::gil_scoped_release release;
+          RunConfig config;
+          std::vector<io::MapSource> submaps;
+          for (const std::string& text : texts) {
+            const io::MapSource source = io::MapSource::parse(text);
+            if (source.kind == io::MapSourceKind::kFleet)
+              throw Error(text +
+                          ": a fleet's live map needs `lshloc localize --map` or lshloc_ros_node (the Python "
+                          "module follows no Redis map log)");
+            if (source.kind != io::MapSourceKind::kSavedMap) {
+              submaps.push_back(source);
+              continue;
+            }
+            if (map) throw Error(text + ": only one saved map can be given");
+            io::LoadedMap loaded = io::open_saved_map(source.path, config);
+            said.warnings.insert(said.warnings.end(), loaded.warnings.begin(), loaded.warnings.end());
+            map = std::move(loaded.map);
+          }
+          if (!map) map = std::make_unique<GlobalMap>(config.map);
+          const io::MapSources added = io::add_map_sources(*map, submaps, false, {});
+          said.warnings.insert(said.warnings.end(), added.messages.warnings.begin(), added.messages.warnings.end());
+        }
+        for (const std::string& w : said.warnings)
+          if (PyErr_WarnEx(PyExc_UserWarning, w.c_str(), 1) != 0) throw py::error_already_set();
+        return PyGlobalMap{std::shared_ptr<GlobalMap>(std::move(map))};
+      },
+      py::arg("sources"),
+      "A GlobalMap from map sources in the grammar of `lshloc localize --map`: LOG, LOG,POSES, LOG,slam, "
+      "MAP.yaml (a ROS occupancy grid), FILE.map (a saved map, at most one); one submap per log or grid, named "
+      "after its file; what loading warns of is a UserWarning");
 
   py::class_<PyLocalizer>(m, "Localizer", "Localizes one target robot in a GlobalMap from no initial guess")
       .def(py::init([](const PyGlobalMap& map, const ConfigJson& config_json, const PoseTuple& laser_offset) {

@@ -507,6 +507,25 @@ def test_a_map_lists_its_submap_names_in_id_order(tmp_path):
     assert lshloc.load_map(tmp_path / "m.map").submap_names == ["west wing", "annex"]
 
 
+def test_a_map_from_sources_is_the_map_the_cli_builds(world, tmp_path, cli):
+    a = world / "sim-3-000" / "sim-3-000-corrected.log.gz"
+    b = world / "sim-3-001" / "sim-3-001-corrected.log.gz"
+    gmap = lshloc.map_from_sources([str(a), str(b)])
+    assert gmap.submap_names == ["sim-3-000-corrected.log.gz", "sim-3-001-corrected.log.gz"]
+    subprocess.run([cli, "map", "build", "--out", str(tmp_path / "ab.map"), str(a), str(b)], check=True,
+                   capture_output=True)
+    built = lshloc.load_map(tmp_path / "ab.map")
+    assert gmap.stats()["features"] == built.stats()["features"] > 1000
+    # A saved map plus a log: the log's submap joins the saved ones.
+    subprocess.run([cli, "map", "build", "--out", str(tmp_path / "a.map"), str(a)], check=True, capture_output=True)
+    more = lshloc.map_from_sources([str(tmp_path / "a.map"), str(b)])
+    assert more.submap_names == gmap.submap_names and more.stats()["features"] == gmap.stats()["features"]
+    with pytest.raises(lshloc.Error, match="fleet"):
+        lshloc.map_from_sources(["redis://127.0.0.1:6379"])
+    with pytest.raises(lshloc.Error, match="nothing follows the comma"):
+        lshloc.map_from_sources([str(a) + ","])
+
+
 def test_the_cli_is_found_without_lshloc_cli(tmp_path):
     """LSHLOC_CLI, else lshloc on PATH, else the repository's build; None (the tests that need it skip) without."""
     root, bin_dir = tmp_path / "repo", tmp_path / "bin"
