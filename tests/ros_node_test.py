@@ -4,6 +4,7 @@ written here with the rosbag API from a simulated building (known truth):
 - /initialpose in frame "map" within 0.5 m and 5 degrees of the true robot pose, ~status every scan;
 - a bag with NaN ranges and a scan whose frame tf cannot resolve, then a second bag of the run 500 s earlier with
   its sweeps reversed (the clock runs back): the node stays up, starts over and announces the pose again;
+- ROS occupancy grids as the map (ray-cast with the robot's laser at its first scan): the same answer;
 - a map that cannot be loaded: the node stays up and each status says why.
 Usage: ros_node_test.py NODE LSHLOC   (Debian's /usr/bin/python3: rospy and rosbag)"""
 import bisect, gzip, json, math, os, shutil, signal, socket, subprocess, sys, tempfile, time
@@ -171,9 +172,9 @@ try:
         fail("the node died on a plain bag")
     if not ip:
         fail(f"no /initialpose over {len(scans)} scans; last status {right['status'][-1:]}")
-    errors = [off(m) for m in ip]
-    if not all(e[0] <= 0.5 and e[1] <= 5 for e in errors):
-        fail(f"/initialpose off the truth: {errors}")
+    plain_errors = [off(m) for m in ip]
+    if not all(e[0] <= 0.5 and e[1] <= 5 for e in plain_errors):
+        fail(f"/initialpose off the truth: {plain_errors}")
     if not all(m.header.frame_id == "map" and m.pose.covariance[0] > 0 for m in ip):
         fail("/initialpose not in frame map with a positive covariance")
     if len(right["status"]) < len(scans) * 0.8:
@@ -197,13 +198,26 @@ try:
     if not any(s.get("restarted") for s in faults["status"]):
         fail("time running back was not said in ~status")
 
+    # ROS occupancy grids as the map: built at the first scan, ray-cast with the robot's own laser.
+    for stem, log in (("ga", a + "/sim-3-000-corrected.log.gz"), ("gb", b + "/sim-3-001-corrected.log.gz")):
+        subprocess.run([LSHLOC, "map", "to-grid", log, "--out", os.path.join(work, stem)], check=True,
+                       capture_output=True)
+    grid = run_node(os.path.join(work, "ga.yaml") + ";" + os.path.join(work, "gb.yaml"),
+                    [os.path.join(work, "right.bag")], "grid")
+    grid_errors = [off(m) for m in grid["initialposes"]]
+    if not grid["alive"] or not grid_errors or not all(e[0] <= 0.5 and e[1] <= 5 for e in grid_errors):
+        fail(f"ROS grids as the map: /initialpose off by {grid_errors}; last status {grid['status'][-1:]}")
+    if grid["status"][-1].get("submap") != "gb":
+        fail(f"ROS grids: the last status names {grid['status'][-1].get('submap')}, not gb")
+
     broken = run_node(os.path.join(work, "missing.map"), [os.path.join(work, "right.bag")], "broken")
     if not broken["alive"]:
         fail("the node died on a map it cannot load")
     if not broken["status"] or not all("missing.map" in s.get("error", "") for s in broken["status"]):
         fail(f"a map that failed to load is not said in ~status: {broken['status'][:1]}")
-    print(f"ros_node: {len(ip)} /initialpose on the plain bag (worst {max(e[0] for e in errors):.3f} m), "
-          f"{len(first)} + {len(second)} with faults and time running back; a missing map said, node alive")
+    print(f"ros_node: {len(ip)} /initialpose on the plain bag (worst {max(e[0] for e in plain_errors):.3f} m), "
+          f"{len(first)} + {len(second)} with faults and time running back; {len(grid_errors)} on ROS grids "
+          f"(worst {max(e[0] for e in grid_errors):.3f} m); a missing map said, node alive")
 finally:
     stop_all()
     shutil.rmtree(work, ignore_errors=True)

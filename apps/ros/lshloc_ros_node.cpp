@@ -132,6 +132,7 @@ class LshlocNode {
         scan.range_min = msg->range_min, scan.range_max = msg->range_max;
         scan.ranges = msg->ranges;
         const lshloc::ros_node::NodeEstimate e = core_.add_scan(scan, odom, mount);
+        for (const std::string& line : e.log) ROS_INFO("lshloc: %s", line.c_str());
         if (e.restarted)
           ROS_WARN("lshloc: time ran back to %.3f s (a bag looped, a robot restarted): localizing from nothing again",
                    stamp);

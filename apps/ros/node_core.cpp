@@ -59,6 +59,7 @@ struct NodeCore::State {
   fleet::FleetMap fleet;
   std::shared_mutex map_mutex;
   std::unique_ptr<LocalizationSession> session;
+  std::vector<io::MapSource> pending_grids;  ///< ROS maps built at the first scan, with its laser
   Pose2 mount, last_robot, last_odometry;
   std::uint32_t last_submap = 0;
   bool was_confident = false;
@@ -69,6 +70,13 @@ struct NodeCore::State {
 };
 
 NodeCore::NodeCore() : state_(std::make_unique<State>()) {}
+
+void NodeCore::add_submaps(const std::vector<io::MapSource>& sources, const GridSubmapConfig& grid,
+                           std::vector<std::string>& log) {
+  const io::MapSources added = io::add_map_sources(*state_->map, sources, false, grid);
+  log.insert(log.end(), added.messages.notes.begin(), added.messages.notes.end());
+  log.insert(log.end(), added.messages.warnings.begin(), added.messages.warnings.end());
+}
 NodeCore::~NodeCore() = default;
 
 bool NodeCore::has_map() const { return state_->map != nullptr; }
@@ -102,10 +110,14 @@ std::string NodeCore::load(const std::vector<std::string>& texts, const std::str
       }
     }
     if (!s.map) s.map = std::make_unique<GlobalMap>(s.config.map);
-    // ROS grids take a virtual laser of 181 beams over 180 degrees (`lshloc map from-grid` sets another).
-    const io::MapSources added = io::add_map_sources(*s.map, submaps, false, {});
-    log.insert(log.end(), added.messages.notes.begin(), added.messages.notes.end());
-    log.insert(log.end(), added.messages.warnings.begin(), added.messages.warnings.end());
+    // ROS grids are ray-cast with the robot's own laser: they wait for its first scan (add_scan).
+    std::vector<io::MapSource> logs;
+    for (const io::MapSource& source : submaps)
+      (source.kind == io::MapSourceKind::kRosMap ? s.pending_grids : logs).push_back(source);
+    add_submaps(logs, {}, log);
+    if (!s.pending_grids.empty())
+      log.push_back(std::to_string(s.pending_grids.size()) +
+                    " ROS map(s) wait for the first scan: their virtual scans take the robot's laser");
     if (s.fleet.follower) s.fleet.follower->start(*s.map, s.map_mutex);
     return "";
   } catch (const std::exception& e) {
@@ -127,17 +139,24 @@ NodeEstimate NodeCore::add_scan(const PlainScan& in, const PlainPose& odometry_i
   State& s = *state_;
   if (!s.map) throw Error("no map to localize in");
   const Pose2 odometry = pose2(odometry_in), mount = pose2(mount_in);
+  NodeEstimate out;
+  LaserScan scan = laser_scan(in);
+  if (!s.pending_grids.empty()) {
+    // (No session reads the map yet: it is made below, after the grids are in.)
+    std::vector<io::MapSource> grids;
+    grids.swap(s.pending_grids);
+    add_submaps(grids, with_laser_of({}, scan), out.log);
+    s.session.reset();
+  }
   if (!s.session || !same(mount, s.mount)) {
     s.session = std::make_unique<LocalizationSession>(*s.map, SessionConfig{.localizer = s.config.localizer}, mount,
                                                       true, s.fleet.follower ? &s.map_mutex : nullptr);
     s.mount = mount, s.was_confident = false;
   }
-  LaserScan scan = laser_scan(in);
   scan.odometry = odometry;
   scan.pose = odometry * mount;
   const LocalizationEstimate e = s.session->add_scan(scan);
 
-  NodeEstimate out;
   out.restarted = s.session->last_restart() != SessionRestart::kNone;
   if (out.restarted) s.was_confident = false;
   out.has_estimate = e.has_estimate;

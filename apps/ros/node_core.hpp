@@ -11,6 +11,13 @@
 #include <string>
 #include <vector>
 
+namespace lshloc {
+struct GridSubmapConfig;
+namespace io {
+struct MapSource;
+}
+}  // namespace lshloc
+
 namespace lshloc::ros_node {
 
 struct PlainPose {
@@ -37,9 +44,10 @@ struct NodeEstimate {
   /// Publish /initialpose: the flag rose, or the place changed under it
   /// (another submap, or over a metre from where odometry carried the last).
   bool announce = false;
-  bool submap_changed = false;  ///< the confident submap is new: publish ~submap
-  bool restarted = false;       ///< time ran back: the session started over first
-  std::string status_json;      ///< ~status: one JSON object
+  bool submap_changed = false;   ///< the confident submap is new: publish ~submap
+  bool restarted = false;        ///< time ran back: the session started over first
+  std::string status_json;       ///< ~status: one JSON object
+  std::vector<std::string> log;  ///< what to log (the ROS maps built at the first scan)
 };
 
 class NodeCore {
@@ -71,6 +79,9 @@ class NodeCore {
 
  private:
   struct State;
+  /// Adds logs' and grids' submaps (grids with `grid`'s virtual laser); what loading said goes to `log`.
+  void add_submaps(const std::vector<io::MapSource>& sources, const GridSubmapConfig& grid,
+                   std::vector<std::string>& log);
   std::unique_ptr<State> state_;
 };
 
