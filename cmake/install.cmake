@@ -17,7 +17,7 @@ foreach(component core io figures eval sim)
 endforeach()
 install(TARGETS lshloc RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 # The ROS bag converter beside the tool (standard-library Python: nothing to build).
-install(PROGRAMS ${PROJECT_SOURCE_DIR}/scripts/rosbag_to_carmen.py DESTINATION ${CMAKE_INSTALL_BINDIR}
+install(PROGRAMS ${PROJECT_SOURCE_DIR}/scripts/tools/rosbag_to_carmen.py DESTINATION ${CMAKE_INSTALL_BINDIR}
         RENAME lshloc-rosbag-to-carmen)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lshloc DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 

@@ -114,7 +114,7 @@ PoseTuple pose_from_ros(const py::object& msg) {
 /// A sensor_msgs/LaserScan message (rclpy's or rospy's, or any object with its
 /// fields) as lshloc reads it: no return (+inf, above range_max) as
 /// range_max, invalid beams (NaN, -inf, below range_min) as NaN, as
-/// scripts/rosbag_to_carmen.py converts them.
+/// scripts/tools/rosbag_to_carmen.py converts them.
 LaserScan scan_from_ros(const py::object& msg, const py::object& odometry_in, const PoseTuple& pose) {
   // The odometry as (x, y, theta), or a ROS odometry or pose message.
   const PoseTuple odometry = py::isinstance<py::tuple>(odometry_in) || py::isinstance<py::list>(odometry_in)
@@ -425,7 +425,7 @@ PYBIND11_MODULE(lshloc, m) {
                   py::arg("pose") = PoseTuple{0, 0, 0},
                   "A sensor_msgs/LaserScan message from rclpy or rospy (any object with its fields): its ranges, "
                   "angles, range_max and header stamp [s]; no return (+inf, above range_max) becomes range_max and "
-                  "invalid beams (NaN, -inf, below range_min) NaN, as scripts/rosbag_to_carmen.py converts them. "
+                  "invalid beams (NaN, -inf, below range_min) NaN, as scripts/tools/rosbag_to_carmen.py converts them. "
                   "odometry: the robot's odometry pose at the scan, (x, y, theta) or a nav_msgs/Odometry or "
                   "geometry_msgs pose or transform message (as pose_from_ros reads it)")
       .def("__len__", [](const LaserScan& s) { return s.ranges.size(); })

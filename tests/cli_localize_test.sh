@@ -472,7 +472,7 @@ done
 grep -q "unknown command 'frobnicate' (one of: .*localize" <("$LSHLOC" frobnicate 2>&1) || fail "an unknown command"
 
 # A robot in a building the map lacks: every estimate is wrong, so the flag never rises and the
-# calibrated value stays low (the real buildings: scripts/unmapped_buildings.sh).
+# calibrated value stays low (the real buildings: scripts/eval/unmapped_buildings.sh).
 "$LSHLOC" simulate --out "$d/sim3" --buildings 3 --seed 5 --scans 400 >/dev/null
 not_localized "$LSHLOC" localize --map "$d/sim3/sim-5-000/sim-5-000-corrected.log.gz" \
   --map "$d/sim3/sim-5-001/sim-5-001-corrected.log.gz" --target "$d/sim3/sim-5-002/sim-5-002.log.gz" \

@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""scripts/confidence_fit.py on synthetic traces whose labels follow a known logistic model: the fitted
+"""scripts/eval/confidence_fit.py on synthetic traces whose labels follow a known logistic model: the fitted
 flag-down weights recover it, the reported value is calibrated, and --write keeps the library's feature
 names and records the command. Usage: confidence_fit_test.py SOURCE_DIR"""
 import csv, json, math, os, random, subprocess, sys, tempfile
 
 src = sys.argv[1]
-script = os.path.join(src, "scripts", "confidence_fit.py")
+script = os.path.join(src, "scripts", "eval", "confidence_fit.py")
 spec = json.load(open(os.path.join(src, "src", "localization", "confidence_value.json")))
 d = tempfile.mkdtemp()
 rng = random.Random(7)
@@ -33,7 +33,7 @@ r = subprocess.run([sys.executable, script, "--train", d, "--write", out], captu
 assert r.returncode == 0, r.stderr
 written = json.load(open(out))
 assert written["features"] == spec["features"], written["features"]
-assert written["fitted_by"].startswith("scripts/confidence_fit.py --train "), written["fitted_by"]
+assert written["fitted_by"].startswith("scripts/eval/confidence_fit.py --train "), written["fitted_by"]
 down = dict(zip(written["features"], written["flag_down"]))
 for name, value in down.items():
     want = true_down.get(name, 0.0)

@@ -1,4 +1,4 @@
-"""scripts/rosbag_to_carmen.py against known answers: a simulated robot's raw
+"""scripts/tools/rosbag_to_carmen.py against known answers: a simulated robot's raw
 log turned into ROS 2 bags (sqlite3 and MCAP, plain, zstd and lz4 chunks) by
 this file's own CDR encoder and bag writers, converted back and compared scan
 by scan and by localizing it; the same bags compressed by rosbag2's file and
@@ -25,7 +25,7 @@ import pytest
 lshloc = pytest.importorskip("lshloc")
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-CONVERTER = ROOT / "scripts" / "rosbag_to_carmen.py"
+CONVERTER = ROOT / "scripts" / "tools" / "rosbag_to_carmen.py"
 LASER_SCAN, ODOMETRY, TF_MESSAGE = "sensor_msgs/msg/LaserScan", "nav_msgs/msg/Odometry", "tf2_msgs/msg/TFMessage"
 # The mount put in /tf_static on top of the simulated log's own laser offset.
 MOUNT_SHIFT = (0.0, 0.07, 0.05)

@@ -23,7 +23,7 @@ namespace {
 
 constexpr const char* kBagAdvice =
     "; lshloc reads CARMEN logs: convert the bag with lshloc-rosbag-to-carmen BAG --out run.log.gz "
-    "(scripts/rosbag_to_carmen.py in the source tree)";
+    "(scripts/tools/rosbag_to_carmen.py in the source tree)";
 
 /// What a binary file that users give in place of a text file is, by its
 /// first bytes (empty: none we know).

@@ -12,7 +12,7 @@
 # Writes results/map_store.jsonl (one line per measurement) and prints a table.
 # Environment: LSHLOC (binary), LSHLOC_DATA, SUBMAPS ("15 40 100"), OUT (results/map_store.jsonl).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 LSHLOC=${LSHLOC:-build/bin/lshloc}
 export LSHLOC_DATA=${LSHLOC_DATA:-../shared/data}
 SUBMAPS=${SUBMAPS:-"15 40 100"}

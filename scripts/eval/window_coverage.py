@@ -5,19 +5,19 @@ distance to the nearest corrected pose that the protocol keeps in the map
 (outside the window and GUARD seconds around it), as docs/design.md section 6
 splits a log. Reads the raw log's scan time stamps and the poses file.
 
-    scripts/window_coverage.py aces 3000 [--length 1000] [--guard 60] [--data ../shared/data]
-    scripts/window_coverage.py mit-csail --sweep
+    scripts/eval/window_coverage.py aces 3000 [--length 1000] [--guard 60] [--data ../shared/data]
+    scripts/eval/window_coverage.py mit-csail --sweep
 
 Prints how many window poses lie within 1 m and 2 m of a map pose, and the
 distance of the last one. --sweep: a Markdown table over the 20 evenly spaced
-starts of the start sweep (scripts/sweep.sh starts), with the share within
+starts of the start sweep (scripts/eval/sweep.sh starts), with the share within
 2 m (the live protocol's "mapped") and the nearest any window pose comes.
 --endpoints adds what the map's scans saw, whatever scores them: each window
 ground-truth scan's laser endpoints (ranges under 30 m, at its true pose)
 that lie within one 0.15 m cell of a map scan's endpoint; the table gives
 their median and largest share over the window and how many scans reach 30%.
 
-    scripts/window_coverage.py mit-csail --sweep --endpoints
+    scripts/eval/window_coverage.py mit-csail --sweep --endpoints
 """
 import argparse
 import bisect

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Confident scans of a `lshloc localize` run on a whole raw log, against ground truth.
 
-    scripts/whole_log_truth.py T.tum.csv RAW_LOG CORRECTED_LOG POSES_FILE [--submap NAME]
+    scripts/eval/whole_log_truth.py T.tum.csv RAW_LOG CORRECTED_LOG POSES_FILE [--submap NAME]
 
 T.tum.csv is the CSV that `localize --out T.tum` writes beside the TUM file.
 A confident scan is wrong when it is more than 2 m or 10 degrees off, or in a

@@ -1,14 +1,14 @@
 #!/usr/bin/env python3
 """Fits the localizer's confidence value from per-scan traces and writes its weights.
 
-    scripts/confidence_fit.py --train DIR[,DIR...] [--judge NAME=DIR[,DIR...] ...]
+    scripts/eval/confidence_fit.py --train DIR[,DIR...] [--judge NAME=DIR[,DIR...] ...]
                               [--outside DIR] [--outside-share S] [--write JSON] [--diagram OUT.csv]
 
 The value is P(the estimate is right) = 1 / (1 + exp(-w . f)) over the features that
 src/localization/confidence_value.json names (read from there, so the vector is written once), with one
 weight vector while the flag is down and one while it is up. Each is fitted by logistic regression
 (Newton's method, a small ridge) on the judged scans of the --train traces (`lshloc eval --trace`
-CSVs, e.g. scripts/sweep.sh with TRACE_DIR): every scan with a measured or interpolated truth, or
+CSVs, e.g. scripts/eval/sweep.sh with TRACE_DIR): every scan with a measured or interpolated truth, or
 estimated in another submap; right when in the true submap within 2 m and 10 degrees of a measured
 truth (45 degrees of an interpolated one), as `lshloc calibration` judges. The flag is the trace's
 own (`localized`): the value does not decide it.
@@ -29,7 +29,7 @@ import os
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-VALUE_JSON = os.path.join(HERE, "..", "src", "localization", "confidence_value.json")
+VALUE_JSON = os.path.join(HERE, "..", "..", "src", "localization", "confidence_value.json")
 # The value's features name the localizer's C/N `mean_score`; the estimate schema's column is `score`
 # (traces written before the one schema have `mean_score`).
 ALIASES = {"mean_score": "score"}
@@ -187,7 +187,7 @@ def main():
     if a.write:
         spec["flag_down"] = [round(v, 4) for v in weights[False]]
         spec["flag_up"] = [round(v, 4) for v in weights[True]]
-        spec["fitted_by"] = "scripts/confidence_fit.py " + " ".join(sys.argv[1:])
+        spec["fitted_by"] = "scripts/eval/confidence_fit.py " + " ".join(sys.argv[1:])
         with open(a.write, "w") as f:
             json.dump(spec, f, indent=2)
             f.write("\n")

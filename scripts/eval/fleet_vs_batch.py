@@ -9,7 +9,7 @@ the batch run `eval ... --trace` builds the same map from the logs. The two
 per-scan traces (estimate, truth, error, scores; no timings) are compared byte
 for byte. One JSON line per scenario goes to results/fleet_vs_batch.jsonl,
 and a summary line to stdout; exits 0 only when every trace is the same.
-Usage: LSHLOC=build/bin/lshloc scripts/fleet_vs_batch.py [--buildings fr079,...] [--submaps 1,4,9,15]"""
+Usage: LSHLOC=build/bin/lshloc scripts/eval/fleet_vs_batch.py [--buildings fr079,...] [--submaps 1,4,9,15]"""
 import argparse
 import filecmp
 import json
@@ -19,7 +19,7 @@ import subprocess
 import sys
 import tempfile
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # fleet_test.py
 from fleet_test import LSHLOC, ROOT, Redis, last_json, log  # noqa: E402
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reproduces the end-to-end experiment of RESULTS.md: every line is one
 # `lshloc eval` JSON line, appended to results/<part>.jsonl.
-#   scripts/sweep.sh [PART...]   parts: grid (4 buildings x R in 1 4 9 15),
+#   scripts/eval/sweep.sh [PART...]   parts: grid (4 buildings x R in 1 4 9 15),
 #                                grid_maps (the same with every submap rebuilt
 #                                from its occupancy grid, eval --grid-maps),
 #                                orders (iRANSAC order rules), ablation
@@ -29,13 +29,13 @@
 # `eval --save-map`, and loaded by every later run of the same scenario,
 # e.g. the order rules and the ablation's two hypothesis sources), TRACE_DIR
 # (a directory: each run also writes its per-scan trace there, `eval --trace`,
-# named after its arguments; scripts/confidence_fit.py reads them),
+# named after its arguments; scripts/eval/confidence_fit.py reads them),
 # LSHLOC_SLAM_CACHE (a directory of SLAM poses kept across sweeps; default: one
 # for this sweep alone), BUILDINGS (e.g. "intel mit-csail": only those
 # buildings' runs are redone; the part's other lines in results/ are kept),
 # SEEDS (starts_seeded only, e.g. "2": only those seeded orders are redone).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 LSHLOC=${LSHLOC:-build/bin/lshloc}
 JOBS=${JOBS:-2}
 mkdir -p results

@@ -3,7 +3,7 @@
 # after the other, and prints each run's real time factor, ms per scan, ms
 # per scan by stage and map bytes per feature, for BENCHMARKS.md's
 # side-by-side speed comparisons (issue 21: "measured alternating").
-#   scripts/ab_localizer.sh OLD_LSHLOC NEW_LSHLOC [ROUNDS] [EVAL ARGS...]
+#   scripts/eval/ab_localizer.sh OLD_LSHLOC NEW_LSHLOC [ROUNDS] [EVAL ARGS...]
 # ROUNDS defaults to 3, the scenario to fr079 at R = 15 (what the
 # scale-speed acceptance check times). Compare pairs, not the columns'
 # means: the machines' speed moves between runs.

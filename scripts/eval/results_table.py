@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""Markdown tables of the sweep's JSON lines (scripts/sweep.sh): results/*.jsonl -> stdout."""
+"""Markdown tables of the sweep's JSON lines (scripts/eval/sweep.sh): results/*.jsonl -> stdout."""
 import json
 import statistics
 import sys
 from collections import defaultdict
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent  # git history lives there, wherever results/ is
+REPO = Path(__file__).resolve().parent.parent.parent  # git history lives there, wherever results/ is
 
 
 def load(name):

@@ -3,13 +3,13 @@
 # (the four other logs with ground truth and the eight Radish buildings), so
 # every estimate is wrong: the flag must never rise, and a calibrated
 # confidence value stays near 0. Writes OUT/BUILDING.tum.csv (localize --out)
-# and OUT/BUILDING.json; scripts/confidence_fit.py --unmapped OUT reads them.
+# and OUT/BUILDING.json; scripts/eval/confidence_fit.py --unmapped OUT reads them.
 #
-#   scripts/unmapped_buildings.sh OUT [BUILDING...]     (LSHLOC, LSHLOC_DATA as elsewhere)
+#   scripts/eval/unmapped_buildings.sh OUT [BUILDING...]     (LSHLOC, LSHLOC_DATA as elsewhere)
 set -euo pipefail
-out=${1:?usage: scripts/unmapped_buildings.sh OUT [BUILDING...]}
+out=${1:?usage: scripts/eval/unmapped_buildings.sh OUT [BUILDING...]}
 shift
-here=$(cd "$(dirname "$0")/.." && pwd)
+here=$(cd "$(dirname "$0")/../.." && pwd)
 lshloc=${LSHLOC:-$here/build/bin/lshloc}
 data=${LSHLOC_DATA:-$here/../shared/data}
 [ -d "$data" ] || { echo "unmapped_buildings: no data directory $data" >&2; exit 1; }

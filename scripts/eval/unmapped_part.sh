@@ -9,10 +9,10 @@
 # outright. Writes OUT/BUILDING-HALF-START.{tum,tum.csv,json,judged.json} and
 # prints one line per window with a wrong confident scan, then a summary line.
 #
-#   scripts/unmapped_part.sh OUT [--config FILE] [--windows N] [--length L] [--clearance M]
+#   scripts/eval/unmapped_part.sh OUT [--config FILE] [--windows N] [--length L] [--clearance M]
 #   (LSHLOC, LSHLOC_DATA as elsewhere; JOBS parallel runs, default 2)
 set -euo pipefail
-out=${1:?usage: scripts/unmapped_part.sh OUT [--config FILE] [--windows N] [--length L] [--clearance M]}
+out=${1:?usage: scripts/eval/unmapped_part.sh OUT [--config FILE] [--windows N] [--length L] [--clearance M]}
 shift
 config="" windows=2 length=300 clearance=4
 while [ $# -gt 0 ]; do
@@ -26,7 +26,7 @@ while [ $# -gt 0 ]; do
 done
 [[ $windows =~ ^[1-9][0-9]*$ && $length =~ ^[1-9][0-9]*$ && $clearance =~ ^[0-9]+([.][0-9]+)?$ ]] ||
   { echo "unmapped_part: --windows and --length take positive integers, --clearance metres" >&2; exit 2; }
-here=$(cd "$(dirname "$0")/.." && pwd)
+here=$(cd "$(dirname "$0")/../.." && pwd)
 lshloc=${LSHLOC:-$here/build/bin/lshloc}
 data=${LSHLOC_DATA:-$here/../shared/data}
 [ -d "$data" ] || { echo "unmapped_part: no data directory $data" >&2; exit 1; }

@@ -2,7 +2,7 @@
 # Alternates `lshloc map build` of one log between two executables and prints
 # each run's insert CPU (features, database, grids; `map build --json`'s
 # insert_cpu_s) and their sum, for BENCHMARKS.md's side-by-side comparisons.
-#   scripts/ab_map_build.sh OLD_LSHLOC NEW_LSHLOC [ROUNDS] [LOG]
+#   scripts/eval/ab_map_build.sh OLD_LSHLOC NEW_LSHLOC [ROUNDS] [LOG]
 # ROUNDS defaults to 6, LOG to fr079's corrected log in $LSHLOC_DATA
 # (default ../shared/data). Compare pairs, not the columns' means: the
 # machines' speed moves between runs.

@@ -9,7 +9,7 @@ heading error [deg] and the end-point error [m]. Extra arguments go to
 `lshloc slam` (e.g. --config FILE.json with {"matcher": {"normal_min_points": 4}},
 the mapping default).
 
-    scripts/window_drift.py aces [--per-window] [--lshloc build/bin/lshloc] [--data ../shared/data] [-- --config m.json]
+    scripts/eval/window_drift.py aces [--per-window] [--lshloc build/bin/lshloc] [--data ../shared/data] [-- --config m.json]
 """
 import argparse
 import math

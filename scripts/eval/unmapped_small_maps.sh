@@ -8,10 +8,10 @@
 # Writes OUT/TARGET_in_MAP_START.json (localize --json) and prints one line per
 # flagged window and a summary line.
 #
-#   scripts/unmapped_small_maps.sh OUT [--config FILE] [--windows N] [--length L]
+#   scripts/eval/unmapped_small_maps.sh OUT [--config FILE] [--windows N] [--length L]
 #   (LSHLOC, LSHLOC_DATA as elsewhere; JOBS parallel runs, default 2)
 set -euo pipefail
-out=${1:?usage: scripts/unmapped_small_maps.sh OUT [--config FILE] [--windows N] [--length L]}
+out=${1:?usage: scripts/eval/unmapped_small_maps.sh OUT [--config FILE] [--windows N] [--length L]}
 shift
 config="" windows=6 length=300
 while [ $# -gt 0 ]; do
@@ -24,7 +24,7 @@ while [ $# -gt 0 ]; do
 done
 [[ $windows =~ ^[1-9][0-9]*$ && $length =~ ^[1-9][0-9]*$ ]] ||
   { echo "unmapped_small_maps: --windows and --length take positive integers" >&2; exit 2; }
-here=$(cd "$(dirname "$0")/.." && pwd)
+here=$(cd "$(dirname "$0")/../.." && pwd)
 lshloc=${LSHLOC:-$here/build/bin/lshloc}
 data=${LSHLOC_DATA:-$here/../shared/data}
 [ -d "$data" ] || { echo "unmapped_small_maps: no data directory $data" >&2; exit 1; }
