@@ -4,6 +4,7 @@ written here with the rosbag API from a simulated building (known truth):
 - /initialpose in frame "map" within 0.5 m and 5 degrees of the true robot pose, ~status every scan;
 - a bag with NaN ranges and a scan whose frame tf cannot resolve, then a second bag of the run 500 s earlier with
   its sweeps reversed (the clock runs back): the node stays up, starts over and announces the pose again;
+- odometry from a nav_msgs/Odometry topic instead of tf: the same answer;
 - ROS occupancy grids as the map (ray-cast with the robot's laser at its first scan): the same answer;
 - a map that cannot be loaded: the node stays up and each status says why.
 Usage: ros_node_test.py NODE LSHLOC   (Debian's /usr/bin/python3: rospy and rosbag)"""
@@ -20,6 +21,7 @@ env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="
 os.environ.update(env)
 import rosbag, rospy  # noqa: E402 (after the environment names the master)
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
 from sensor_msgs.msg import LaserScan  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
@@ -63,6 +65,11 @@ def write_bag(path, scans, faults=False, shift=0.0):
         # The log's odometry is the laser's: base_link sits MOUNT behind it.
         bx, by = ox - MOUNT * math.cos(oth), oy - MOUNT * math.sin(oth)
         bag.write("/tf", TFMessage([transform(st, "odom", "base_link", bx, by, oth)]), st)
+        odom = Odometry()
+        odom.header.stamp, odom.header.frame_id, odom.child_frame_id = st, "odom", "base_link"
+        odom.pose.pose.position.x, odom.pose.pose.position.y = bx, by
+        odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = math.sin(oth / 2), math.cos(oth / 2)
+        bag.write("/odom", odom, st)
         s = LaserScan()
         s.header.stamp = st
         s.header.frame_id = "no_such_frame" if faults and i == 30 else "laser"
@@ -101,10 +108,10 @@ def stop_all():
     procs.clear()
 
 
-def run_node(maps, bags, name):
+def run_node(maps, bags, name, *params):
     """Starts the node on `maps`, plays `bags` one after the other with --clock, returns what it published."""
     seen = dict(initialposes=[], status=[])
-    node = start([NODE, f"_maps:={maps}", "__name:=lshloc"], os.path.join(work, name + ".node.log"))
+    node = start([NODE, f"_maps:={maps}", "__name:=lshloc", *params], os.path.join(work, name + ".node.log"))
     subs = [rospy.Subscriber("/initialpose", PoseWithCovarianceStamped, lambda m: seen["initialposes"].append(m),
                              queue_size=100),
             rospy.Subscriber("/lshloc/status", String, lambda m: seen["status"].append(json.loads(m.data)),
@@ -182,6 +189,12 @@ try:
     last = right["status"][-1]
     if not (last.get("confident") and last.get("submap") == "sim-3-001-corrected.log.gz"):
         fail(f"last status: {last}")
+
+    # Odometry from nav_msgs/Odometry (~odom_topic) instead of tf: the same answer.
+    topic = run_node(mapfile, [os.path.join(work, "right.bag")], "topic", "_odom_topic:=odom")
+    topic_errors = [off(m) for m in topic["initialposes"]]
+    if not topic["alive"] or not topic_errors or not all(e[0] <= 0.5 and e[1] <= 5 for e in topic_errors):
+        fail(f"odometry from ~odom_topic: /initialpose off by {topic_errors}; last status {topic['status'][-1:]}")
 
     faults = run_node(mapfile, [os.path.join(work, "faults.bag"), os.path.join(work, "earlier.bag")], "faults")
     first = [m for m in faults["initialposes"] if m.header.stamp.to_sec() > scans[0][0] - 100]

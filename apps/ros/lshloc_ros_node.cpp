@@ -3,13 +3,17 @@
 // tf go in, /initialpose (what AMCL and nav2 take), ~pose, ~status, ~submap
 // and optionally map -> odom come out. What it asks of lshloc is NodeCore
 // (node_core.hpp); this file is C++17, as ROS 1's message headers need.
+#include <algorithm>
 #include <cmath>
+#include <deque>
+#include <iterator>
 #include <map>
 #include <string>
 #include <vector>
 
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/Odometry.h>
 #include <ros/ros.h>
 #include <sensor_msgs/LaserScan.h>
 #include <std_msgs/String.h>
@@ -59,6 +63,7 @@ class LshlocNode {
     pnh_.param<std::string>("base_frame", base_frame_, "base_link");
     pnh_.param("publish_tf", publish_tf_, false);
     pnh_.param("transform_tolerance", transform_tolerance_s_, 0.1);
+    pnh_.param<std::string>("odom_topic", odom_topic_, "");
     std::string config_file;
     pnh_.param<std::string>("config", config_file, "");
     initialpose_ = nh_.advertise<geometry_msgs::PoseWithCovarianceStamped>("initialpose", 2);
@@ -72,6 +77,7 @@ class LshlocNode {
       ROS_INFO("lshloc: map of %s", core_.map_summary().c_str());
     else  // the node keeps serving: each scan's status says why it cannot localize
       ROS_ERROR("lshloc: no map: %s", map_error_.c_str());
+    if (!odom_topic_.empty()) odometry_ = nh_.subscribe(odom_topic_, 100, &LshlocNode::on_odometry, this);
     scans_ = nh_.subscribe("scan", 5, &LshlocNode::on_scan, this);
     global_localization_ = pnh_.advertiseService("global_localization", &LshlocNode::on_global_localization, this);
   }
@@ -102,6 +108,38 @@ class LshlocNode {
     }
   }
 
+  void on_odometry(const nav_msgs::Odometry::ConstPtr& msg) {
+    const auto& p = msg->pose.pose;
+    geometry_msgs::Transform t;
+    t.translation.x = p.position.x, t.translation.y = p.position.y, t.rotation = p.orientation;
+    // A stamp running back (a bag looped) empties the history, as tf does.
+    if (!odometry_history_.empty() && msg->header.stamp < odometry_history_.back().first) odometry_history_.clear();
+    odometry_history_.emplace_back(msg->header.stamp, pose_of(t));
+    while (odometry_history_.size() > 200) odometry_history_.pop_front();
+  }
+
+  /// ~odom_topic's pose at `stamp`: interpolated between the messages around it (at most 0.5 s apart), or
+  /// the nearest within 0.1 s.
+  bool odometry_at(const ros::Time& stamp, PlainPose& out) {
+    const auto after = std::find_if(odometry_history_.begin(), odometry_history_.end(),
+                                    [&](const auto& m) { return m.first >= stamp; });
+    if (after != odometry_history_.end() && after != odometry_history_.begin()) {
+      const auto& [t1, b] = *after;
+      const auto& [t0, a] = *std::prev(after);
+      const double span = (t1 - t0).toSec(), f = span > 0.0 ? (stamp - t0).toSec() / span : 0.0;
+      if (span <= 0.5) {
+        out = {a.x + f * (b.x - a.x), a.y + f * (b.y - a.y),
+               a.theta + f * std::remainder(b.theta - a.theta, 2.0 * M_PI)};
+        return true;
+      }
+    }
+    for (const auto& [t, pose] : odometry_history_)
+      if (std::abs((t - stamp).toSec()) <= 0.1) return out = pose, true;
+    ROS_WARN_THROTTLE(5.0, "lshloc: no %s message within 0.1 s of the scan at %.3f s; scan skipped",
+                      odom_topic_.c_str(), stamp.toSec());
+    return false;
+  }
+
   /// The laser's pose on the robot at the scan's stamp; a frame resolved once keeps its mount when tf cannot
   /// say it again (a static transform lost when tf cleared its buffer on time running back).
   bool laser_mount(const sensor_msgs::LaserScan& msg, PlainPose& mount) {
@@ -121,7 +159,9 @@ class LshlocNode {
     PlainPose odom, mount;
     if (!map_error_.empty()) {
       status.data = lshloc::ros_node::NodeCore::error_status(stamp, "no map: " + map_error_);
-    } else if (!lookup(odom_frame_, base_frame_, msg->header.stamp, odom) || !laser_mount(*msg, mount)) {
+    } else if (!(odom_topic_.empty() ? lookup(odom_frame_, base_frame_, msg->header.stamp, odom)
+                                     : odometry_at(msg->header.stamp, odom)) ||
+               !laser_mount(*msg, mount)) {
       status.data = lshloc::ros_node::NodeCore::error_status(
           stamp, "no transform of the scan's frame '" + msg->header.frame_id + "' to " + odom_frame_);
     } else {
@@ -185,9 +225,10 @@ class LshlocNode {
   tf2_ros::TransformListener listener_;
   tf2_ros::TransformBroadcaster broadcaster_;
   ros::Publisher initialpose_, pose_, status_, submap_;
-  ros::Subscriber scans_;
+  ros::Subscriber scans_, odometry_;
   ros::ServiceServer global_localization_;
-  std::string global_frame_, odom_frame_, base_frame_, map_error_;
+  std::string global_frame_, odom_frame_, base_frame_, odom_topic_, map_error_;
+  std::deque<std::pair<ros::Time, PlainPose>> odometry_history_;  ///< ~odom_topic's newest messages
   bool publish_tf_ = false;
   double transform_tolerance_s_ = 0.1;
   std::map<std::string, PlainPose> mounts_;  ///< the laser mount of each scan frame resolved so far
