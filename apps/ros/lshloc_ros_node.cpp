@@ -92,8 +92,16 @@ class LshlocNode {
   /// The transform parent <- child at `stamp`, waiting a little for tf to catch up.
   bool lookup(const std::string& parent, const std::string& child, const ros::Time& stamp, PlainPose& out,
               bool warn = true) {
+    // Waits up to 0.2 s of wall time for tf to catch up: a sim clock that stopped (a bag at its end) never
+    // ends a wait counted in ROS time.
     std::string why;
-    if (!tf_.canTransform(parent, child, stamp, ros::Duration(warn ? 0.2 : 0.0), &why)) {
+    const ros::WallTime give_up = ros::WallTime::now() + ros::WallDuration(warn ? 0.2 : 0.0);
+    bool known = tf_.canTransform(parent, child, stamp, &why);
+    while (!known && ros::ok() && ros::WallTime::now() < give_up) {
+      ros::WallDuration(0.005).sleep();
+      known = tf_.canTransform(parent, child, stamp, &why);
+    }
+    if (!known) {
       if (warn)
         ROS_WARN_THROTTLE(5.0, "lshloc: no transform %s -> %s at %.3f s: %s; scan skipped", parent.c_str(),
                           child.c_str(), stamp.toSec(), why.c_str());
