@@ -40,33 +40,42 @@ LocalizationSession::LocalizationSession(const GlobalMap& map, const SessionConf
       map_mutex_(map_mutex) {
   config_.validate();
   if (!odometry) localizer_config_.scan_matcher.odometry = false;
+  std::shared_lock<std::shared_mutex> reading;
+  if (map_mutex_) reading = std::shared_lock<std::shared_mutex>(*map_mutex_);
   localizer_ = std::make_unique<Localizer>(map_, localizer_config_);
 }
 
 LocalizationSession::~LocalizationSession() = default;
 
 void LocalizationSession::restart() {
+  std::shared_lock<std::shared_mutex> reading;
+  if (map_mutex_) reading = std::shared_lock<std::shared_mutex>(*map_mutex_);
+  start_over();
+}
+
+void LocalizationSession::start_over() {
   localizer_ = std::make_unique<Localizer>(map_, localizer_config_);
   any_scan_ = false;
   ++stats_.restarts;
 }
 
 LocalizationEstimate LocalizationSession::add_scan(const LaserScan& scan, const Look& look) {
+  // The map's lock first: a new localizer reads the map too.
+  std::shared_lock<std::shared_mutex> reading;
+  if (map_mutex_) reading = std::shared_lock<std::shared_mutex>(*map_mutex_);
   last_restart_ = SessionRestart::kNone;
   if (any_scan_ && newest_stamp_ - scan.timestamp >= config_.restart_after_time_back_s) {
-    restart();
+    start_over();
     ++stats_.time_back_restarts;
     last_restart_ = SessionRestart::kTimeWentBack;
   } else if (any_scan_ && scan.timestamp - newest_stamp_ >= config_.restart_after_gap_s) {
-    restart();
+    start_over();
     ++stats_.gap_restarts;
     last_restart_ = SessionRestart::kGap;
   }
   newest_stamp_ = any_scan_ ? std::max(newest_stamp_, scan.timestamp) : scan.timestamp;
   any_scan_ = true;
   ++stats_.scans;
-  std::shared_lock<std::shared_mutex> reading;
-  if (map_mutex_) reading = std::shared_lock<std::shared_mutex>(*map_mutex_);
   LocalizationEstimate estimate = localizer_->add_scan(scan);
   if (look) look(*localizer_, estimate);
   return estimate;

@@ -87,6 +87,8 @@ class LocalizationSession {
   const SessionStats& stats() const { return stats_; }
 
  private:
+  void start_over();  ///< restart() with the map's lock held
+
   const GlobalMap& map_;
   SessionConfig config_;
   LocalizerConfig localizer_config_;
