@@ -384,12 +384,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   }
   e.stable = stable;
   e.supported = supported(*best);
-  bool whole_map_known = false;
   const auto score_whole_map = [&] {
-    if (whole_map_known || cc.whole_map_points == 0) return;
+    if (e.whole_map_scored || cc.whole_map_points == 0) return;
     const std::size_t taken = sample.take_spread(cc.whole_map_points);
-    whole_map_known = taken > 0;
-    e.whole_map_scored = whole_map_known;
+    e.whole_map_scored = taken > 0;
     if (taken > 0) {
       const std::array<Hypothesis, 2> pair{*reported_, standing ? standing->hypothesis : *reported_};
       sample.score(std::span(pair).first(standing ? 2 : 1), sums_);
@@ -414,10 +412,10 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
       newest_known && e.newest_lead >= cc.min_newest_fit;
   if (weak_candidate || relative_candidate) score_whole_map();
   // A lead is evidence for the place only where the place itself explains the whole local map.
-  const auto fits_whole_map = [&] { return whole_map_known && e.whole_map_fit >= cc.min_margin; };
+  const auto fits_whole_map = [&] { return e.whole_map_scored && e.whole_map_fit >= cc.min_margin; };
   const bool weakly_supported =
-      whole_map_known && ((weak_candidate && e.whole_map_lead >= cc.min_margin) ||
-                          (relative_candidate && e.whole_map_lead >= cc.min_whole_map_lead && fits_whole_map()));
+      e.whole_map_scored && ((weak_candidate && e.whole_map_lead >= cc.min_margin) ||
+                             (relative_candidate && e.whole_map_lead >= cc.min_whole_map_lead && fits_whole_map()));
   weakly_supported_place_ = kept && (weakly_supported_place_ || weakly_supported);
   t.supported = e.supported || weakly_supported;
   t.stable = stable;
@@ -430,7 +428,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   const bool lead_decides = t.stable && t.newest_fits && t.supported;
   if (lead_decides && (!margin_passes || young_rival)) score_whole_map();
   if (margin_passes) {
-    t.unrivalled = !young_rival || !lead_decides || (whole_map_known && e.whole_map_lead >= cc.min_margin);
+    t.unrivalled = !young_rival || !lead_decides || (e.whole_map_scored && e.whole_map_lead >= cc.min_margin);
   } else {
     const double lead = young_rival ? cc.strong_lead : cc.min_whole_map_lead;
     const bool paired =
@@ -451,7 +449,7 @@ LocalizationEstimate ReportPolicy::report(std::optional<ScoredHypothesis> best,
   t.once_supported = reported_supported_ || weakly_supported_place_;
   t.not_contradicted = contradiction <= cc.hold_max_contradiction &&
                        mean_contradiction_ <= cc.hold_max_mean_contradiction &&
-                       (!whole_map_known || e.whole_map_fit >= 0.0);
+                       (!e.whole_map_scored || e.whole_map_fit >= 0.0);
   const bool was_up = flag_;
   flag_ = t.rises() || (was_up && t.holds());
   e.localized = flag_;
